@@ -1,0 +1,40 @@
+// Triangle meshes read from disk with assimp: the shapes of the scene's objects.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <filesystem>
+#include <stdexcept>
+#include <vector>
+
+namespace sim {
+
+// A missing, unreadable or unusable mesh file. what() is one line: "<file>: <what is wrong>".
+class MeshError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3d> vertices;        // metres, in the mesh's own frame
+  std::vector<std::array<int, 3>> triangles;    // vertex indices, counter-clockwise from outside
+};
+
+// Reads every mesh of the file (node transforms applied), triangulated, with identical
+// vertices joined. Throws MeshError when the file is missing, assimp cannot parse it, it
+// holds no triangles, or a coordinate is not finite.
+TriangleMesh load_mesh(const std::filesystem::path& path);
+
+struct MeshStats {
+  std::size_t triangle_count = 0;
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();
+  Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
+  double area_m2 = 0.0;
+  // closed: every edge is shared by exactly two triangles; oriented: and in opposite directions
+  bool closed = false;
+  bool consistently_oriented = false;
+};
+
+MeshStats mesh_stats(const TriangleMesh& mesh);
+
+}  // namespace sim

@@ -1,0 +1,158 @@
+#include "servo/pattern/marray.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "servo/pattern/pattern_file.hpp"
+
+namespace pattern {
+namespace {
+
+TEST(GenerateMArray, PaperPatternHasTheWindowProperty) {
+  GenerationParams p;  // 20 x 20, k = 3, 3 x 3
+  const GenerationResult r = generate_marray(p);
+  ASSERT_TRUE(r.array) << r.failure;
+  EXPECT_EQ(r.array->rows, 20);
+  EXPECT_EQ(r.array->cols, 20);
+  for (auto c : r.array->cells) EXPECT_LT(c, 3);
+  const auto rep = check_window_property(*r.array, {3, 3});
+  EXPECT_TRUE(rep.holds);
+  EXPECT_EQ(rep.total_windows, 18 * 18);
+  EXPECT_EQ(rep.distinct_windows, 18 * 18);
+  EXPECT_GE(rep.min_hamming, 1);
+}
+
+TEST(GenerateMArray, SameSeedSamePatternOtherSeedOtherPattern) {
+  GenerationParams p;
+  p.seed = 7;
+  const auto a = generate_marray(p);
+  const auto b = generate_marray(p);
+  p.seed = 8;
+  const auto c = generate_marray(p);
+  ASSERT_TRUE(a.array && b.array && c.array);
+  EXPECT_EQ(*a.array, *b.array);
+  EXPECT_NE(*a.array, *c.array);
+}
+
+TEST(GenerateMArray, UsesEveryColourRoughlyEvenly) {
+  GenerationParams p;
+  const auto r = generate_marray(p);
+  ASSERT_TRUE(r.array);
+  std::map<int, int> count;
+  for (auto c : r.array->cells) ++count[c];
+  ASSERT_EQ(count.size(), 3u);
+  for (auto [colour, n] : count) EXPECT_GT(n, 80) << "colour " << colour;
+}
+
+TEST(GenerateMArray, HonoursMinimumHammingDistance) {
+  GenerationParams p;
+  p.min_hamming = 2;
+  const auto r2 = generate_marray(p);
+  ASSERT_TRUE(r2.array) << r2.failure;
+  EXPECT_GE(check_window_property(*r2.array, {3, 3}).min_hamming, 2);
+  p.rows = p.cols = 14;  // distance 3 (one error correctable) is within brute force's reach here
+  p.min_hamming = 3;
+  const auto r = generate_marray(p);
+  ASSERT_TRUE(r.array) << r.failure;
+  EXPECT_GE(check_window_property(*r.array, {3, 3}).min_hamming, 3);
+}
+
+TEST(GenerateMArray, Reaches64x64WithThreeColours) {
+  GenerationParams p;
+  p.rows = p.cols = 64;
+  const auto r = generate_marray(p);
+  ASSERT_TRUE(r.array) << r.failure;
+  EXPECT_TRUE(check_window_property(*r.array, {3, 3}).holds);
+}
+
+TEST(GenerateMArray, ImpossibleRequestFailsAtOnceWithAReason) {
+  GenerationParams p;
+  p.rows = p.cols = 200;  // 198^2 = 39204 windows > 3^9 = 19683 codes
+  const auto r = generate_marray(p);
+  EXPECT_FALSE(r.array);
+  EXPECT_NE(r.failure.find("cannot be satisfied"), std::string::npos) << r.failure;
+}
+
+TEST(GenerateMArray, HammingBoundRejectsTooManyWindows) {
+  GenerationParams p;
+  p.rows = p.cols = 40;
+  p.min_hamming = 5;  // balls of radius 2 hold 163 codes: 38^2 * 163 > 19683
+  const auto r = generate_marray(p);
+  EXPECT_FALSE(r.array);
+  EXPECT_NE(r.failure.find("cannot be satisfied"), std::string::npos) << r.failure;
+}
+
+TEST(GenerateMArray, HardRequestStopsWithinItsTimeBudget) {
+  GenerationParams p;
+  p.rows = p.cols = 20;
+  p.min_hamming = 4;  // passes the sphere-packing bound but is far beyond brute force
+  p.time_budget_s = 0.5;
+  const auto r = generate_marray(p);
+  EXPECT_FALSE(r.array);
+  EXPECT_NE(r.failure.find("time budget"), std::string::npos) << r.failure;
+}
+
+TEST(GenerateMArray, MalformedParametersThrowNamingTheValue) {
+  GenerationParams p;
+  p.colours = 11;
+  EXPECT_THROW(generate_marray(p), std::invalid_argument);
+  p = {};
+  p.rows = 2;
+  try {
+    generate_marray(p);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("2 x 20"), std::string::npos) << e.what();
+  }
+  p = {};
+  p.min_hamming = 0;
+  EXPECT_THROW(generate_marray(p), std::invalid_argument);
+}
+
+TEST(CheckWindowProperty, FindsARepeatAndItsPlaces) {
+  MArray a{4, 4, 2, std::vector<std::uint8_t>(16, 0)};
+  const auto rep = check_window_property(a, {2, 2});
+  EXPECT_FALSE(rep.holds);
+  EXPECT_EQ(rep.distinct_windows, 1);
+  EXPECT_EQ(rep.total_windows, 9);
+  EXPECT_EQ(rep.min_hamming, 0);
+  ASSERT_TRUE(rep.repeat);
+}
+
+TEST(CheckWindowProperty, PapersBinaryExampleIsAPerfectSubmap) {
+  // the 4 x 6 binary M-array with 2 x 2 window property of the paper's eq. (1)
+  const MArray a = parse_marray("011110\n001100\n010010\n011110\n", "eq1", 2);
+  const auto rep = check_window_property(a, {2, 2});
+  EXPECT_TRUE(rep.holds);
+  EXPECT_EQ(rep.total_windows, 15);
+}
+
+// The committed pattern is exactly what the recorded parameters generate.
+TEST(CommittedPattern, RegeneratesBitForBit) {
+  const std::string dir = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/";
+  std::ifstream params(dir + "marray_20x20_k3_w3.params");
+  ASSERT_TRUE(params) << "missing parameter file";
+  GenerationParams p;
+  std::string key;
+  while (params >> key) {
+    if (key == "rows:") params >> p.rows;
+    else if (key == "cols:") params >> p.cols;
+    else if (key == "colours:") params >> p.colours;
+    else if (key == "window:") { params >> p.window.rows; p.window.cols = p.window.rows; }
+    else if (key == "min_hamming:") params >> p.min_hamming;
+    else if (key == "seed:") params >> p.seed;
+    else { std::string skip; std::getline(params, skip); }
+  }
+  const auto r = generate_marray(p);
+  ASSERT_TRUE(r.array) << r.failure;
+  std::ifstream committed(dir + "marray_20x20_k3_w3.txt", std::ios::binary);
+  std::stringstream text;
+  text << committed.rdbuf();
+  EXPECT_EQ(format_marray(*r.array), text.str());
+}
+
+}  // namespace
+}  // namespace pattern

@@ -1,0 +1,85 @@
+#include "sim/scene/triangle_mesh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace sim {
+namespace {
+
+const std::string kMeshes = std::string(CELL_SOURCE_DIR) + "/meshes/";
+
+std::string error_of(const std::filesystem::path& p) {
+  try {
+    load_mesh(p);
+  } catch (const MeshError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Meshes, PlaneIsA2_4MetreWall) {
+  const MeshStats s = mesh_stats(load_mesh(kMeshes + "plane.obj"));
+  EXPECT_EQ(s.triangle_count, 2u * 12 * 12);
+  EXPECT_NEAR(s.bbox_max.x() - s.bbox_min.x(), 2.4, 1e-6);
+  EXPECT_NEAR(s.bbox_max.y() - s.bbox_min.y(), 2.4, 1e-6);
+  EXPECT_NEAR(s.bbox_max.z() - s.bbox_min.z(), 0.0, 1e-9);
+  EXPECT_NEAR(s.area_m2, 2.4 * 2.4, 1e-6);
+  EXPECT_FALSE(s.closed);  // a wall is a sheet
+}
+
+TEST(Meshes, EllipticCylinderIsClosedWithItsStatedAxes) {
+  const MeshStats s = mesh_stats(load_mesh(kMeshes + "elliptic_cylinder.obj"));
+  EXPECT_TRUE(s.closed);
+  EXPECT_TRUE(s.consistently_oriented);
+  EXPECT_NEAR(s.bbox_max.x(), 0.20, 1e-6);
+  EXPECT_NEAR(s.bbox_min.x(), -0.20, 1e-6);
+  EXPECT_NEAR(s.bbox_max.y(), 0.10, 1e-4);
+  EXPECT_NEAR(s.bbox_max.z() - s.bbox_min.z(), 0.60, 1e-6);
+  EXPECT_GT(s.triangle_count, 1000u);
+}
+
+TEST(Meshes, HamIsClosedAsymmetricWithANarrowShank) {
+  const TriangleMesh m = load_mesh(kMeshes + "ham.obj");
+  const MeshStats s = mesh_stats(m);
+  EXPECT_TRUE(s.closed);
+  EXPECT_TRUE(s.consistently_oriented);
+  EXPECT_NEAR(s.bbox_max.z() - s.bbox_min.z(), 0.45, 1e-6);
+  // not an ellipsoid: flatter below (-Y) than above, and the shank is much thinner than the bulb
+  EXPECT_GT(s.bbox_max.y(), -s.bbox_min.y() * 1.3);
+  double bulb = 0, shank = 0;
+  for (const auto& v : m.vertices) {
+    if (std::abs(v.z() - 0.14) < 0.01) bulb = std::max(bulb, std::abs(v.y()));
+    if (std::abs(v.z() - 0.38) < 0.01) shank = std::max(shank, std::abs(v.y()));
+  }
+  EXPECT_GT(bulb, 2.0 * shank);
+}
+
+TEST(Meshes, MissingFileIsOneLineNamingIt) {
+  const std::string e = error_of("/nonexistent/wall.obj");
+  EXPECT_EQ(e, "/nonexistent/wall.obj: mesh file not found");
+}
+
+TEST(Meshes, CorruptFileIsOneLineNamingIt) {
+  const auto path = std::filesystem::temp_directory_path() / "triangle_mesh_test_corrupt.obj";
+  std::ofstream(path) << "v 0 0 0\nv 1 0 0\nf 1 2 9\n";  // face refers to a vertex that does not exist
+  const std::string e = error_of(path);
+  EXPECT_EQ(e.rfind(path.string() + ": ", 0), 0u) << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+
+  const auto junk = std::filesystem::temp_directory_path() / "triangle_mesh_test_junk.ply";
+  std::ofstream(junk, std::ios::binary) << "ply\nformat binary_little_endian 1.0\nelement vertex 999\n\x01\x02";
+  const std::string j = error_of(junk);
+  EXPECT_EQ(j.rfind(junk.string() + ": ", 0), 0u) << j;
+}
+
+TEST(Meshes, NonFiniteVertexIsRejected) {
+  const auto path = std::filesystem::temp_directory_path() / "triangle_mesh_test_nan.obj";
+  std::ofstream(path) << "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n";
+  const std::string e = error_of(path);
+  EXPECT_EQ(e.rfind(path.string() + ": ", 0), 0u) << e;
+}
+
+}  // namespace
+}  // namespace sim

@@ -1,0 +1,31 @@
+// Rigid motions: poses are Eigen::Isometry3d named aTb (pose of frame b in frame a);
+// twists are (v, w) in metres/second and radians/second, expressed in the moving frame.
+#pragma once
+
+#include <Eigen/Geometry>
+
+namespace sim {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+// Exponential map of se(3): the rigid motion reached after moving with the constant
+// body-frame twist (v, w) for one unit of time. Exact (Rodrigues + the V matrix), with
+// Taylor series below |w| = 1e-6 so a pure translation stays exact.
+Eigen::Isometry3d se3_exp(const Vector6d& twist);
+
+// Inverse of se3_exp (the twist that reaches T in unit time), for tests and error metrics.
+Vector6d se3_log(const Eigen::Isometry3d& T);
+
+// Pose from translation (metres) and intrinsic rotations about X, then Y, then Z (radians):
+// T = Trans(x, y, z) * Rx(rx) * Ry(ry) * Rz(rz).
+Eigen::Isometry3d pose_from_xyz_rxyz(double x, double y, double z, double rx, double ry, double rz);
+
+// Camera pose looking from `eye` towards `target`, optical frame (x right, y down, z forward),
+// with image "up" as close as possible to `up`.
+Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up);
+
+// Translation distance (m) and rotation angle (rad) between two poses.
+double translation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
+double rotation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
+
+}  // namespace sim

@@ -1,0 +1,42 @@
+#include "sim/render/cell.hpp"
+
+#include <cmath>
+#include <random>
+
+#include "servo/pattern/pattern_file.hpp"
+
+namespace sim {
+
+std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
+  auto cell = std::make_unique<Cell>();
+  cell->scenario = scenario;
+  for (const ObjectSpec& o : scenario.objects)
+    cell->world.add_object(load_mesh(o.mesh), o.world_T_object, o.albedo);
+  cell->triangles = collect_triangles(cell->world);
+
+  pattern::MArray marray = pattern::load_pattern(scenario.projector.pattern, {3, 3});
+  cell->projector = std::make_unique<Projector>(scenario.projector, std::move(marray));
+  cell->camera = std::make_unique<CameraModel>(scenario.camera.intrinsics, scenario.camera.distortion);
+
+  rasterize(cell->triangles, cell->projector->projector_T_world(), scenario.projector.intrinsics, 0,
+            cell->projector_depth);
+  cell->spot_hits = cell->projector->cast_spots(cell->world);
+
+  // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it
+  const Intrinsics& k = scenario.camera.intrinsics;
+  const auto& rays = cell->camera->pixel_rays();
+  double excess = 0;
+  for (std::size_t i = 0; i < rays.size(); i += 2) {
+    const double u = k.fx * rays[i] + k.cx, v = k.fy * rays[i + 1] + k.cy;
+    excess = std::max({excess, -u, -v, u - (k.width - 1), v - (k.height - 1)});
+  }
+  cell->camera_margin_px = static_cast<int>(std::ceil(std::min(excess, 4.0 * k.width))) + 2;
+
+  std::mt19937_64 rng(scenario.seed);
+  std::normal_distribution<float> gauss(0.f, 1.f);
+  cell->noise_pool.resize(std::size_t{1} << 21);  // 8 MB, 2.2 VGA frames of values
+  for (float& x : cell->noise_pool) x = gauss(rng);
+  return cell;
+}
+
+}  // namespace sim

@@ -1,0 +1,35 @@
+// A robot cell built from a scenario: the world, the projector and what it lights, the
+// camera's lens. Everything a frame depends on except the camera pose.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "sim/render/camera_model.hpp"
+#include "sim/render/projector.hpp"
+#include "sim/render/rasterizer.hpp"
+#include "sim/scenario/scenario.hpp"
+#include "sim/scene/world.hpp"
+
+namespace sim {
+
+struct Cell {
+  Scenario scenario;
+  World world;
+  SceneTriangles triangles;
+  std::unique_ptr<Projector> projector;
+  std::unique_ptr<CameraModel> camera;
+  // static while the world is: the projector's view (its shadow map) and its spots' hits
+  DepthBuffer projector_depth;
+  std::vector<SpotHit> spot_hits;
+  int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees
+  // unit-variance Gaussian samples drawn once from the scenario seed; each frame reads
+  // them from seeded random offsets (one load per pixel value instead of a draw)
+  std::vector<float> noise_pool;
+};
+
+// Loads meshes and the pattern named by the scenario. Throws MeshError or
+// pattern::PatternFileError (one line naming the file) when one is unusable.
+std::unique_ptr<Cell> build_cell(const Scenario& scenario);
+
+}  // namespace sim

@@ -1,0 +1,59 @@
+// The camera's image of the cell: what a colour camera on the end-effector would see of the
+// projected pattern. A pure function of the cell, the camera pose and a noise seed.
+//
+// Per pixel: the ray through the (distorted) lens meets the nearest surface (z-buffer);
+// the surface point is projected into the projector (projective texturing, as the projector
+// is an inverse camera) and lit if the projector sees it (shadow map); the spot disc it falls
+// in gives colour x albedo x incidence cosine x inverse-square falloff, blurred by the
+// projector's defocus at that depth; dim ambient light shows the scene; the sensor adds
+// channel crosstalk, exposure, read and shot noise, and 8-bit quantisation.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "sim/render/cell.hpp"
+
+namespace sim {
+
+// The image region (inclusive pixel bounds) one spot can light on one object.
+struct SpotBox {
+  int spot = 0;          // index into Cell::spot_hits
+  double reach_px = 0;   // on the projector's plane, how far from the spot centre light reaches
+  int u0 = 0, v0 = 0, u1 = -1, v1 = -1;
+};
+
+// Buffers reused from frame to frame (pass the same one to avoid reallocating).
+struct RenderScratch {
+  DepthBuffer camera_depth;
+  std::vector<float> radiance;  // linear RGB, 1 = full scale at exposure 1
+  std::vector<SpotBox> boxes;
+  std::vector<Eigen::Vector3d> normal_c;  // triangle planes in the camera frame
+  std::vector<double> offset_c;
+};
+
+// RGB8 image (channel order R, G, B), camera resolution. `noise_seed` fixes every random
+// draw of the frame: the same seed gives a byte-identical image.
+cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
+                     RenderScratch* scratch = nullptr);
+
+// Ground truth for one spot (pattern row, col).
+struct SpotTruth {
+  int row = 0, col = 0;
+  bool visible = false;            // lit, facing the camera, unoccluded, inside the image
+  Eigen::Vector2d uv{0, 0};        // distorted image position of the centre hit (pixels)
+  double depth_m = 0;              // Z of the centre hit in the camera frame
+  Eigen::Vector3d point_w{0, 0, 0};
+  std::vector<Eigen::Vector2d> footprint_px;  // projected rim hits on the same object
+};
+
+// One entry per pattern spot, row-major. Visibility from a Bullet ray from the camera to
+// the spot's centre hit.
+std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera);
+
+// Mixes a frame index into a scenario seed (splitmix64), for per-frame noise seeds.
+std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame);
+
+}  // namespace sim

@@ -1,0 +1,28 @@
+#include "sim/robot/robot.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace sim {
+
+FreeFlyingCamera::FreeFlyingCamera(const Eigen::Isometry3d& world_T_camera, double max_linear_mps,
+                                   double max_angular_radps)
+    : world_T_camera_(world_T_camera), max_linear_mps_(max_linear_mps), max_angular_radps_(max_angular_radps) {
+  if (!(max_linear_mps > 0) || !(max_angular_radps > 0))
+    throw std::invalid_argument("FreeFlyingCamera: velocity limits must be positive");
+}
+
+Vector6d FreeFlyingCamera::apply_twist(const Vector6d& twist_c, double dt_s) {
+  if (!twist_c.allFinite() || !std::isfinite(dt_s) || dt_s < 0)
+    throw std::invalid_argument("FreeFlyingCamera::apply_twist: twist and dt must be finite (dt >= 0)");
+  Vector6d applied = twist_c;
+  for (int i = 0; i < 3; ++i) applied[i] = std::clamp(applied[i], -max_linear_mps_, max_linear_mps_);
+  for (int i = 3; i < 6; ++i) applied[i] = std::clamp(applied[i], -max_angular_radps_, max_angular_radps_);
+  world_T_camera_ = world_T_camera_ * se3_exp(applied * dt_s);
+  // keep the rotation orthonormal over thousands of steps
+  world_T_camera_.linear() = Eigen::Quaterniond(world_T_camera_.rotation()).normalized().toRotationMatrix();
+  return applied;
+}
+
+}  // namespace sim

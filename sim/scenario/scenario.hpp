@@ -1,0 +1,99 @@
+// A scenario: the cell (objects, projector, camera), the task (desired and initial camera
+// poses), timing and the seed. Plain data, read from YAML by load_scenario.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace sim {
+
+// A malformed scenario. what() is one line: "<file>: <key>: <what is wrong>".
+class ScenarioError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ObjectSpec {
+  std::string name;
+  std::filesystem::path mesh;            // absolute (resolved against the scenario file)
+  Eigen::Isometry3d world_T_object = Eigen::Isometry3d::Identity();
+  double albedo = 0.8;                   // Lambertian reflectance, 0..1
+};
+
+// Pinhole intrinsics in pixels; the pixel (i, j) has its centre at (u, v) = (i, j).
+struct Intrinsics {
+  int width = 640;
+  int height = 480;
+  double fx = 800, fy = 800, cx = 319.5, cy = 239.5;
+};
+
+struct ProjectorSpec {
+  Eigen::Isometry3d world_T_projector = Eigen::Isometry3d::Identity();
+  Intrinsics intrinsics{1024, 768, 1500, 1500, 511.5, 383.5};
+  std::filesystem::path pattern;          // pattern file (absolute)
+  double spot_pitch_px = 22;              // distance between neighbouring spot centres
+  double spot_radius_px = 5;              // disc radius on the projector's image plane
+  double brightness = 1.0;                // irradiance scale at the focus distance
+  double focus_near_m = 1.6;              // acceptably focused between these distances
+  double focus_far_m = 1.8;
+  double defocus_px_per_m = 12;           // blur (sigma, projector px) per metre outside focus
+  double focused_blur_px = 0.6;           // residual blur inside the focus range
+  std::vector<std::array<int, 2>> only_spots;  // when non-empty, only these (row, col) are lit
+};
+
+struct CameraSpec {
+  Intrinsics intrinsics;
+  std::array<double, 5> distortion{0, 0, 0, 0, 0};  // k1 k2 p1 p2 k3 (plumb bob)
+  double exposure = 1.0;        // gain from scene radiance to pixel value (1: white at 255)
+  double ambient = 0.06;        // ambient irradiance on every surface, fraction of full scale
+  double noise_sigma = 1.5;     // read noise, 8-bit units
+  double shot_noise = 0.02;     // signal-dependent noise variance per unit of signal (8-bit units)
+  double crosstalk = 0.06;      // fraction of each colour channel leaking into the others
+};
+
+struct RobotSpec {
+  double max_linear_mps = 0.5;
+  double max_angular_radps = 1.0;
+};
+
+struct Scenario {
+  std::filesystem::path file;
+  std::string name;
+  std::uint64_t seed = 1;
+  double dt_s = 0.04;
+  std::vector<ObjectSpec> objects;
+  ProjectorSpec projector;
+  CameraSpec camera;
+  RobotSpec robot;
+  Eigen::Isometry3d world_T_desired = Eigen::Isometry3d::Identity();  // camera, desired pose
+  // initial pose as the paper gives it: translation (cm) along the X, Y, Z axes of the
+  // offset frame F, then rotations (deg) about the moved frame's X, then Y, then Z. F is
+  // the desired camera frame turned by offset_frame_rotation_deg (same convention) about
+  // its centre: the robot's end-effector axes, which the paper does not relate to the camera.
+  std::array<double, 3> initial_translation_cm{0, 0, 0};
+  std::array<double, 3> initial_rotation_deg{0, 0, 0};
+  std::array<double, 3> offset_frame_rotation_deg{0, 0, 0};
+  Eigen::Isometry3d world_T_initial() const;
+};
+
+// Throws ScenarioError (one line naming the file and the key) on unknown keys, wrong types,
+// missing files, non-positive focal lengths or sizes, NaN or infinite numbers.
+Scenario load_scenario(const std::filesystem::path& file);
+
+// The camera pose for a --pose argument: "desired", "initial" or "x y z rx ry rz" (metres,
+// degrees, an offset from the desired pose in the paper's convention). Throws
+// std::invalid_argument with the reason.
+Eigen::Isometry3d resolve_pose(const Scenario& scenario, const std::string& spec);
+
+// The paper's displacement (translation cm, rotations deg) applied to a desired pose.
+// wTc = wTd * dTf * Trans(t) * Rx * Ry * Rz * fTd, with dTf the pure rotation of the offset frame.
+Eigen::Isometry3d offset_pose(const Eigen::Isometry3d& world_T_desired, const std::array<double, 3>& translation_cm,
+                              const std::array<double, 3>& rotation_deg,
+                              const std::array<double, 3>& frame_rotation_deg = {0, 0, 0});
+
+}  // namespace sim

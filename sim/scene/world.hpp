@@ -1,0 +1,50 @@
+// The cell's collision world: Bullet triangle-mesh objects, queried with rays.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "sim/scene/triangle_mesh.hpp"
+
+class btCollisionWorld;
+
+namespace sim {
+
+struct RayHit {
+  Eigen::Vector3d point_w;    // world frame
+  Eigen::Vector3d normal_w;   // unit, facing the ray's origin
+  double fraction = 0;        // along from -> to
+  int object = -1;            // index given by add_object
+};
+
+// Objects placed in the world, kept both as Bullet shapes (for rays) and as world-frame
+// triangles (for the rasteriser). Static objects now; the robot's links later move.
+class World {
+ public:
+  World();
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  // Returns the object's index. Throws std::invalid_argument for an empty mesh.
+  int add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T_object, double albedo);
+
+  // Closest hit on the segment from -> to, if any.
+  std::optional<RayHit> ray_test(const Eigen::Vector3d& from_w, const Eigen::Vector3d& to_w) const;
+
+  struct Object {
+    std::vector<Eigen::Vector3d> vertices_w;
+    std::vector<std::array<int, 3>> triangles;
+    double albedo = 0.8;
+  };
+  const std::vector<Object>& objects() const { return objects_; }
+
+ private:
+  struct Bullet;
+  std::unique_ptr<Bullet> bullet_;
+  std::vector<Object> objects_;
+};
+
+}  // namespace sim

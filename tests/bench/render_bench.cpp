@@ -1,0 +1,126 @@
+// Rendering cost: one VGA frame against casting one Bullet ray per pixel (what the z-buffer
+// replaces), the projector's rays per second, and growth with pattern and image size.
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+#include <map>
+#include <memory>
+
+#include "servo/pattern/pattern_file.hpp"
+#include "sim/render/renderer.hpp"
+
+namespace {
+
+const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
+
+std::unique_ptr<sim::Cell> make_cell(const std::string& name, int pattern_size = 20, double image_scale = 1.0) {
+  sim::Scenario s = sim::load_scenario(kScenarios + name + ".yaml");
+  if (pattern_size != 20) {
+    pattern::GenerationParams p;
+    p.rows = p.cols = pattern_size;
+    const auto gen = pattern::generate_marray(p);
+    const auto path = std::filesystem::temp_directory_path() / ("bench_pattern_" + std::to_string(pattern_size) + ".txt");
+    pattern::write_marray(path, *gen.array);
+    s.projector.pattern = path;
+    // the same projected extent, denser spots
+    s.projector.spot_pitch_px *= 20.0 / pattern_size;
+    s.projector.spot_radius_px *= 20.0 / pattern_size;
+  }
+  if (image_scale != 1.0) {
+    auto& k = s.camera.intrinsics;
+    k.width = static_cast<int>(k.width * image_scale);
+    k.height = static_cast<int>(k.height * image_scale);
+    k.fx *= image_scale;
+    k.fy *= image_scale;
+    k.cx = 0.5 * (k.width - 1);
+    k.cy = 0.5 * (k.height - 1);
+  }
+  return sim::build_cell(s);
+}
+
+void render(benchmark::State& state, const sim::Cell& cell) {
+  sim::RenderScratch scratch;
+  std::uint64_t frame = 0;
+  for (auto _ : state) {
+    cv::Mat img = sim::render_image(cell, cell.scenario.world_T_initial(), sim::frame_seed(1, frame++), &scratch);
+    benchmark::DoNotOptimize(img.data);
+  }
+  state.counters["px/s"] = benchmark::Counter(static_cast<double>(cell.scenario.camera.intrinsics.width) *
+                                                  cell.scenario.camera.intrinsics.height,
+                                              benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_RenderVga(benchmark::State& state, const char* scenario) {
+  static std::map<std::string, std::unique_ptr<sim::Cell>> cells;
+  auto& cell = cells[scenario];
+  if (!cell) cell = make_cell(scenario);
+  render(state, *cell);
+}
+
+// The baseline: find each pixel's surface with one Bullet ray per pixel (geometry only, no
+// shading), as a ray tracer would, instead of the z-buffer.
+void BM_RenderVgaBaseline(benchmark::State& state) {
+  static auto cell = make_cell("plane");
+  const auto& k = cell->scenario.camera.intrinsics;
+  const Eigen::Isometry3d wTc = cell->scenario.world_T_initial();
+  const auto& rays = cell->camera->pixel_rays();
+  for (auto _ : state) {
+    int hits = 0;
+    for (std::size_t i = 0; i < rays.size(); i += 2) {
+      const Eigen::Vector3d d = wTc.linear() * Eigen::Vector3d(rays[i], rays[i + 1], 1.0);
+      hits += cell->world.ray_test(wTc.translation(), wTc.translation() + 10.0 * d).has_value();
+    }
+    benchmark::DoNotOptimize(hits);
+  }
+  state.counters["px/s"] =
+      benchmark::Counter(static_cast<double>(k.width) * k.height, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_ProjectorRays(benchmark::State& state) {
+  static auto cell = make_cell("cylinder");
+  std::size_t rays = 0;
+  for (auto _ : state) {
+    auto hits = cell->projector->cast_spots(cell->world);
+    rays += hits.size() * (1 + sim::Projector::kRimSamples);
+    benchmark::DoNotOptimize(hits.data());
+  }
+  state.counters["rays/s"] = benchmark::Counter(static_cast<double>(rays), benchmark::Counter::kIsRate);
+}
+
+void BM_Truth(benchmark::State& state) {
+  static auto cell = make_cell("cylinder");
+  for (auto _ : state) {
+    auto truth = sim::compute_truth(*cell, cell->scenario.world_T_desired);
+    benchmark::DoNotOptimize(truth.data());
+  }
+}
+
+void BM_RenderPatternSize(benchmark::State& state) {
+  static std::map<int, std::unique_ptr<sim::Cell>> cells;
+  const int n = static_cast<int>(state.range(0));
+  auto& cell = cells[n];
+  if (!cell) cell = make_cell("cylinder", n);
+  render(state, *cell);
+}
+
+void BM_RenderImageSize(benchmark::State& state) {
+  static std::map<int, std::unique_ptr<sim::Cell>> cells;
+  const int h = static_cast<int>(state.range(0));
+  auto& cell = cells[h];
+  if (!cell) cell = make_cell("cylinder", 20, h / 480.0);
+  render(state, *cell);
+}
+
+}  // namespace
+
+BENCHMARK(BM_RenderVgaBaseline)->Name("render_vga/baseline_bullet_ray_per_pixel")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_RenderVga, plane, "plane")->Name("render_vga/plane")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_RenderVga, cylinder, "cylinder")->Name("render_vga/cylinder")->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ProjectorRays)->Name("projector/cast_400_spots_17_rays")->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Truth)->Name("projector/truth_400_spots")->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderPatternSize)->Name("render_pattern/baseline_20x20")->Arg(20)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderPatternSize)->Name("render_pattern/40x40")->Arg(40)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderPatternSize)->Name("render_pattern/64x64")->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderImageSize)->Name("render_image/baseline_vga")->Arg(480)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderImageSize)->Name("render_image/720p")->Arg(720)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderImageSize)->Name("render_image/1080p")->Arg(1080)->Unit(benchmark::kMillisecond);

@@ -1,0 +1,152 @@
+#include "sim/render/renderer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "sim/geometry/se3.hpp"
+
+namespace sim {
+namespace {
+
+const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
+
+// The plane scenario as shipped (lens distortion included), optionally without noise.
+Scenario plane(bool noise) {
+  Scenario s = load_scenario(kScenarios + "plane.yaml");
+  if (!noise) {
+    s.camera.noise_sigma = 0;
+    s.camera.shot_noise = 0;
+  }
+  return s;
+}
+
+// An independent pinhole + plumb-bob projection, written out here rather than reusing
+// CameraModel, to check the truth's image positions.
+Eigen::Vector2d reference_projection(const Scenario& s, const Eigen::Isometry3d& wTc, const Eigen::Vector3d& X_w) {
+  const Eigen::Vector3d X = wTc.inverse() * X_w;
+  const double x = X.x() / X.z(), y = X.y() / X.z();
+  const auto& d = s.camera.distortion;
+  const double r2 = x * x + y * y;
+  const double radial = 1 + d[0] * r2 + d[1] * r2 * r2 + d[4] * r2 * r2 * r2;
+  const double xd = x * radial + 2 * d[2] * x * y + d[3] * (r2 + 2 * x * x);
+  const double yd = y * radial + d[2] * (r2 + 2 * y * y) + 2 * d[3] * x * y;
+  const auto& k = s.camera.intrinsics;
+  return {k.fx * xd + k.cx, k.fy * yd + k.cy};
+}
+
+// Intensity-weighted centroid of the spot around `guess`, summed over the three channels
+// within a radius, background removed.
+Eigen::Vector2d centroid(const cv::Mat& rgb, const Eigen::Vector2d& guess, int radius) {
+  double sw = 0, su = 0, sv = 0;
+  for (int v = static_cast<int>(guess.y()) - radius; v <= static_cast<int>(guess.y()) + radius; ++v)
+    for (int u = static_cast<int>(guess.x()) - radius; u <= static_cast<int>(guess.x()) + radius; ++u) {
+      if (u < 0 || v < 0 || u >= rgb.cols || v >= rgb.rows) continue;
+      if ((Eigen::Vector2d(u, v) - guess).norm() > radius) continue;
+      const cv::Vec3b p = rgb.at<cv::Vec3b>(v, u);
+      const double w = std::max(0.0, p[0] + p[1] + p[2] - 3 * 20.0);  // above the ambient level
+      sw += w;
+      su += w * u;
+      sv += w * v;
+    }
+  return sw > 0 ? Eigen::Vector2d(su / sw, sv / sw) : guess;
+}
+
+TEST(Render, PlaneAtDesiredPoseShowsAlmostTheWholeGrid) {
+  const auto cell = build_cell(plane(true));
+  const auto truth = compute_truth(*cell, cell->scenario.world_T_desired);
+  int visible = 0;
+  for (const auto& t : truth) visible += t.visible;
+  EXPECT_GE(visible, 380);
+  EXPECT_EQ(truth.size(), 400u);
+}
+
+TEST(Render, TruthPositionsAgreeWithAnIndependentProjection) {
+  const auto cell = build_cell(plane(true));
+  for (const char* pose : {"desired", "initial", "3 -2 5 4 -6 10"}) {
+    const Eigen::Isometry3d wTc = resolve_pose(cell->scenario, pose);
+    int checked = 0;
+    for (const auto& t : compute_truth(*cell, wTc)) {
+      if (!t.visible) continue;
+      const Eigen::Vector2d ref = reference_projection(cell->scenario, wTc, t.point_w);
+      EXPECT_LT((t.uv - ref).norm(), 0.01) << pose << " spot " << t.row << "," << t.col;
+      EXPECT_NEAR(t.depth_m, (wTc.inverse() * t.point_w).z(), 1e-12);
+      ++checked;
+    }
+    EXPECT_GT(checked, 300) << pose;
+  }
+}
+
+TEST(Render, RenderedCentroidsLieOnTheTruthWithoutNoise) {
+  const auto cell = build_cell(plane(false));
+  const Eigen::Isometry3d wTc = cell->scenario.world_T_desired;
+  const cv::Mat img = render_image(*cell, wTc, 1);
+  double worst = 0;
+  int checked = 0;
+  for (const auto& t : compute_truth(*cell, wTc)) {
+    if (!t.visible || t.uv.x() < 8 || t.uv.y() < 8 || t.uv.x() > 631 || t.uv.y() > 471) continue;
+    const double err = (centroid(img, t.uv, 6) - t.uv).norm();
+    worst = std::max(worst, err);
+    ++checked;
+  }
+  EXPECT_GT(checked, 350);
+  EXPECT_LT(worst, 0.5);
+  RecordProperty("worst_centroid_error_px", std::to_string(worst));
+  std::printf("worst rendered-centroid error: %.3f px over %d spots\n", worst, checked);
+}
+
+TEST(Render, SameSeedSameBytesOtherSeedOtherNoise) {
+  const auto cell = build_cell(plane(true));
+  const Eigen::Isometry3d wTc = cell->scenario.world_T_initial();
+  const cv::Mat a = render_image(*cell, wTc, frame_seed(1, 7));
+  const cv::Mat b = render_image(*cell, wTc, frame_seed(1, 7));
+  const cv::Mat c = render_image(*cell, wTc, frame_seed(1, 8));
+  ASSERT_EQ(a.type(), CV_8UC3);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_L1), 0.0);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 0.0);
+}
+
+TEST(Render, SpotBehindAnOccluderIsInvisibleAndAbsent) {
+  Scenario s = plane(false);
+  // a cylinder (0.4 m x 0.2 m x 0.6 m) standing between the camera and the wall
+  ObjectSpec occluder;
+  occluder.name = "occluder";
+  occluder.mesh = std::string(CELL_SOURCE_DIR) + "/meshes/elliptic_cylinder.obj";
+  occluder.world_T_object = pose_from_xyz_rxyz(0.85, -0.02, 0.4, 0, 0, 0);
+  occluder.albedo = 0.5;
+  const auto open_cell = build_cell(s);
+  s.objects.push_back(occluder);
+  const auto blocked_cell = build_cell(s);
+  const Eigen::Isometry3d wTc = s.world_T_desired;
+  const auto open = compute_truth(*open_cell, wTc);
+  const auto blocked = compute_truth(*blocked_cell, wTc);
+  const cv::Mat img = render_image(*blocked_cell, wTc, 1);
+  int hidden = 0;
+  for (std::size_t i = 0; i < open.size(); ++i) {
+    if (!open[i].visible || blocked[i].visible) continue;
+    // the spot was on the wall, the cylinder now hides it (or its shadow removes it):
+    // nothing of its colour where it used to be
+    ++hidden;
+    const cv::Vec3b p = img.at<cv::Vec3b>(static_cast<int>(std::lround(open[i].uv.y())),
+                                          static_cast<int>(std::lround(open[i].uv.x())));
+    EXPECT_LT(std::max({p[0], p[1], p[2]}), 60) << "spot " << open[i].row << "," << open[i].col;
+  }
+  EXPECT_GT(hidden, 20);
+}
+
+TEST(Render, CylinderHidesSomeOfItsOwnSpots) {
+  const auto cell = build_cell(load_scenario(kScenarios + "cylinder.yaml"));
+  const Eigen::Isometry3d wTc = cell->scenario.world_T_desired;
+  int lit_on_cylinder = 0, visible_on_cylinder = 0;
+  const auto truth = compute_truth(*cell, wTc);
+  for (const auto& h : cell->spot_hits) {
+    if (!h.centre || h.centre->object != 0) continue;
+    ++lit_on_cylinder;
+    visible_on_cylinder += truth[static_cast<std::size_t>(h.row) * 20 + h.col].visible;
+  }
+  EXPECT_GT(visible_on_cylinder, 150);
+  EXPECT_LT(visible_on_cylinder, lit_on_cylinder);  // self-occlusion at the rim
+}
+
+}  // namespace
+}  // namespace sim

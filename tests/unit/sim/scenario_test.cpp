@@ -1,0 +1,131 @@
+#include "sim/scenario/scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+
+#include "sim/geometry/se3.hpp"
+
+namespace sim {
+namespace {
+
+const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
+
+std::string read(const std::string& path) {
+  std::ifstream f(path);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+// Writes a variant of plane.yaml to the temp folder, its relative paths made absolute.
+std::string variant(const std::string& name, const std::string& from, const std::string& to) {
+  std::string text = read(kScenarios + "plane.yaml");
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+  for (std::size_t p; (p = text.find("../../")) != std::string::npos;) text.replace(p, 6, std::string(CELL_SOURCE_DIR) + "/");
+  const std::string path = (std::filesystem::temp_directory_path() / ("_test_" + name + ".yaml")).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string error_of(const std::string& path) {
+  std::string what;
+  try {
+    load_scenario(path);
+  } catch (const ScenarioError& e) {
+    what = e.what();
+  }
+  std::remove(path.c_str());
+  return what;
+}
+
+TEST(Scenario, ShippedScenariosLoad) {
+  for (const char* name : {"plane", "cylinder", "ham", "fig5"}) {
+    const Scenario s = load_scenario(kScenarios + name + ".yaml");
+    EXPECT_EQ(s.name, name);
+    EXPECT_DOUBLE_EQ(s.dt_s, 0.04);
+    EXPECT_EQ(s.camera.intrinsics.width, 640);
+    EXPECT_EQ(s.camera.intrinsics.height, 480);
+    EXPECT_FALSE(s.objects.empty());
+  }
+}
+
+TEST(Scenario, PlaneMatchesThePapersSetUp) {
+  const Scenario s = load_scenario(kScenarios + "plane.yaml");
+  // camera parallel to the wall (normal -X) at 90 cm
+  const Eigen::Vector3d optical_axis = s.world_T_desired.linear().col(2);
+  EXPECT_NEAR(optical_axis.dot(Eigen::Vector3d::UnitX()), 1.0, 1e-9);
+  EXPECT_NEAR(1.4 - s.world_T_desired.translation().x(), 0.9, 1e-9);
+  // projector inside the 1.6-1.8 m focus range from the pattern's centre on the wall
+  const double d = (s.projector.world_T_projector.translation() - Eigen::Vector3d(1.4, 0, 0.4)).norm();
+  EXPECT_GT(d, 1.6);
+  EXPECT_LT(d, 1.8);
+  // the initial pose is the paper's displacement: 5 + 10 + 20 cm, 15 and 10 degrees
+  const Eigen::Isometry3d delta = s.world_T_desired.inverse() * s.world_T_initial();
+  EXPECT_NEAR(delta.translation().norm(), std::sqrt(0.05 * 0.05 + 0.1 * 0.1 + 0.2 * 0.2), 1e-9);
+}
+
+TEST(Scenario, OffsetConventionIsTranslationThenIntrinsicXYZ) {
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T = offset_pose(I, {10, 0, 0}, {0, 0, 90});
+  EXPECT_TRUE(T.translation().isApprox(Eigen::Vector3d(0.1, 0, 0)));
+  EXPECT_TRUE((T.linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY()));
+  // a frame turned 180 deg about X flips the meaning of Y and Z translations
+  const Eigen::Isometry3d F = offset_pose(I, {0, 10, 0}, {0, 0, 0}, {180, 0, 0});
+  EXPECT_TRUE(F.translation().isApprox(Eigen::Vector3d(0, -0.1, 0)));
+}
+
+TEST(Scenario, ResolvePose) {
+  const Scenario s = load_scenario(kScenarios + "plane.yaml");
+  EXPECT_TRUE(resolve_pose(s, "desired").isApprox(s.world_T_desired));
+  EXPECT_TRUE(resolve_pose(s, "initial").isApprox(s.world_T_initial()));
+  EXPECT_TRUE(resolve_pose(s, "0 0 0 0 0 0").isApprox(s.world_T_desired));
+  EXPECT_THROW(resolve_pose(s, "1 2 3"), std::invalid_argument);
+  EXPECT_THROW(resolve_pose(s, "nan 0 0 0 0 0"), std::invalid_argument);
+}
+
+void expect_one_line(const std::string& e, const std::string& file_part, const std::string& key,
+                     const std::string& what) {
+  EXPECT_NE(e.find(file_part), std::string::npos) << e;
+  EXPECT_NE(e.find(key), std::string::npos) << e;
+  EXPECT_NE(e.find(what), std::string::npos) << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+}
+
+TEST(Scenario, UnknownKey) {
+  const std::string e = error_of(variant("unknown", "  noise_sigma: 1.5", "  noise_sigmaa: 1.5"));
+  expect_one_line(e, "_test_unknown.yaml", "camera.noise_sigmaa", "unknown key");
+}
+
+TEST(Scenario, WrongType) {
+  const std::string e = error_of(variant("type", "exposure: 0.9", "exposure: bright"));
+  expect_one_line(e, "_test_type.yaml", "camera.exposure", "must be a number");
+}
+
+TEST(Scenario, MissingMesh) {
+  const std::string e = error_of(variant("mesh", "meshes/plane.obj", "meshes/no_such.obj"));
+  expect_one_line(e, "_test_mesh.yaml", "objects[0].mesh", "file not found");
+}
+
+TEST(Scenario, NonPositiveFocalLength) {
+  const std::string e = error_of(variant("focal", "focal_px: [800, 800]", "focal_px: [800, -800]"));
+  expect_one_line(e, "_test_focal.yaml", "camera.focal_px[1]", "must be positive");
+}
+
+TEST(Scenario, NaN) {
+  const std::string e = error_of(variant("nan", "ambient: 0.05", "ambient: .nan"));
+  expect_one_line(e, "_test_nan.yaml", "camera.ambient", "finite");
+}
+
+TEST(Scenario, MissingKeyAndBadYaml) {
+  expect_one_line(error_of(variant("nokey", "seed: 1\n", "")), "_test_nokey.yaml", "seed", "missing");
+  expect_one_line(error_of(variant("syntax", "name: plane", "name: [plane")), "_test_syntax.yaml", "line",
+                  "YAML syntax error");
+  EXPECT_NE(error_of("/nonexistent/s.yaml").find("scenario file not found"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace sim

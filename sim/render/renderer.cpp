@@ -103,9 +103,9 @@ std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame) {
 }
 
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
-                     RenderScratch* scratch) {
-  const CameraSpec& cam = cell.scenario.camera;
-  const Intrinsics& k = cam.intrinsics;
+                     RenderScratch* scratch, const CameraSpec* sensor) {
+  const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
+  const Intrinsics& k = cell.scenario.camera.intrinsics;  // the lens is the cell's, whatever the sensor
   const Projector& proj = *cell.projector;
   const ProjectorSpec& ps = proj.spec();
   const Intrinsics& kp = ps.intrinsics;

@@ -36,8 +36,10 @@ struct RenderScratch {
 
 // RGB8 image (channel order R, G, B), camera resolution. `noise_seed` fixes every random
 // draw of the frame: the same seed gives a byte-identical image.
+// `sensor`, when given, replaces the scenario camera's exposure, ambient, noise and crosstalk
+// (its intrinsics must be the scenario's): studies over noise levels use it.
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
-                     RenderScratch* scratch = nullptr);
+                     RenderScratch* scratch = nullptr, const CameraSpec* sensor = nullptr);
 
 // Ground truth for one spot (pattern row, col).
 struct SpotTruth {

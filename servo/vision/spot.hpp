@@ -1,0 +1,43 @@
+// Spots as the decoder sees them: image blobs with a centroid and a colour label.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <vector>
+
+#include "servo/pattern/window_table.hpp"
+
+namespace vision {
+
+struct Spot {
+  double u = 0, v = 0;   // sub-pixel centre of gravity (pixels, pixel centres at integers)
+  int colour = 0;        // pattern symbol (0 blue, 1 green, 2 red)
+  int area_px = 0;
+  float strength = 0;    // mean chroma above the threshold
+  bool truncated = false;  // touches the image border: its centroid is biased
+};
+
+// A decoded spot: its identity in the pattern and where it is in the image.
+struct DecodedSpot {
+  int row = 0, col = 0;
+  double u = 0, v = 0;
+  int spot = 0;  // index into the segmented spots
+};
+
+// The four main directions of the adjacency graph, in image terms (rows grow downwards).
+enum Direction { kEast = 0, kSouth = 1, kWest = 2, kNorth = 3 };
+
+// For every spot, the closest spot in each main direction (index, or -1).
+struct AdjacencyGraph {
+  std::vector<std::array<int, 4>> next;
+  double grid_angle_rad = 0;  // the pattern's east direction in the image
+};
+
+// The 8-neighbourhood of every spot in window order:
+// 0 NW, 1 N, 2 NE, 3 W, 4 (the spot itself), 5 E, 6 SW, 7 S, 8 SE; -1 when missing.
+using Window = std::array<int, 9>;
+struct Neighbourhoods {
+  std::vector<Window> window;
+};
+
+}  // namespace vision

@@ -1,0 +1,355 @@
+#include "servo/vision/spot_decoder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+namespace vision {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Buckets spots on a uniform grid so neighbour queries touch only nearby cells.
+class SpatialGrid {
+ public:
+  SpatialGrid(const std::vector<Spot>& spots, double cell) : spots_(spots), cell_(cell) {
+    double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
+    for (const Spot& s : spots) {
+      u0 = std::min(u0, s.u), v0 = std::min(v0, s.v), u1 = std::max(u1, s.u), v1 = std::max(v1, s.v);
+    }
+    origin_u_ = u0, origin_v_ = v0;
+    cols_ = std::max(1, static_cast<int>((u1 - u0) / cell) + 1);
+    rows_ = std::max(1, static_cast<int>((v1 - v0) / cell) + 1);
+    start_.assign(static_cast<std::size_t>(cols_) * rows_ + 1, 0);
+    for (const Spot& s : spots) ++start_[key(s.u, s.v) + 1];
+    for (std::size_t i = 1; i < start_.size(); ++i) start_[i] += start_[i - 1];
+    index_.resize(spots.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < spots.size(); ++i) index_[fill[key(spots[i].u, spots[i].v)]++] = static_cast<int>(i);
+  }
+  template <typename F>
+  void around(double u, double v, int reach, F&& f) const {
+    const int cu = static_cast<int>((u - origin_u_) / cell_), cv = static_cast<int>((v - origin_v_) / cell_);
+    for (int r = std::max(0, cv - reach); r <= std::min(rows_ - 1, cv + reach); ++r)
+      for (int c = std::max(0, cu - reach); c <= std::min(cols_ - 1, cu + reach); ++c) {
+        const std::size_t k = static_cast<std::size_t>(r) * cols_ + c;
+        for (int i = start_[k]; i < start_[k + 1]; ++i) f(index_[i]);
+      }
+  }
+
+ private:
+  std::size_t key(double u, double v) const {
+    const int c = std::min(cols_ - 1, static_cast<int>((u - origin_u_) / cell_));
+    const int r = std::min(rows_ - 1, static_cast<int>((v - origin_v_) / cell_));
+    return static_cast<std::size_t>(r) * cols_ + c;
+  }
+  const std::vector<Spot>& spots_;
+  double cell_;
+  double origin_u_ = 0, origin_v_ = 0;
+  int cols_ = 1, rows_ = 1;
+  std::vector<int> start_, index_;
+};
+
+double median(std::vector<double> x) {
+  if (x.empty()) return 0;
+  std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
+  return x[x.size() / 2];
+}
+
+}  // namespace
+
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
+  AdjacencyGraph g;
+  const std::size_t n = spots.size();
+  g.next.assign(n, {-1, -1, -1, -1});
+  if (n < 2) return g;
+
+  // a first spacing estimate from a coarse grid, then the nearest neighbour of every spot
+  double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
+  for (const Spot& s : spots) u0 = std::min(u0, s.u), v0 = std::min(v0, s.v), u1 = std::max(u1, s.u), v1 = std::max(v1, s.v);
+  const double coarse = std::max(4.0, std::sqrt(std::max(1.0, (u1 - u0) * (v1 - v0)) / static_cast<double>(n)));
+  const SpatialGrid grid(spots, coarse);
+  std::vector<double> nn_dist(n, 0);
+  double sx = 0, sy = 0;  // angle x 4 sums: the grid direction modulo 90 deg
+  for (std::size_t i = 0; i < n; ++i) {
+    double best = 1e18;
+    int bj = -1;
+    grid.around(spots[i].u, spots[i].v, 2, [&](int j) {
+      if (j == static_cast<int>(i)) return;
+      const double d = std::hypot(spots[j].u - spots[i].u, spots[j].v - spots[i].v);
+      if (d < best) best = d, bj = j;
+    });
+    if (bj < 0) continue;
+    nn_dist[i] = best;
+    const double a = 4.0 * std::atan2(spots[bj].v - spots[i].v, spots[bj].u - spots[i].u);
+    sx += std::cos(a);
+    sy += std::sin(a);
+  }
+  g.grid_angle_rad = std::atan2(sy, sx) / 4.0;
+  const double spacing = median(nn_dist);
+
+  // Rows first: the closest spot within +-35 deg of the pattern's east and west. Then columns,
+  // against each spot's own row direction: under perspective the columns shear away from the
+  // perpendicular and a diagonal neighbour can be nearer than the true one, so the north and
+  // south candidates are ranked by distance weighted by their angle to the local perpendicular.
+  const SpatialGrid near(spots, std::max(2.0, spacing));
+  std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
+  const auto candidates = [&](std::size_t i, auto&& f) {
+    const double reach = 4.0 * std::max(nn_dist[i], 0.5 * spacing);
+    near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
+      if (j == static_cast<int>(i)) return;
+      const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
+      const double d = std::hypot(du, dv);
+      if (d <= reach && d > 1e-9) f(j, du, dv, d);
+    });
+  };
+  const double row_cos = std::cos(35.0 * kPi / 180.0);
+  const double ce = std::cos(g.grid_angle_rad), se = std::sin(g.grid_angle_rad);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::array<double, 2> best{1e18, 1e18};
+    candidates(i, [&](int j, double du, double dv, double d) {
+      const double c = (du * ce + dv * se) / d;
+      if (c >= row_cos && d < best[0]) best[0] = d, cand[i][kEast] = j;
+      if (-c >= row_cos && d < best[1]) best[1] = d, cand[i][kWest] = j;
+    });
+  }
+  const double col_cos = std::cos(45.0 * kPi / 180.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    // this spot's row direction, from its east and west candidates when it has them
+    double ru = ce, rv = se;
+    const int e = cand[i][kEast], w = cand[i][kWest];
+    if (e >= 0 || w >= 0) {
+      ru = rv = 0;
+      for (const auto& [j, sign] : {std::pair{e, 1.0}, std::pair{w, -1.0}}) {
+        if (j < 0) continue;
+        const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v, d = std::hypot(du, dv);
+        ru += sign * du / d;
+        rv += sign * dv / d;
+      }
+      const double norm = std::hypot(ru, rv);
+      ru /= norm, rv /= norm;
+    }
+    const double pu = -rv, pv = ru;  // the perpendicular, pointing south (image y down)
+    std::array<double, 2> best{1e18, 1e18};
+    candidates(i, [&](int j, double du, double dv, double d) {
+      const double c = (du * pu + dv * pv) / d;
+      const double angle = std::acos(std::min(1.0, std::abs(c)));
+      const double score = d * (1.0 + 2.0 * angle);
+      if (c >= col_cos && score < best[0]) best[0] = score, cand[i][kSouth] = j;
+      if (-c >= col_cos && score < best[1]) best[1] = score, cand[i][kNorth] = j;
+    });
+  }
+  std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = cand[i][k];
+      if (j >= 0 && cand[j][(k + 2) % 4] == static_cast<int>(i)) mutual[i][k] = j;
+    }
+  // Regular spacing: a link across a missing spot is twice as long as the links continuing it
+  // on either side. Spacing varies smoothly along a row or column (perspective, curvature), so
+  // a link is kept when a continuing link has a similar length, or when none exists to compare.
+  const auto length = [&](int a, int b) { return std::hypot(spots[b].u - spots[a].u, spots[b].v - spots[a].v); };
+  const auto similar = [](double a, double b) { return a < 1.5 * b && b < 1.5 * a; };
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = mutual[i][k];
+      if (j < 0) continue;
+      const double len = length(static_cast<int>(i), j);
+      const int before = mutual[i][(k + 2) % 4];
+      const int after = mutual[j][k];
+      const bool comparable = before >= 0 || after >= 0;
+      const bool regular = (before >= 0 && similar(len, length(static_cast<int>(i), before))) ||
+                           (after >= 0 && similar(len, length(j, after)));
+      if (!comparable || regular) g.next[i][k] = j;
+    }
+  // keep the graph symmetric: a link dropped on one side is dropped on the other
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = g.next[i][k];
+      if (j >= 0 && g.next[j][(k + 2) % 4] != static_cast<int>(i)) g.next[i][k] = -1;
+    }
+  return g;
+}
+
+Neighbourhoods check_graph_consistency(const AdjacencyGraph& g) {
+  Neighbourhoods h;
+  const std::size_t n = g.next.size();
+  h.window.assign(n, Window{-1, -1, -1, -1, -1, -1, -1, -1, -1});
+  const auto step = [&](int i, Direction d) { return i < 0 ? -1 : g.next[i][d]; };
+  // both ways round the corner must reach the same spot
+  const auto corner = [&](int i, Direction a, Direction b) {
+    const int p = step(step(i, a), b), q = step(step(i, b), a);
+    return p >= 0 && p == q ? p : -1;
+  };
+  for (std::size_t s = 0; s < n; ++s) {
+    const int i = static_cast<int>(s);
+    Window& w = h.window[s];
+    w[1] = g.next[s][kNorth];
+    w[3] = g.next[s][kWest];
+    w[4] = i;
+    w[5] = g.next[s][kEast];
+    w[7] = g.next[s][kSouth];
+    w[0] = corner(i, kNorth, kWest);
+    w[2] = corner(i, kNorth, kEast);
+    w[6] = corner(i, kSouth, kWest);
+    w[8] = corner(i, kSouth, kEast);
+  }
+  return h;
+}
+
+std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
+                                        const pattern::WindowTable& table, const ToleranceOptions& tolerance) {
+  std::vector<WindowReading> out;
+  const int k = table.array().colours;
+  for (std::size_t s = 0; s < hoods.window.size(); ++s) {
+    const Window& w = hoods.window[s];
+    std::array<std::uint8_t, 9> colours{};
+    int missing = -1, n_missing = 0;
+    for (int i = 0; i < 9; ++i) {
+      if (w[i] < 0) {
+        ++n_missing;
+        missing = i;
+        colours[i] = 0;
+      } else {
+        colours[i] = static_cast<std::uint8_t>(spots[w[i]].colour);
+      }
+    }
+    if (n_missing == 0) {
+      if (auto id = table.find(colours.data())) {
+        out.push_back({static_cast<int>(s), *id, false});
+        continue;
+      }
+    }
+    if (!tolerance.enabled || n_missing > 1) continue;
+    // error-tolerant: exactly one pattern window within one symbol of what was read
+    std::optional<pattern::SpotId> found;
+    int matches = 0;
+    const auto try_window = [&](std::array<std::uint8_t, 9> c) {
+      if (auto id = table.find(c.data())) {
+        if (!found || !(*found == *id)) ++matches;
+        found = id;
+      }
+    };
+    if (n_missing == 1) {
+      for (int c = 0; c < k; ++c) {
+        auto cc = colours;
+        cc[missing] = static_cast<std::uint8_t>(c);
+        try_window(cc);
+      }
+    } else {
+      for (int i = 0; i < 9; ++i)
+        for (int c = 0; c < k; ++c) {
+          if (c == colours[i]) continue;
+          auto cc = colours;
+          cc[i] = static_cast<std::uint8_t>(c);
+          try_window(cc);
+        }
+    }
+    if (matches == 1) out.push_back({static_cast<int>(s), *found, true});
+  }
+  return out;
+}
+
+std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
+                                                    const std::vector<WindowReading>& readings, int min_votes) {
+  struct Votes {
+    pattern::SpotId id{-1, -1};
+    int count = 0;
+    bool conflict = false;
+  };
+  std::vector<Votes> votes(spots.size());
+  for (const WindowReading& r : readings) {
+    const Window& w = hoods.window[r.centre];
+    for (int i = 0; i < 9; ++i) {
+      if (w[i] < 0) continue;
+      const pattern::SpotId id{r.id.row + i / 3 - 1, r.id.col + i % 3 - 1};
+      Votes& v = votes[w[i]];
+      if (v.count == 0) v.id = id;
+      else if (!(v.id == id)) v.conflict = true;
+      ++v.count;
+    }
+  }
+  std::map<std::pair<int, int>, int> owners;
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    if (votes[s].count >= min_votes && !votes[s].conflict) ++owners[{votes[s].id.row, votes[s].id.col}];
+  std::vector<DecodedSpot> out;
+  for (std::size_t s = 0; s < spots.size(); ++s) {
+    const Votes& v = votes[s];
+    if (v.count < min_votes || v.conflict || owners[{v.id.row, v.id.col}] != 1) continue;
+    out.push_back({v.id.row, v.id.col, spots[s].u, spots[s].v, static_cast<int>(s)});
+  }
+  return out;
+}
+
+std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
+                                                  int spot_count, int min_island) {
+  std::vector<int> at(static_cast<std::size_t>(spot_count), -1);  // spot -> index in decoded
+  for (std::size_t i = 0; i < decoded.size(); ++i) at[decoded[i].spot] = static_cast<int>(i);
+  static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
+  const auto agrees = [&](const DecodedSpot& a, const DecodedSpot& b, int k) {
+    return b.row == a.row + kStep[k][0] && b.col == a.col + kStep[k][1];
+  };
+  // a link between two decoded spots whose ids disagree condemns both
+  std::vector<bool> keep(decoded.size(), true);
+  for (std::size_t i = 0; i < decoded.size(); ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = graph.next[decoded[i].spot][k];
+      if (j >= 0 && at[j] >= 0 && !agrees(decoded[i], decoded[at[j]], k)) keep[i] = keep[at[j]] = false;
+    }
+  // islands of id-consistent linked spots
+  std::vector<int> island(decoded.size(), -1);
+  std::vector<int> size;
+  for (std::size_t s = 0; s < decoded.size(); ++s) {
+    if (!keep[s] || island[s] >= 0) continue;
+    const int id = static_cast<int>(size.size());
+    size.push_back(0);
+    std::vector<int> stack{static_cast<int>(s)};
+    island[s] = id;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      ++size[id];
+      for (int k = 0; k < 4; ++k) {
+        const int j = graph.next[decoded[i].spot][k];
+        if (j < 0 || at[j] < 0 || !keep[at[j]] || island[at[j]] >= 0) continue;
+        island[at[j]] = id;
+        stack.push_back(at[j]);
+      }
+    }
+  }
+  std::vector<DecodedSpot> out;
+  for (std::size_t i = 0; i < decoded.size(); ++i)
+    if (keep[i] && size[island[i]] >= min_island) out.push_back(decoded[i]);
+  return out;
+}
+
+SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
+    : table_(std::move(table)), options_(options) {
+  options_.segmentation.colours = table_.array().colours;
+}
+
+DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots) const {
+  DecodeResult r;
+  r.detected = std::move(spots);
+  const AdjacencyGraph graph = build_adjacency(r.detected);
+  const Neighbourhoods hoods = check_graph_consistency(graph);
+  const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance);
+  r.readings = static_cast<int>(readings.size());
+  r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes);
+  if (options_.min_island > 0)
+    r.decoded = check_island_consistency(graph, std::move(r.decoded), static_cast<int>(r.detected.size()),
+                                         options_.min_island);
+  // a spot cut by the image border helps decode its neighbours, but its centroid is not
+  // where its centre is: it is not reported
+  std::erase_if(r.decoded, [&](const DecodedSpot& d) { return r.detected[d.spot].truncated; });
+  return r;
+}
+
+DecodeResult SpotDecoder::decode(const cv::Mat& rgb) const {
+  Segmentation seg = segment_spots(rgb, options_.segmentation);
+  DecodeResult r = decode_spots(std::move(seg.spots));
+  r.rejected_blobs = seg.rejected;
+  return r;
+}
+
+}  // namespace vision

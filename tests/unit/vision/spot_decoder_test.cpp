@@ -1,0 +1,247 @@
+#include "servo/vision/spot_decoder.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "servo/pattern/palette.hpp"
+#include "servo/pattern/pattern_file.hpp"
+
+namespace vision {
+namespace {
+
+const pattern::MArray& paper_pattern() {
+  static const pattern::MArray a =
+      pattern::load_pattern(std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3.txt", {3, 3}, 3);
+  return a;
+}
+const pattern::WindowTable& table() {
+  static const pattern::WindowTable t(paper_pattern(), {3, 3});
+  return t;
+}
+
+// Spots of the pattern on a lattice: (row, col) at u = 30 + 20 col, v = 30 + 20 row, with
+// a shear and small jitter so the graph is not trivially axis-aligned.
+struct Lattice {
+  std::vector<Spot> spots;
+  std::vector<std::pair<int, int>> id;  // true (row, col) of each spot
+};
+Lattice lattice(double shear = 0.0) {
+  Lattice l;
+  const auto& a = paper_pattern();
+  for (int r = 0; r < a.rows; ++r)
+    for (int c = 0; c < a.cols; ++c) {
+      Spot s;
+      s.u = 30 + 20 * c + shear * 20 * r + 0.7 * std::sin(r * 3.1 + c);
+      s.v = 30 + 20 * r + 0.7 * std::cos(r + c * 2.3);
+      s.colour = a.at(r, c);
+      s.area_px = 20;
+      l.spots.push_back(s);
+      l.id.push_back({r, c});
+    }
+  return l;
+}
+
+// Every decoded id is the spot's true id; returns how many were decoded.
+int check_ids(const Lattice& l, const std::vector<DecodedSpot>& decoded) {
+  for (const auto& d : decoded) {
+    EXPECT_EQ(d.row, l.id[d.spot].first) << "spot " << d.spot;
+    EXPECT_EQ(d.col, l.id[d.spot].second) << "spot " << d.spot;
+  }
+  return static_cast<int>(decoded.size());
+}
+
+std::vector<DecodedSpot> decode_all(const std::vector<Spot>& spots, int min_votes = DecoderOptions{}.min_votes,
+                                    int min_island = DecoderOptions{}.min_island) {
+  const AdjacencyGraph g = build_adjacency(spots);
+  const Neighbourhoods h = check_graph_consistency(g);
+  auto decoded = check_decoding_consistency(spots, h, read_windows(spots, h, table()), min_votes);
+  return min_island > 0 ? check_island_consistency(g, decoded, static_cast<int>(spots.size()), min_island) : decoded;
+}
+
+TEST(AdjacencyGraph, FindsTheFourNeighboursOnALattice) {
+  const Lattice l = lattice();
+  const AdjacencyGraph g = build_adjacency(l.spots);
+  const int i = 5 * 20 + 7;  // (5, 7)
+  EXPECT_EQ(g.next[i][kEast], i + 1);
+  EXPECT_EQ(g.next[i][kWest], i - 1);
+  EXPECT_EQ(g.next[i][kSouth], i + 20);
+  EXPECT_EQ(g.next[i][kNorth], i - 20);
+  EXPECT_EQ(g.next[0][kWest], -1);
+  EXPECT_EQ(g.next[0][kNorth], -1);
+}
+
+TEST(AdjacencyGraph, FollowsAShearedGrid) {
+  // columns lean 17 deg (perspective on an oblique surface)
+  const Lattice l = lattice(0.3);
+  const AdjacencyGraph g = build_adjacency(l.spots);
+  const int i = 8 * 20 + 8;
+  EXPECT_EQ(g.next[i][kSouth], i + 20);
+  EXPECT_EQ(g.next[i][kNorth], i - 20);
+  EXPECT_EQ(check_ids(l, decode_all(l.spots, 2)), 400 - 4);
+}
+
+TEST(IslandConsistency, AmbiguousShearGivesNoWrongIds) {
+  // columns lean 35 deg: the lattice is the same point set as one leaning -17 deg, so the
+  // geometry alone reads the columns wrongly; the code must not turn that into ids
+  const Lattice l = lattice(0.7);
+  check_ids(l, decode_all(l.spots));
+  // the paper's rules alone (one vote, no islands) do produce wrong ids here
+  const auto paper = decode_all(l.spots, 1, 0);
+  int wrong = 0;
+  for (const auto& d : paper) wrong += d.row != l.id[d.spot].first || d.col != l.id[d.spot].second;
+  EXPECT_GT(wrong, 0);
+}
+
+TEST(AdjacencyGraph, DoesNotLinkAcrossAMissingSpot) {
+  Lattice l = lattice();
+  const int gone = 6 * 20 + 6;
+  l.spots.erase(l.spots.begin() + gone);
+  l.id.erase(l.id.begin() + gone);
+  const AdjacencyGraph g = build_adjacency(l.spots);
+  const int west = 6 * 20 + 5;  // (6, 5): its east neighbour is gone
+  EXPECT_EQ(g.next[west][kEast], -1);
+}
+
+TEST(GraphConsistency, DropsACornerWhoseTwoPathsDisagree) {
+  AdjacencyGraph g;
+  // 0 1      spot 3's north is 1, west is 2; N of W (2 -> 0) and W of N (1 -> 4) differ
+  // 2 3      (spot 4 is a stray the west link of 1 points to)
+  g.next.assign(5, {-1, -1, -1, -1});
+  g.next[3][kNorth] = 1;
+  g.next[3][kWest] = 2;
+  g.next[2][kNorth] = 0;
+  g.next[1][kWest] = 4;
+  Neighbourhoods h = check_graph_consistency(g);
+  EXPECT_EQ(h.window[3][0], -1);
+  g.next[1][kWest] = 0;  // now both paths reach 0
+  h = check_graph_consistency(g);
+  EXPECT_EQ(h.window[3][0], 0);
+  EXPECT_EQ(h.window[3][4], 3);
+}
+
+TEST(SpotDecoding, PerfectLatticeDecodesEverySpot) {
+  const Lattice l = lattice();
+  EXPECT_EQ(check_ids(l, decode_all(l.spots, 1)), 400);  // the paper's rule
+  EXPECT_EQ(check_ids(l, decode_all(l.spots, 2)), 396);  // corners have one window only
+  EXPECT_EQ(check_ids(l, decode_all(l.spots, 3)), 388);  // their neighbours on the border, two
+}
+
+TEST(SpotDecoding, MissingNeighbourCostsOnlyItsWindows) {
+  Lattice l = lattice();
+  const int gone = 10 * 20 + 10;
+  l.spots.erase(l.spots.begin() + gone);
+  l.id.erase(l.id.begin() + gone);
+  const int n = check_ids(l, decode_all(l.spots));
+  EXPECT_GT(n, 380);
+  EXPECT_LT(n, 399);
+}
+
+TEST(SpotDecoding, FlippedColourNeverGivesAWrongId) {
+  for (int at : {0, 21, 105, 210, 399}) {
+    Lattice l = lattice();
+    l.spots[at].colour = (l.spots[at].colour + 1) % 3;
+    const auto decoded = decode_all(l.spots);
+    check_ids(l, decoded);
+    for (const auto& d : decoded) EXPECT_NE(d.spot, at) << "the misread spot itself must not be decoded";
+    EXPECT_GT(decoded.size(), 330u);
+  }
+}
+
+TEST(SpotDecoding, SpuriousBlobNeverGivesAWrongId) {
+  Lattice l = lattice();
+  Spot stray;
+  stray.u = 30 + 20 * 7 + 9;  // between (5, 7) and (5, 8)
+  stray.v = 30 + 20 * 5 + 2;
+  stray.colour = 2;
+  l.spots.push_back(stray);
+  l.id.push_back({-1, -1});
+  const auto decoded = decode_all(l.spots);
+  check_ids(l, decoded);
+  EXPECT_GT(decoded.size(), 340u);
+}
+
+TEST(DecodingConsistency, ConflictingWindowsRemoveTheSpot) {
+  const Lattice l = lattice();
+  const Neighbourhoods h = check_graph_consistency(build_adjacency(l.spots));
+  std::vector<WindowReading> readings = read_windows(l.spots, h, table());
+  const int centre = 8 * 20 + 8;
+  for (auto& r : readings)
+    if (r.centre == centre) r.id = {3, 3};  // this window now names its spots wrongly
+  const auto decoded = check_decoding_consistency(l.spots, h, readings, 1);
+  for (const auto& d : decoded) {
+    const int dr = d.spot / 20 - 8, dc = d.spot % 20 - 8;
+    EXPECT_FALSE(std::abs(dr) <= 1 && std::abs(dc) <= 1) << "spot " << d.spot << " kept despite a conflict";
+  }
+  EXPECT_EQ(decoded.size(), 400u - 9u);
+}
+
+TEST(Tolerance, RecoversAWindowWithOneMissingNeighbourWithoutWrongIds) {
+  Lattice l = lattice();
+  // remove a checkerboard of spots in one region: windows there miss neighbours
+  std::vector<Spot> kept;
+  Lattice sparse;
+  for (std::size_t i = 0; i < l.spots.size(); ++i) {
+    const int r = static_cast<int>(i) / 20, c = static_cast<int>(i) % 20;
+    if (r >= 4 && r <= 14 && c >= 4 && c <= 14 && (r * 7 + c * 3) % 11 == 0) continue;
+    sparse.spots.push_back(l.spots[i]);
+    sparse.id.push_back(l.id[i]);
+  }
+  const Neighbourhoods h = check_graph_consistency(build_adjacency(sparse.spots));
+  const auto strict = check_decoding_consistency(sparse.spots, h, read_windows(sparse.spots, h, table()), 2);
+  const auto tolerant = check_decoding_consistency(
+      sparse.spots, h, read_windows(sparse.spots, h, table(), ToleranceOptions{true}), 2);
+  check_ids(sparse, strict);
+  check_ids(sparse, tolerant);
+  EXPECT_GE(tolerant.size(), strict.size());
+}
+
+// A drawn pattern, rotated and seen in perspective, decodes to the right ids.
+TEST(SpotDecoder, RotatedPerspectivePatternImage) {
+  const auto& a = paper_pattern();
+  cv::Mat flat(600, 600, CV_8UC3, cv::Scalar(12, 12, 12));
+  for (int r = 0; r < a.rows; ++r)
+    for (int c = 0; c < a.cols; ++c) {
+      const pattern::Rgb rgb = pattern::symbol_colour(a.at(r, c));
+      cv::circle(flat, {75 + 24 * c, 75 + 24 * r}, 7, cv::Scalar(rgb.r, rgb.g, rgb.b), cv::FILLED, cv::LINE_AA);
+    }
+  // 15 deg rotation plus a keystone
+  const std::vector<cv::Point2f> from{{0, 0}, {600, 0}, {600, 600}, {0, 600}};
+  std::vector<cv::Point2f> to;
+  const double th = 15 * M_PI / 180;
+  for (const auto& p : std::vector<cv::Point2f>{{40, 60}, {600, 0}, {560, 600}, {0, 520}}) {
+    const double x = p.x - 320, y = p.y - 240;
+    to.push_back(cv::Point2f(static_cast<float>(320 + x * std::cos(th) - y * std::sin(th)),
+                             static_cast<float>(240 + x * std::sin(th) + y * std::cos(th))));
+  }
+  const cv::Mat H = cv::getPerspectiveTransform(from, to);
+  cv::Mat img;
+  cv::warpPerspective(flat, img, H, {640, 560});
+  const SpotDecoder decoder(table());
+  const DecodeResult r = decoder.decode(img);
+  int correct = 0;
+  for (const auto& d : r.decoded) {
+    std::vector<cv::Point2f> p{{75.f + 24 * d.col, 75.f + 24 * d.row}}, q;
+    cv::perspectiveTransform(p, q, H);
+    EXPECT_LT(std::hypot(q[0].x - d.u, q[0].y - d.v), 1.5) << d.row << "," << d.col;
+    ++correct;
+  }
+  EXPECT_GT(correct, 300);
+}
+
+TEST(SpotDecoder, BadImagesGiveAClearErrorOrNoSpots) {
+  const SpotDecoder decoder(table());
+  EXPECT_THROW(decoder.decode(cv::Mat()), std::invalid_argument);
+  EXPECT_THROW(decoder.decode(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128))), std::invalid_argument);
+  EXPECT_THROW(decoder.decode(cv::Mat(480, 640, CV_16UC3, cv::Scalar(1, 2, 3))), std::invalid_argument);
+  // grey or binary content in an RGB image: no chroma, no spots
+  cv::Mat grey(480, 640, CV_8UC3, cv::Scalar(90, 90, 90));
+  cv::circle(grey, {100, 100}, 8, cv::Scalar(255, 255, 255), cv::FILLED);
+  EXPECT_TRUE(decoder.decode(grey).decoded.empty());
+  EXPECT_TRUE(decoder.decode(cv::Mat(1, 1, CV_8UC3, cv::Scalar(0, 0, 255))).decoded.empty());
+  EXPECT_TRUE(decoder.decode(cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0))).decoded.empty());
+}
+
+}  // namespace
+}  // namespace vision

@@ -51,10 +51,12 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p) {
     const std::uint8_t* in = rgb.ptr<std::uint8_t>(v);
     std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
     for (int u = 0; u < W; ++u, in += 3) {
-      const std::uint8_t hi = std::max({in[0], in[1], in[2]}), lo = std::min({in[0], in[1], in[2]});
+      const int r = in[0], g = in[1], b = in[2];
+      const int hi = r > g ? (r > b ? r : b) : (g > b ? g : b);
+      const int lo = r < g ? (r < b ? r : b) : (g < b ? g : b);
       c[u] = static_cast<std::uint8_t>(hi - lo);
-      ++hist[c[u]];
     }
+    for (int u = 0; u < W; ++u) ++hist[c[u]];
   }
   // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
   // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 
 namespace vision {
 namespace {
@@ -133,8 +132,8 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
     std::array<double, 2> best{1e18, 1e18};
     candidates(i, [&](int j, double du, double dv, double d) {
       const double c = (du * pu + dv * pv) / d;
-      const double angle = std::acos(std::min(1.0, std::abs(c)));
-      const double score = d * (1.0 + 2.0 * angle);
+      // ~ d (1 + 2 angle): sqrt(2 (1 - cos)) is the angle to within 4 % below 45 deg, sans acos
+      const double score = d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - std::min(1.0, std::abs(c)))));
       if (c >= col_cos && score < best[0]) best[0] = score, cand[i][kSouth] = j;
       if (-c >= col_cos && score < best[1]) best[1] = score, cand[i][kNorth] = j;
     });
@@ -269,13 +268,17 @@ std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spo
       ++v.count;
     }
   }
-  std::map<std::pair<int, int>, int> owners;
+  // an id claimed by two spots is kept by neither
+  int rows = 0, cols = 0;
+  for (const WindowReading& r : readings) rows = std::max(rows, r.id.row + 2), cols = std::max(cols, r.id.col + 2);
+  std::vector<int> owners(static_cast<std::size_t>(rows) * cols, 0);
+  const auto owner = [&](const pattern::SpotId& id) -> int& { return owners[static_cast<std::size_t>(id.row) * cols + id.col]; };
   for (std::size_t s = 0; s < spots.size(); ++s)
-    if (votes[s].count >= min_votes && !votes[s].conflict) ++owners[{votes[s].id.row, votes[s].id.col}];
+    if (votes[s].count >= min_votes && !votes[s].conflict) ++owner(votes[s].id);
   std::vector<DecodedSpot> out;
   for (std::size_t s = 0; s < spots.size(); ++s) {
     const Votes& v = votes[s];
-    if (v.count < min_votes || v.conflict || owners[{v.id.row, v.id.col}] != 1) continue;
+    if (v.count < min_votes || v.conflict || owner(v.id) != 1) continue;
     out.push_back({v.id.row, v.id.col, spots[s].u, spots[s].v, static_cast<int>(s)});
   }
   return out;

@@ -11,6 +11,8 @@
 
 #include "servo/pattern/window_table.hpp"
 #include "sim/app/decode_sweep.hpp"
+#include "sim/app/experiment.hpp"
+#include "sim/app/campaign.hpp"
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
 
@@ -79,6 +81,70 @@ int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) 
   return s.total_wrong == 0 ? 0 : 3;
 }
 
+struct LawFlags {
+  std::string model = "desired-constant-depth";
+  double z_hat = 0;  // 0: the scenario's desired distance
+  double gain = 0.5;
+  std::vector<double> adaptive;  // l0 linf slope
+  double converge_mm = 1e3 * control::ControlLawParams{}.convergence_translation_m;
+  double converge_deg = control::ControlLawParams{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
+
+  void add(CLI::App* c) {
+    c->add_option("--model", model, "desired-constant-depth | desired | current | mean")->capture_default_str();
+    c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the distance at the desired pose "
+                                    "to the decoded spots' centre");
+    c->add_option("--gain", gain, "constant gain lambda")->capture_default_str();
+    c->add_option("--gain-adaptive", adaptive, "adaptive gain: lambda0 lambda_inf slope0")->expected(3);
+    c->add_option("--converge-mm", converge_mm, "task-function translation that counts as converged (mm)")
+        ->capture_default_str();
+    c->add_option("--converge-deg", converge_deg, "task-function rotation that counts as converged (deg)")
+        ->capture_default_str();
+  }
+  void apply(servo::ServoConfig& cfg, double default_z_hat) const {
+    cfg.law.model = control::parse_interaction_model(model);
+    cfg.law.z_hat_m = z_hat > 0 ? z_hat : default_z_hat;
+    cfg.law.gain = adaptive.size() == 3 ? control::Gain{adaptive[0], adaptive[1], adaptive[2]} : control::Gain{gain, gain, 0};
+    cfg.law.convergence_translation_m = converge_mm / 1e3;
+    cfg.law.convergence_rotation_rad = converge_deg * 3.14159265358979323846 / 180;
+  }
+};
+
+// Z-hat by default: the depth, at the desired pose, of the point the camera looks at.
+double desired_depth(const sim::Cell& cell) {
+  const auto truth = sim::compute_truth(cell, cell.scenario.world_T_desired);
+  double sum = 0;
+  int n = 0;
+  for (const auto& t : truth)
+    if (t.visible) sum += t.depth_m, ++n;
+  return n ? sum / n : 1.0;
+}
+
+int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const std::string& source,
+                       int max_iterations, const std::string& initial, const std::string& out_dir, bool plot) {
+  const auto cell = sim::build_cell(sim::load_scenario(scenario_file));
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  law.apply(o.servo, desired_depth(*cell));
+  o.source = cellsim::parse_feature_source(source);
+  o.max_iterations = max_iterations;
+  if (!initial.empty()) o.initial = sim::resolve_pose(cell->scenario, initial);
+  o.out_dir = out_dir;
+  const auto r = cellsim::run_experiment(*cell, o);
+  std::printf("%s, model %s (z-hat %.3f m), %s features%s\n", cell->scenario.name.c_str(), law.model.c_str(),
+              o.servo.law.z_hat_m, cellsim::to_string(o.source).c_str(),
+              o.source == cellsim::FeatureSource::kIdeal ? " (simulator truth)" : "");
+  std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
+  std::printf("  %s after %d iterations (%.2f s simulated)\n", r.stop_reason.c_str(), r.iterations,
+              r.iterations * cell->scenario.dt_s);
+  std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
+  if (!out_dir.empty()) {
+    if (plot) cellsim::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
+    std::printf("  trace: %s/trace.csv, features: %s/features.jsonl, plots: %s/velocities.png %s/error_norm.png\n",
+                out_dir.c_str(), out_dir.c_str(), out_dir.c_str(), out_dir.c_str());
+  }
+  return r.converged ? 0 : 4;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -109,8 +175,53 @@ int main(int argc, char** argv) {
   ds->add_flag("--tolerant", tolerant, "error-tolerant window reading");
   ds->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
   ds->add_option("-o,--output", sweep_dir, "folder for sweep.csv and overlays of poses with wrong ids");
+  LawFlags law;
+  std::string source = "decoded", initial, exp_dir;
+  int max_iterations = 400;
+  bool no_plot = false;
+  auto* ex = app.add_subcommand("experiment", "teach at the desired pose, start at the initial pose, servo (in-process)");
+  ex->add_option("scenario", scenario, "scenario YAML file")->required();
+  law.add(ex);
+  ex->add_option("--features", source, "decoded | ideal (the simulator's true image positions)")->capture_default_str();
+  ex->add_option("--max-iterations", max_iterations, "iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
+  ex->add_option("--initial", initial, "initial pose instead of the scenario's: \"x y z rx ry rz\" (cm, deg)");
+  ex->add_option("-o,--output", exp_dir, "folder for trace.csv, features.jsonl and the plots");
+  ex->add_flag("--no-plot", no_plot, "do not draw the plots");
+
+  cellsim::CampaignOptions camp;
+  std::string camp_dir, camp_models = "desired-constant-depth,desired,current,mean";
+  auto* cp = app.add_subcommand("campaign", "many random initial poses per interaction-matrix model");
+  cp->add_option("scenario", scenario, "scenario YAML file")->required();
+  cp->add_option("--runs", camp.runs, "initial poses per model")->capture_default_str()->check(CLI::PositiveNumber);
+  cp->add_option("--models", camp_models, "comma-separated models")->capture_default_str();
+  cp->add_option("--seed", camp.seed, "seed of the initial-pose draw")->capture_default_str();
+  cp->add_option("--scale", camp.scale, "initial offsets drawn in [-scale, scale] x the scenario's")->capture_default_str();
+  cp->add_option("--max-iterations", camp.max_iterations, "iteration cap per run")->capture_default_str();
+  cp->add_option("--features", source, "decoded | ideal")->capture_default_str();
+  cp->add_option("--threads", camp.threads, "worker threads")->capture_default_str();
+  cp->add_option("-o,--output", camp_dir, "folder for campaign.csv and summary.md")->required();
+  LawFlags camp_law;
+  cp->add_option("--z-hat", camp_law.z_hat, "depth of desired-constant-depth (m)");
+  cp->add_option("--gain", camp_law.gain, "constant gain")->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
   try {
+    if (*ex) return run_experiment_cli(scenario, law, source, max_iterations, initial, exp_dir, !no_plot);
+    if (*cp) {
+      const auto cell = sim::build_cell(sim::load_scenario(scenario));
+      camp.source = cellsim::parse_feature_source(source);
+      camp.base = cellsim::servo_config_for(*cell);
+      camp_law.apply(camp.base, desired_depth(*cell));
+      for (std::size_t a = 0, b; a < camp_models.size(); a = b + 1) {
+        b = camp_models.find(',', a);
+        if (b == std::string::npos) b = camp_models.size();
+        camp.models.push_back(control::parse_interaction_model(camp_models.substr(a, b - a)));
+      }
+      camp.out_dir = camp_dir;
+      const auto table = cellsim::run_campaign(*cell, camp);
+      std::printf("%s", table.c_str());
+      return 0;
+    }
     if (*render) return run_render(scenario, pose, out, truth, frame);
     if (*ds) {
       sweep.decoder.tolerance.enabled = tolerant;

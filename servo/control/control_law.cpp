@@ -1,0 +1,209 @@
+#include "servo/control/control_law.hpp"
+
+#include <Eigen/SVD>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace control {
+
+std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, const std::vector<Feature>& desired) {
+  std::unordered_map<long, const Feature*> by_id;
+  by_id.reserve(current.size());
+  for (const Feature& f : current) by_id[static_cast<long>(f.row) * 65536 + f.col] = &f;
+  std::vector<MatchedPoint> out;
+  out.reserve(desired.size());
+  for (const Feature& d : desired) {
+    const auto it = by_id.find(static_cast<long>(d.row) * 65536 + d.col);
+    if (it == by_id.end()) continue;
+    const Feature& c = *it->second;
+    out.push_back({d.row, d.col, c.x, c.y, d.x, d.y, c.z, d.z});
+  }
+  return out;
+}
+
+double Gain::at(double e) const {
+  if (!adaptive() || slope_zero <= 0) return lambda_inf;
+  const double span = lambda_zero - lambda_inf;
+  return span * std::exp(-slope_zero * e / span) + lambda_inf;
+}
+
+Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel) {
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd& sv = svd.singularValues();
+  Eigen::VectorXd inv = Eigen::VectorXd::Zero(sv.size());
+  const double cut = sv.size() ? sv[0] * rel : 0;
+  for (Eigen::Index i = 0; i < sv.size(); ++i)
+    if (sv[i] > cut && sv[i] > 0) inv[i] = 1.0 / sv[i];
+  return svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose();
+}
+
+std::string to_string(ControlStatus s) {
+  switch (s) {
+    case ControlStatus::kServoing: return "servoing";
+    case ControlStatus::kConverged: return "converged";
+    case ControlStatus::kTooFewPoints: return "too few points";
+    case ControlStatus::kNoDepth: return "no depth";
+  }
+  return "?";
+}
+
+namespace {
+
+void check_params(const ControlLawParams& p) {
+  const auto bad = [](const std::string& what) { throw std::invalid_argument("control law: " + what); };
+  if (!(p.z_hat_m > 0) || !std::isfinite(p.z_hat_m)) bad("z_hat must be a positive depth, got " + std::to_string(p.z_hat_m));
+  if (!(p.gain.lambda_zero > 0) || !(p.gain.lambda_inf > 0) || !(p.gain.slope_zero >= 0))
+    bad("gains must be positive (lambda0, lambda_inf) and the slope >= 0");
+  if (!(p.max_linear_mps > 0) || !(p.max_angular_radps > 0)) bad("velocity limits must be positive");
+  if (p.min_points < 3) bad("min_points must be at least 3 (6 degrees of freedom)");
+  if (!(p.convergence_translation_m > 0) || !(p.convergence_rotation_rad > 0)) bad("convergence thresholds must be positive");
+}
+
+// The depth each model uses for a point's current and desired rows; nullopt when the model
+// needs a depth the point lacks.
+struct Depths {
+  std::optional<double> current, desired;
+};
+
+Depths model_depths(const MatchedPoint& p, const ControlLawParams& params) {
+  switch (params.model) {
+    case InteractionModel::kDesiredConstantDepth: return {std::nullopt, params.z_hat_m};
+    case InteractionModel::kDesired: return {std::nullopt, p.z_star};
+    case InteractionModel::kCurrent: return {p.z, std::nullopt};
+    case InteractionModel::kMean: return {p.z, p.z_star};
+  }
+  return {};
+}
+
+}  // namespace
+
+ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
+  check_params(params);
+  ControlOutput out;
+  // keep the points whose depths this model has
+  std::vector<const MatchedPoint*> points;
+  std::vector<std::size_t> index;  // of each used point in `all`
+  std::vector<Depths> depths;
+  out.z_model.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
+  for (const MatchedPoint& p : all) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.x_star) || !std::isfinite(p.y_star))
+      throw std::invalid_argument("control law: point (" + std::to_string(p.row) + ", " + std::to_string(p.col) +
+                                  ") has non-finite coordinates");
+    const Depths d = model_depths(p, params);
+    const bool needs_current = params.model == InteractionModel::kCurrent || params.model == InteractionModel::kMean;
+    const bool needs_desired = params.model != InteractionModel::kCurrent;
+    if ((needs_current && !(d.current && *d.current > 0)) || (needs_desired && !(d.desired && *d.desired > 0))) continue;
+    points.push_back(&p);
+    index.push_back(static_cast<std::size_t>(&p - all.data()));
+    depths.push_back(d);
+  }
+  out.points = static_cast<int>(points.size());
+  if (out.points < params.min_points) {
+    out.status = static_cast<int>(all.size()) >= params.min_points ? ControlStatus::kNoDepth : ControlStatus::kTooFewPoints;
+    out.reason = std::to_string(out.points) + " usable points (" + std::to_string(all.size()) + " matched), " +
+                 std::to_string(params.min_points) + " needed";
+    return out;
+  }
+
+  const Eigen::Index k = out.points;
+  Eigen::VectorXd error(2 * k);
+  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(2 * k, 6);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const MatchedPoint& p = *points[i];
+    error[2 * i] = p.x - p.x_star;
+    error[2 * i + 1] = p.y - p.y_star;
+    const Depths& d = depths[i];
+    switch (params.model) {
+      case InteractionModel::kDesiredConstantDepth:
+      case InteractionModel::kDesired:
+        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x_star, p.y_star, *d.desired);
+        out.z_model[index[i]] = *d.desired;
+        break;
+      case InteractionModel::kCurrent:
+        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x, p.y, *d.current);
+        out.z_model[index[i]] = *d.current;
+        break;
+      case InteractionModel::kMean:
+        L.block<2, 6>(2 * i, 0) = 0.5 * (point_interaction_matrix(p.x, p.y, *d.current) +
+                                         point_interaction_matrix(p.x_star, p.y_star, *d.desired));
+        out.z_model[index[i]] = *d.current;
+        break;
+    }
+  }
+  out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
+  out.task = pseudo_inverse(L, params.svd_relative_threshold) * error;
+  out.error_norm = out.task.norm();
+  if (out.task.head<3>().norm() < params.convergence_translation_m &&
+      out.task.tail<3>().norm() < params.convergence_rotation_rad) {
+    out.status = ControlStatus::kConverged;
+    char why[128];
+    std::snprintf(why, sizeof why, "task function below %.2g m and %.2g rad", params.convergence_translation_m,
+                  params.convergence_rotation_rad);
+    out.reason = why;
+    return out;  // zero twist: hold still
+  }
+  out.gain = params.gain.at(out.error_norm);
+  Vector6d v = -out.gain * out.task;
+  // saturate the whole screw by one factor, so its direction is kept
+  const double lin = v.head<3>().norm(), ang = v.tail<3>().norm();
+  const double scale = std::min({1.0, params.max_linear_mps / std::max(lin, 1e-300),
+                                 params.max_angular_radps / std::max(ang, 1e-300)});
+  out.saturated = scale < 1.0;
+  out.twist = v * scale;
+  return out;
+}
+
+std::vector<MatchedPoint> best_conditioned_subset(const std::vector<MatchedPoint>& points, std::size_t count,
+                                                  const ControlLawParams& params) {
+  if (points.size() <= count) return points;
+  const auto rows = [&](const MatchedPoint& p) {
+    const Depths d = model_depths(p, params);
+    const double z = d.desired.value_or(d.current.value_or(params.z_hat_m));
+    return params.model == InteractionModel::kCurrent ? point_interaction_matrix(p.x, p.y, z)
+                                                      : point_interaction_matrix(p.x_star, p.y_star, z);
+  };
+  const auto condition = [](const Eigen::MatrixXd& L) {
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(L);
+    const auto& sv = svd.singularValues();
+    return sv[sv.size() - 1] > 0 ? sv[0] / sv[sv.size() - 1] : 1e300;
+  };
+  std::vector<bool> used(points.size(), false);
+  std::vector<MatchedPoint> chosen;
+  Eigen::MatrixXd L(0, 6);
+  // seed: the point farthest from the centroid of s*, then greedy minimal condition number
+  double cx = 0, cy = 0;
+  for (const auto& p : points) cx += p.x_star, cy += p.y_star;
+  cx /= static_cast<double>(points.size()), cy /= static_cast<double>(points.size());
+  std::size_t seed = 0;
+  double far = -1;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double d = std::hypot(points[i].x_star - cx, points[i].y_star - cy);
+    if (d > far) far = d, seed = i;
+  }
+  const auto add = [&](std::size_t i) {
+    used[i] = true;
+    chosen.push_back(points[i]);
+    L.conservativeResize(L.rows() + 2, 6);
+    L.bottomRows<2>() = rows(points[i]);
+  };
+  add(seed);
+  while (chosen.size() < count) {
+    double best = 1e301;
+    std::size_t pick = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (used[i]) continue;
+      Eigen::MatrixXd trial(L.rows() + 2, 6);
+      trial << L, rows(points[i]);
+      // below 3 points L has rank < 6: rank-deficient conditions compare the spread instead
+      const double c = trial.rows() >= 6 ? condition(trial) : -trial.norm();
+      if (c < best) best = c, pick = i;
+    }
+    add(pick);
+  }
+  return chosen;
+}
+
+}  // namespace control

@@ -1,0 +1,92 @@
+// Image-based visual servoing (paper eqs. 3-4, Espiau-Chaumette-Rives):
+//   e = L-hat^+ (s - s*),   v = -lambda e
+// with L-hat one of the InteractionModel choices, a robust pseudo-inverse (SVD, small singular
+// values dropped), a constant or adaptive gain, a saturation that keeps the screw's direction,
+// a convergence test and a safe stop when too few points are matched. Pure functions of
+// their inputs: the caller owns time and state.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "servo/control/interaction_matrix.hpp"
+
+namespace control {
+
+// One matched point: s and s* for the same spot id, with whatever depths are known.
+struct MatchedPoint {
+  int row = 0, col = 0;
+  double x = 0, y = 0;             // current normalised coordinates
+  double x_star = 0, y_star = 0;   // desired
+  std::optional<double> z;         // current depth (m), e.g. triangulated
+  std::optional<double> z_star;    // desired depth (m)
+};
+
+// A feature with its id, as the decoder gives it (normalised).
+struct Feature {
+  int row = 0, col = 0;
+  double x = 0, y = 0;
+  std::optional<double> z;
+};
+
+// s and s* matched by spot id: only spots present in both, in s*'s order.
+std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, const std::vector<Feature>& desired);
+
+// lambda(|e|) = (l0 - linf) exp(-l0' |e| / (l0 - linf)) + linf; constant when l0 == linf.
+struct Gain {
+  double lambda_zero = 0.5;      // gain at |e| = 0
+  double lambda_inf = 0.5;       // gain far from the goal
+  double slope_zero = 0.0;       // l0': slope of lambda at |e| = 0 (adaptive when > 0)
+  double at(double error_norm) const;
+  bool adaptive() const { return lambda_zero != lambda_inf; }
+};
+
+struct ControlLawParams {
+  InteractionModel model = InteractionModel::kDesiredConstantDepth;
+  double z_hat_m = 0.9;               // the depth of kDesiredConstantDepth
+  Gain gain;
+  double max_linear_mps = 0.3;        // the screw is scaled, not clipped per axis
+  double max_angular_radps = 0.5;
+  int min_points = 4;                 // fewer matched points: safe stop
+  double svd_relative_threshold = 1e-6;  // singular values below this x the largest are dropped
+  // Converged when the task function e = L-hat^+ (s - s*), a least-squares estimate of the
+  // pose error (metres, radians), is below both: the image noise averages out over the points,
+  // so this is a finer and steadier test than the feature error itself.
+  double convergence_translation_m = 2e-4;
+  double convergence_rotation_rad = 4e-4;
+};
+
+enum class ControlStatus { kServoing, kConverged, kTooFewPoints, kNoDepth };
+
+struct ControlOutput {
+  Vector6d twist = Vector6d::Zero();  // camera frame, (vx vy vz wx wy wz)
+  Vector6d task = Vector6d::Zero();   // e = L-hat^+ (s - s*)
+  double error_norm = 0;              // |e|, the paper's "norm of the task function"
+  double feature_rms = 0;             // RMS of s - s* per coordinate
+  double gain = 0;
+  int points = 0;
+  bool saturated = false;
+  ControlStatus status = ControlStatus::kServoing;
+  std::string reason;                 // why it stopped, when it did
+  // per input point, the depth the model used (kMean: the current one); NaN for points it
+  // could not use (no depth)
+  std::vector<double> z_model;
+};
+
+// Throws std::invalid_argument when a matched point has non-finite coordinates or the
+// parameters are malformed (non-positive gains, limits or z_hat).
+ControlOutput compute_control(const std::vector<MatchedPoint>& points, const ControlLawParams& params);
+
+// Moore-Penrose pseudo-inverse by SVD, dropping singular values below rel x the largest.
+Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel);
+
+// Beyond the paper's experiments (§6, after [6]): choose `count` points greedily so that the
+// interaction matrix built from them is as well conditioned as possible.
+std::vector<MatchedPoint> best_conditioned_subset(const std::vector<MatchedPoint>& points, std::size_t count,
+                                                  const ControlLawParams& params);
+
+std::string to_string(ControlStatus s);
+
+}  // namespace control

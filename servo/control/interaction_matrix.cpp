@@ -1,0 +1,42 @@
+#include "servo/control/interaction_matrix.hpp"
+
+#include <stdexcept>
+
+namespace control {
+
+Matrix26 point_interaction_matrix(double x, double y, double Z) {
+  const double iz = 1.0 / Z;
+  Matrix26 L;
+  L << -iz, 0, x * iz, x * y, -(1 + x * x), y,  //
+      0, -iz, y * iz, 1 + y * y, -x * y, -x;
+  return L;
+}
+
+Eigen::MatrixXd stacked_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z) {
+  if (xy.size() != 2 * Z.size())
+    throw std::invalid_argument("stacked_interaction_matrix: " + std::to_string(xy.size()) + " coordinates for " +
+                                std::to_string(Z.size()) + " depths");
+  Eigen::MatrixXd L(xy.size(), 6);
+  for (Eigen::Index i = 0; i < Z.size(); ++i) L.block<2, 6>(2 * i, 0) = point_interaction_matrix(xy[2 * i], xy[2 * i + 1], Z[i]);
+  return L;
+}
+
+std::string to_string(InteractionModel m) {
+  switch (m) {
+    case InteractionModel::kDesiredConstantDepth: return "desired-constant-depth";
+    case InteractionModel::kDesired: return "desired";
+    case InteractionModel::kCurrent: return "current";
+    case InteractionModel::kMean: return "mean";
+  }
+  return "?";
+}
+
+InteractionModel parse_interaction_model(const std::string& name) {
+  for (auto m : {InteractionModel::kDesiredConstantDepth, InteractionModel::kDesired, InteractionModel::kCurrent,
+                 InteractionModel::kMean})
+    if (to_string(m) == name) return m;
+  throw std::invalid_argument("interaction model '" + name +
+                              "': expected desired-constant-depth, desired, current or mean");
+}
+
+}  // namespace control

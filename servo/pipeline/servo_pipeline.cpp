@@ -1,0 +1,44 @@
+#include "servo/pipeline/servo_pipeline.hpp"
+
+namespace servo {
+
+ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
+    : decoder_(std::move(table), config.decoder), config_(std::move(config)) {}
+
+std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, int* detected) const {
+  const vision::DecodeResult r = decoder_.decode(rgb);
+  if (detected) *detected = static_cast<int>(r.detected.size());
+  std::vector<ImageSpot> out;
+  out.reserve(r.decoded.size());
+  for (const auto& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v});
+  return out;
+}
+
+std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpot>& spots,
+                                                      const std::optional<Eigen::Isometry3d>& wTc) const {
+  std::vector<control::Feature> out;
+  out.reserve(spots.size());
+  for (const ImageSpot& s : spots) {
+    const Eigen::Vector2d xy = control::normalise(config_.camera, {s.u, s.v});
+    control::Feature f{s.row, s.col, xy.x(), xy.y(), std::nullopt};
+    if (wTc && config_.projector) f.z = control::triangulate_depth(xy, s.row, s.col, *config_.projector, *wTc);
+    out.push_back(f);
+  }
+  return out;
+}
+
+int ServoPipeline::teach(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& wTc) {
+  reference_ = features(spots, wTc);
+  return static_cast<int>(reference_.size());
+}
+
+StepResult ServoPipeline::step(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& wTc) const {
+  StepResult r;
+  r.decoded = static_cast<int>(spots.size());
+  r.features = features(spots, wTc);
+  r.matched = control::match_features(r.features, reference_);
+  r.control = control::compute_control(r.matched, config_.law);
+  return r;
+}
+
+}  // namespace servo

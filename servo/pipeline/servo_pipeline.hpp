@@ -1,0 +1,73 @@
+// One controller iteration, as both the in-process runner and the `servo` service run it:
+// image -> spots (decoder) -> features s (normalised, matched by id with s*) -> depths
+// (triangulation, when the model needs them) -> twist (control law).
+// Pure with respect to time and transport: the caller passes the image and, when it has
+// one, the camera pose the robot reports.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <vector>
+
+#include "servo/control/camera_intrinsics.hpp"
+#include "servo/control/control_law.hpp"
+#include "servo/control/triangulation.hpp"
+#include "servo/vision/spot_decoder.hpp"
+
+namespace servo {
+
+struct ServoConfig {
+  vision::DecoderOptions decoder;
+  control::ControlLawParams law;
+  control::CameraIntrinsics camera;
+  // the calibrated projector: needed to triangulate depths (models desired, current, mean)
+  std::optional<control::ProjectorModel> projector;
+};
+
+// A spot located in the image with its identity: from the decoder, or from the simulator's
+// truth for the `ideal` feature source.
+struct ImageSpot {
+  int row = 0, col = 0;
+  double u = 0, v = 0;
+};
+
+struct StepResult {
+  int detected = 0;                         // blobs segmented (0 for the ideal source)
+  int decoded = 0;                          // spots with an id
+  std::vector<control::Feature> features;   // normalised, depth when triangulated
+  std::vector<control::MatchedPoint> matched;
+  control::ControlOutput control;
+};
+
+class ServoPipeline {
+ public:
+  ServoPipeline(pattern::WindowTable table, ServoConfig config);
+
+  // Decodes an image into identified spots. Throws std::invalid_argument for a bad image.
+  std::vector<ImageSpot> locate(const cv::Mat& rgb, int* detected = nullptr) const;
+
+  // Features of located spots: normalised coordinates and, when a camera pose and the
+  // projector's calibration are known, triangulated depths.
+  std::vector<control::Feature> features(const std::vector<ImageSpot>& spots,
+                                         const std::optional<Eigen::Isometry3d>& world_T_camera) const;
+
+  // Teach-by-showing: the features seen now become s*.
+  int teach(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& world_T_camera);
+  void set_reference(std::vector<control::Feature> s_star) { reference_ = std::move(s_star); }
+  const std::vector<control::Feature>& reference() const { return reference_; }
+  bool taught() const { return !reference_.empty(); }
+
+  // One iteration of the control law from located spots.
+  StepResult step(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& world_T_camera) const;
+
+  const ServoConfig& config() const { return config_; }
+  ServoConfig& config() { return config_; }
+
+ private:
+  vision::SpotDecoder decoder_;
+  ServoConfig config_;
+  std::vector<control::Feature> reference_;
+};
+
+}  // namespace servo

@@ -1,0 +1,120 @@
+// Decoding cost: segmentation + the four decoding steps on a rendered VGA frame, against
+// OpenCV's SimpleBlobDetector finding the same spots (without decoding them) on the same
+// image; and growth with image size and pattern size.
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+#include <map>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "servo/pattern/pattern_file.hpp"
+#include "servo/vision/spot_decoder.hpp"
+#include "sim/render/renderer.hpp"
+
+namespace {
+
+struct Frame {
+  cv::Mat rgb;
+  pattern::MArray pattern;
+};
+
+// A rendered frame of a scenario at its desired pose, optionally with a denser pattern or a
+// bigger sensor (the same field of view).
+const Frame& frame(const std::string& scenario, int pattern_size = 20, double image_scale = 1.0) {
+  static std::map<std::tuple<std::string, int, double>, Frame> cache;
+  auto& f = cache[{scenario, pattern_size, image_scale}];
+  if (!f.rgb.empty()) return f;
+  sim::Scenario s = sim::load_scenario(std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + scenario + ".yaml");
+  if (pattern_size != 20) {
+    pattern::GenerationParams p;
+    p.rows = p.cols = pattern_size;
+    const auto path = std::filesystem::temp_directory_path() / ("bench_pattern_" + std::to_string(pattern_size) + ".txt");
+    pattern::write_marray(path, *pattern::generate_marray(p).array);
+    s.projector.pattern = path;
+    s.projector.spot_pitch_px *= 20.0 / pattern_size;
+    s.projector.spot_radius_px *= 20.0 / pattern_size;
+    // keep spots a few camera pixels wide: bring the camera closer to the same spots
+  }
+  if (image_scale != 1.0) {
+    auto& k = s.camera.intrinsics;
+    k.width = static_cast<int>(k.width * image_scale);
+    k.height = static_cast<int>(k.height * image_scale);
+    k.fx *= image_scale;
+    k.fy *= image_scale;
+    k.cx = 0.5 * (k.width - 1);
+    k.cy = 0.5 * (k.height - 1);
+  }
+  const auto cell = sim::build_cell(s);
+  f.rgb = sim::render_image(*cell, s.world_T_desired, 1);
+  f.pattern = cell->projector->pattern();
+  return f;
+}
+
+void decode(benchmark::State& state, const Frame& f) {
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}));
+  std::size_t decoded = 0;
+  for (auto _ : state) {
+    const auto r = decoder.decode(f.rgb);
+    decoded = r.decoded.size();
+    benchmark::DoNotOptimize(r.decoded.data());
+  }
+  state.counters["decoded"] = static_cast<double>(decoded);
+}
+
+void BM_Decode(benchmark::State& state, const char* scenario) { decode(state, frame(scenario)); }
+
+void BM_SegmentOnly(benchmark::State& state) {
+  const Frame& f = frame("plane");
+  std::size_t n = 0;
+  for (auto _ : state) {
+    const auto s = vision::segment_spots(f.rgb);
+    n = s.spots.size();
+    benchmark::DoNotOptimize(s.spots.data());
+  }
+  state.counters["spots"] = static_cast<double>(n);
+}
+
+// The baseline: OpenCV's SimpleBlobDetector on the same frame (grey conversion included,
+// since it needs one), with its default threshold sweep and the filters set so that it finds
+// the spots; it locates blobs but does not decode them.
+void BM_SimpleBlobDetector(benchmark::State& state) {
+  const Frame& f = frame("plane");
+  cv::SimpleBlobDetector::Params p;  // thresholds 10..220 in steps of 10 (OpenCV's defaults)
+  p.filterByColor = true;
+  p.blobColor = 255;
+  p.filterByArea = true;
+  p.minArea = 4;
+  p.maxArea = 2500;
+  p.filterByCircularity = false;
+  p.filterByConvexity = false;
+  p.filterByInertia = false;
+  p.minDistBetweenBlobs = 3;
+  const auto detector = cv::SimpleBlobDetector::create(p);
+  std::vector<cv::KeyPoint> keypoints;
+  for (auto _ : state) {
+    cv::Mat grey;
+    cv::cvtColor(f.rgb, grey, cv::COLOR_RGB2GRAY);
+    detector->detect(grey, keypoints);
+    benchmark::DoNotOptimize(keypoints.data());
+  }
+  state.counters["spots"] = static_cast<double>(keypoints.size());
+}
+
+void BM_DecodeImageSize(benchmark::State& state) { decode(state, frame("plane", 20, state.range(0) / 480.0)); }
+void BM_DecodePatternSize(benchmark::State& state) {
+  decode(state, frame("plane", static_cast<int>(state.range(0)), 1.0));
+}
+
+}  // namespace
+
+BENCHMARK(BM_SimpleBlobDetector)->Name("decode_vga/baseline_simple_blob_detector")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Decode, plane, "plane")->Name("decode_vga/ours_plane")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Decode, cylinder, "cylinder")->Name("decode_vga/ours_cylinder")->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SegmentOnly)->Name("decode_vga/ours_segmentation_only")->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodeImageSize)->Name("decode_image/baseline_vga")->Arg(480)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodeImageSize)->Name("decode_image/720p")->Arg(720)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodeImageSize)->Name("decode_image/1080p")->Arg(1080)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodePatternSize)->Name("decode_pattern/baseline_20x20")->Arg(20)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodePatternSize)->Name("decode_pattern/40x40")->Arg(40)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodePatternSize)->Name("decode_pattern/64x64")->Arg(64)->Unit(benchmark::kMillisecond);

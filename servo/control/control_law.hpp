@@ -81,6 +81,9 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& points, const Con
 
 // Moore-Penrose pseudo-inverse by SVD, dropping singular values below rel x the largest.
 Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel);
+// A^+ b for a tall A (rows >= cols), the same thresholding, without forming A^+: what the
+// control law uses every iteration.
+Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel);
 
 // Beyond the paper's experiments (§6, after [6]): choose `count` points greedily so that the
 // interaction matrix built from them is as well conditioned as possible.

@@ -1,0 +1,51 @@
+// The paper's experiments in the in-process closed loop (renderer + decoder + control law,
+// no DDS), in simulated time with an iteration cap: no wall-clock waits.
+#include <gtest/gtest.h>
+
+#include "sim/app/experiment.hpp"
+
+namespace {
+
+const std::string kDir = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
+
+cellsim::ExperimentResult run(const std::string& name, control::InteractionModel model, double z_hat,
+                              cellsim::FeatureSource source, int cap) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + name + ".yaml"));
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.model = model;
+  o.servo.law.z_hat_m = z_hat;
+  o.source = source;
+  o.max_iterations = cap;
+  return cellsim::run_experiment(*cell, o);
+}
+
+TEST(InProcessLoop, PlaneConvergesUnder1mmAnd0_1Deg) {
+  const auto r = run("plane", control::InteractionModel::kDesiredConstantDepth, 0.9, cellsim::FeatureSource::kDecoded, 600);
+  EXPECT_TRUE(r.converged) << r.stop_reason;
+  EXPECT_LT(r.final_translation_error_m, 1e-3);
+  EXPECT_LT(r.final_rotation_error_deg, 0.1);
+  EXPECT_GE(r.decoded_desired, 370);
+  EXPECT_GE(r.decoded_initial, 361);
+  // the task function decreases (allowing for image noise near the goal)
+  EXPECT_LT(r.trace.back().error_norm, 0.01 * r.trace.front().error_norm);
+}
+
+TEST(InProcessLoop, CylinderConvergesUnder1mmAnd0_1Deg) {
+  const auto r = run("cylinder", control::InteractionModel::kDesiredConstantDepth, 0.6, cellsim::FeatureSource::kDecoded, 900);
+  EXPECT_TRUE(r.converged) << r.stop_reason;
+  EXPECT_LT(r.final_translation_error_m, 1e-3);
+  EXPECT_LT(r.final_rotation_error_deg, 0.1);
+}
+
+TEST(InProcessLoop, Fig5ConstantDepth0_9DoesNotConvergeButTrueDepthsDo) {
+  const auto coarse = run("fig5", control::InteractionModel::kDesiredConstantDepth, 0.9, cellsim::FeatureSource::kIdeal, 600);
+  EXPECT_FALSE(coarse.converged) << coarse.stop_reason;
+  const auto desired = run("fig5", control::InteractionModel::kDesired, 0.9, cellsim::FeatureSource::kIdeal, 600);
+  EXPECT_TRUE(desired.converged) << desired.stop_reason;
+  const auto current = run("fig5", control::InteractionModel::kCurrent, 0.9, cellsim::FeatureSource::kIdeal, 600);
+  EXPECT_TRUE(current.converged) << current.stop_reason;
+  EXPECT_LT(current.iterations, desired.iterations);  // the paper: L(s, Z) cancels the task sooner
+}
+
+}  // namespace

@@ -11,6 +11,8 @@
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
+#include "servo/app/servo_service.hpp"
+#include "dds/participant.hpp"
 
 namespace {
 
@@ -71,8 +73,33 @@ int main(int argc, char** argv) {
   decode->add_flag("--tolerant", tolerant, "error-tolerant window reading (beyond the paper)");
   decode->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
       ->check(CLI::Range(1, 9))->capture_default_str();
+  servo::ServiceOptions svc;
+  std::string config_file, model, reference;
+  double z_hat = 0, gain = 0;
+  int domain = -1;
+  auto* run = app.add_subcommand("run", "run the controller as a DDS service");
+  run->add_option("--pattern", pattern_file, "pattern file")->required();
+  run->add_option("--config", config_file, "servo configuration (YAML)");
+  run->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
+  run->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)");
+  run->add_option("--gain", gain, "constant gain");
+  run->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
+  run->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
+  run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
+  run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
+
   CLI11_PARSE(app, argc, argv);
   try {
+    if (*run) {
+      svc.pattern = pattern_file;
+      if (!config_file.empty()) servo::load_servo_config(config_file, svc.config);
+      if (!model.empty()) svc.config.law.model = control::parse_interaction_model(model);
+      if (z_hat > 0) svc.config.law.z_hat_m = z_hat;
+      if (gain > 0) svc.config.law.gain = {gain, gain, 0};
+      svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      svc.reference = reference;
+      return servo::run_servo_service(svc);
+    }
     if (*decode) return run_decode(image, pattern_file, json_out, overlay_out, tolerant, min_votes);
   } catch (const std::exception& e) {
     std::cerr << "servo: " << e.what() << "\n";

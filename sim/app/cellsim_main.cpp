@@ -13,6 +13,8 @@
 #include "sim/app/decode_sweep.hpp"
 #include "sim/app/experiment.hpp"
 #include "sim/app/campaign.hpp"
+#include "sim/app/sim_service.hpp"
+#include "dds/participant.hpp"
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
 
@@ -204,8 +206,32 @@ int main(int argc, char** argv) {
   cp->add_option("--z-hat", camp_law.z_hat, "depth of desired-constant-depth (m)");
   cp->add_option("--gain", camp_law.gain, "constant gain")->capture_default_str();
 
+  cellsim::ServiceOptions svc;
+  std::string mode = "lockstep", svc_trace;
+  int domain = -1;
+  auto* sv = app.add_subcommand("serve", "run the simulated cell as a DDS service");
+  sv->add_option("scenario", scenario, "scenario YAML file")->required();
+  sv->add_option("--mode", mode, "lockstep | realtime")->capture_default_str();
+  sv->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
+  sv->add_option("--watchdog-ms", svc.watchdog_ms, "stop the robot after this long without a valid twist")
+      ->capture_default_str();
+  sv->add_option("--republish-ms", svc.republish_ms, "lockstep: send an unanswered frame again after this long")
+      ->capture_default_str();
+  sv->add_flag("--autorun", svc.autorun, "teach, reset to the initial pose and start without an external client");
+  sv->add_option("--max-frames", svc.max_frames, "exit after this many frames")->capture_default_str();
+  sv->add_flag("--exit-on-converged", svc.exit_on_converged, "exit when the servo reports CONVERGED");
+  sv->add_option("--trace", svc_trace, "folder for trace.csv");
+
   CLI11_PARSE(app, argc, argv);
   try {
+    if (*sv) {
+      svc.scenario = scenario;
+      if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");
+      svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
+      svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      svc.trace_dir = svc_trace;
+      return cellsim::run_sim_service(svc);
+    }
     if (*ex) return run_experiment_cli(scenario, law, source, max_iterations, initial, exp_dir, !no_plot);
     if (*cp) {
       const auto cell = sim::build_cell(sim::load_scenario(scenario));

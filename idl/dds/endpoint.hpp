@@ -1,0 +1,113 @@
+// Typed DDS endpoints over the generated types: one writer or reader per topic, RAII over
+// the Fast DDS entities, constructors that throw when an entity cannot be created.
+#pragma once
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <functional>
+#include <stdexcept>
+#include <string>
+
+#include "dds/participant.hpp"
+
+namespace cell_dds {
+
+// The topic of that name, created (with its type registered) on first use.
+template <typename PubSubType>
+eprosima::fastdds::dds::Topic* topic_for(eprosima::fastdds::dds::DomainParticipant& p, const std::string& name) {
+  using namespace eprosima::fastdds::dds;
+  eprosima::fastdds::dds::TypeSupport type(new PubSubType());
+  if (!p.find_type(type.get_type_name()).empty()) {
+    // already registered
+  } else {
+    register_type(p, type);
+  }
+  if (auto* d = p.lookup_topicdescription(name)) return dynamic_cast<Topic*>(d);
+  Topic* t = p.create_topic(name, type.get_type_name(), TOPIC_QOS_DEFAULT);
+  if (t == nullptr) throw std::runtime_error("cannot create DDS topic " + name);
+  return t;
+}
+
+template <typename PubSubType>
+class Writer {
+ public:
+  using Data = typename PubSubType::type;
+  Writer(eprosima::fastdds::dds::DomainParticipant& p, const std::string& topic,
+         const eprosima::fastdds::dds::DataWriterQos& qos)
+      : participant_(p), name_(topic) {
+    publisher_ = p.create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
+    if (!publisher_) throw std::runtime_error("cannot create a DDS publisher for " + topic);
+    writer_ = publisher_->create_datawriter(topic_for<PubSubType>(p, topic), qos);
+    if (!writer_) throw std::runtime_error("cannot create a DDS writer for " + topic);
+  }
+  ~Writer() {
+    publisher_->delete_datawriter(writer_);
+    participant_.delete_publisher(publisher_);
+  }
+  Writer(const Writer&) = delete;
+  Writer& operator=(const Writer&) = delete;
+
+  bool write(Data& sample) { return writer_->write(&sample); }
+  int matched() const {
+    eprosima::fastdds::dds::PublicationMatchedStatus s;
+    writer_->get_publication_matched_status(s);
+    return s.current_count;
+  }
+  const std::string& topic() const { return name_; }
+
+ private:
+  eprosima::fastdds::dds::DomainParticipant& participant_;
+  std::string name_;
+  eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
+  eprosima::fastdds::dds::DataWriter* writer_ = nullptr;
+};
+
+// Calls `on_sample` from Fast DDS's listener thread for every valid sample.
+template <typename PubSubType>
+class Reader : private eprosima::fastdds::dds::DataReaderListener {
+ public:
+  using Data = typename PubSubType::type;
+  using Callback = std::function<void(Data&&)>;
+  Reader(eprosima::fastdds::dds::DomainParticipant& p, const std::string& topic,
+         const eprosima::fastdds::dds::DataReaderQos& qos, Callback on_sample)
+      : participant_(p), on_sample_(std::move(on_sample)) {
+    subscriber_ = p.create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
+    if (!subscriber_) throw std::runtime_error("cannot create a DDS subscriber for " + topic);
+    reader_ = subscriber_->create_datareader(topic_for<PubSubType>(p, topic), qos, this);
+    if (!reader_) throw std::runtime_error("cannot create a DDS reader for " + topic);
+  }
+  ~Reader() {
+    reader_->set_listener(nullptr);
+    subscriber_->delete_datareader(reader_);
+    participant_.delete_subscriber(subscriber_);
+  }
+  Reader(const Reader&) = delete;
+  Reader& operator=(const Reader&) = delete;
+
+  int matched() const {
+    eprosima::fastdds::dds::SubscriptionMatchedStatus s;
+    reader_->get_subscription_matched_status(s);
+    return s.current_count;
+  }
+
+ private:
+  void on_data_available(eprosima::fastdds::dds::DataReader* reader) override {
+    Data sample;
+    eprosima::fastdds::dds::SampleInfo info;
+    while (reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK)
+      if (info.valid_data) on_sample_(std::move(sample));
+  }
+
+  eprosima::fastdds::dds::DomainParticipant& participant_;
+  Callback on_sample_;
+  eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
+  eprosima::fastdds::dds::DataReader* reader_ = nullptr;
+};
+
+}  // namespace cell_dds

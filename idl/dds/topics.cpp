@@ -1,0 +1,51 @@
+#include "dds/topics.hpp"
+
+#include <cmath>
+
+namespace cell_dds {
+
+using namespace eprosima::fastdds::dds;
+
+namespace {
+
+template <typename Qos>
+void configure(Qos& q, Stream s) {
+  q.reliability().kind = s == Stream::kClock ? BEST_EFFORT_RELIABILITY_QOS : RELIABLE_RELIABILITY_QOS;
+  q.durability().kind = s == Stream::kLatched ? TRANSIENT_LOCAL_DURABILITY_QOS : VOLATILE_DURABILITY_QOS;
+  q.history().kind = KEEP_LAST_HISTORY_QOS;
+  q.history().depth = s == Stream::kCommand ? 16 : 1;
+}
+
+}  // namespace
+
+DataWriterQos writer_qos(Stream s) {
+  DataWriterQos q = DATAWRITER_QOS_DEFAULT;
+  configure(q, s);
+  // large frames are fragmented; the writer's own thread sends them so write() returns at once
+  if (s == Stream::kFrame) q.publish_mode().kind = ASYNCHRONOUS_PUBLISH_MODE;
+  return q;
+}
+
+DataReaderQos reader_qos(Stream s) {
+  DataReaderQos q = DATAREADER_QOS_DEFAULT;
+  configure(q, s);
+  return q;
+}
+
+builtin_interfaces::msg::dds_::Time_ stamp_of(std::uint64_t frame, double dt_s) {
+  // integer nanoseconds per frame, so stamps map back to frames exactly
+  const std::uint64_t ns = frame * static_cast<std::uint64_t>(std::llround(dt_s * 1e9));
+  builtin_interfaces::msg::dds_::Time_ t;
+  t.sec(static_cast<std::int32_t>(ns / 1000000000ull));
+  t.nanosec(static_cast<std::uint32_t>(ns % 1000000000ull));
+  return t;
+}
+
+std::uint64_t frame_of(const builtin_interfaces::msg::dds_::Time_& t, double dt_s) {
+  const std::uint64_t ns = static_cast<std::uint64_t>(t.sec()) * 1000000000ull + t.nanosec();
+  return ns / static_cast<std::uint64_t>(std::llround(dt_s * 1e9));
+}
+
+double seconds(const builtin_interfaces::msg::dds_::Time_& t) { return t.sec() + 1e-9 * t.nanosec(); }
+
+}  // namespace cell_dds

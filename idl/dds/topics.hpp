@@ -1,0 +1,43 @@
+// The cell's topic map (docs/topics.md): names in ROS 2 form (rt/<name>) and the QoS each one
+// needs. Both services, the tests and the tools take them from here.
+#pragma once
+
+#include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
+#include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <string>
+
+#include "builtin_interfaces.h"
+
+namespace cell_dds {
+
+inline constexpr const char* kImageTopic = "rt/camera/image_raw";
+inline constexpr const char* kCameraInfoTopic = "rt/camera/camera_info";
+inline constexpr const char* kTwistTopic = "rt/servo/cmd_twist";
+inline constexpr const char* kCameraPoseTopic = "rt/sim/camera_pose";
+inline constexpr const char* kSpotTruthTopic = "rt/sim/spot_truth";
+inline constexpr const char* kSpotsTopic = "rt/servo/spots";
+inline constexpr const char* kStatusTopic = "rt/servo/status";
+inline constexpr const char* kControlTopic = "rt/sim/control";
+inline constexpr const char* kClockTopic = "rt/clock";
+
+inline constexpr const char* kCameraFrame = "camera_optical";
+inline constexpr const char* kWorldFrame = "world";
+
+// What a topic's data is for, which decides its QoS:
+enum class Stream {
+  kFrame,    // one sample per camera frame (image, pose, truth, twist, spots): reliable, only the
+             // newest kept, so lockstep loses nothing and realtime never queues stale frames
+  kLatched,  // state a late joiner needs (camera info, servo status): reliable, transient local
+  kCommand,  // commands (sim control): reliable, a few kept, none dropped
+  kClock,    // the clock: best effort, newest only
+};
+
+eprosima::fastdds::dds::DataWriterQos writer_qos(Stream s);
+eprosima::fastdds::dds::DataReaderQos reader_qos(Stream s);
+
+// Simulated time of frame k at period dt, as a ROS 2 stamp.
+builtin_interfaces::msg::dds_::Time_ stamp_of(std::uint64_t frame, double dt_s);
+std::uint64_t frame_of(const builtin_interfaces::msg::dds_::Time_& stamp, double dt_s);
+double seconds(const builtin_interfaces::msg::dds_::Time_& stamp);
+
+}  // namespace cell_dds

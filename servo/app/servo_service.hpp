@@ -1,0 +1,28 @@
+// The `servo run` service: decodes the camera's images, runs the control law and publishes
+// the camera twist, the decoded spots and its status over DDS.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "servo/pipeline/servo_pipeline.hpp"
+
+namespace servo {
+
+struct ServiceOptions {
+  std::filesystem::path pattern;
+  ServoConfig config;              // camera intrinsics come from rt/camera/camera_info
+  int domain_id = 0;
+  double lost_ms = 500;            // no image for this long: zero twist and state LOST
+  std::filesystem::path reference; // s*: loaded at start when it exists, saved after teaching
+  bool autostart = false;          // servo as soon as a reference exists (no START needed)
+};
+
+int run_servo_service(const ServiceOptions& options);
+
+// Reads a servo configuration (YAML: model, z_hat_m, gain, gain_adaptive [l0, linf, slope],
+// max_linear_mps, max_angular_dps, min_points, converge_mm, converge_deg, min_votes,
+// min_island, tolerant) over `config`. Throws std::runtime_error naming file and key.
+void load_servo_config(const std::filesystem::path& file, ServoConfig& config);
+
+}  // namespace servo

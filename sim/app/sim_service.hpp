@@ -1,0 +1,28 @@
+// The `cellsim serve` service: the simulated cell on DDS. It publishes the camera's images,
+// camera info, clock and ground truth, applies the servo's twists, and obeys rt/sim/control.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace cellsim {
+
+enum class TimingMode { kLockstep, kRealtime };
+
+struct ServiceOptions {
+  std::filesystem::path scenario;
+  TimingMode mode = TimingMode::kLockstep;
+  int domain_id = 0;
+  double watchdog_ms = 100;     // no valid twist for this long: the robot stops
+  double republish_ms = 1000;   // lockstep: frame k sent again when unanswered this long
+  bool autorun = false;         // teach, go to the initial pose and start on its own
+  long max_frames = 0;          // stop after this many frames (0: no limit)
+  bool exit_on_converged = false;
+  std::filesystem::path trace_dir;  // trace.csv of the run (lockstep: one row per step)
+};
+
+// Runs until SIGINT/SIGTERM, max_frames or convergence (with exit_on_converged). Returns the
+// process exit code; throws for a bad scenario or a DDS failure.
+int run_sim_service(const ServiceOptions& options);
+
+}  // namespace cellsim

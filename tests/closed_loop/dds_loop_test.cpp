@@ -1,0 +1,284 @@
+// Closed loops over DDS with the real processes: `cellsim serve` and `servo run`, each on a
+// domain of its own, hard timeouts, and checks made on the topics they publish (a test
+// participant listens like any outside client), never on their logs.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "cell_msgsPubSubTypes.h"
+#include "closed_loop/process.hpp"
+#include "dds/endpoint.hpp"
+#include "dds/topics.hpp"
+#include "geometry_msgsPubSubTypes.h"
+#include "sim/app/experiment.hpp"
+#include "sim/geometry/se3.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using closed_loop::Process;
+namespace SS = cell_msgs::msg::dds_::ServoStatus_Constants;
+namespace SC = cell_msgs::msg::dds_::SimControl_Constants;
+
+const std::string kBin = std::string(CELL_BINARY_DIR) + "/bin/";
+const std::string kSrc = std::string(CELL_SOURCE_DIR);
+const std::string kPattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt";
+
+int unique_domain(int salt) { return 1 + static_cast<int>((getpid() * 7 + salt * 13) % 200); }
+
+std::string tmp_dir(const std::string& name) {
+  const auto d = std::filesystem::temp_directory_path() / ("dds_loop_" + std::to_string(getpid()) + "_" + name);
+  std::filesystem::create_directories(d);
+  return d.string();
+}
+
+// What the test hears on the cell's topics.
+struct Watcher {
+  explicit Watcher(int domain) {
+    cell_dds::ParticipantOptions o;
+    o.domain_id = domain;
+    o.name = "test_watcher";
+    participant = cell_dds::make_participant(o);
+    using cell_dds::Stream;
+    pose = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
+        *participant, cell_dds::kCameraPoseTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](geometry_msgs::msg::dds_::PoseStamped_&& p) {
+          std::lock_guard<std::mutex> l(m);
+          last_pose = p;
+          ++poses;
+          last_pose_time = std::chrono::steady_clock::now();
+        });
+    status = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
+        *participant, cell_dds::kStatusTopic, cell_dds::reader_qos(Stream::kLatched),
+        [this](cell_msgs::msg::dds_::ServoStatus_&& s) {
+          std::lock_guard<std::mutex> l(m);
+          last_status = s;
+          if (s.state() == SS::CONVERGED) converged = true;
+          if (s.state() == SS::LOST) lost = true;
+        });
+    twist = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
+        *participant, cell_dds::kTwistTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](geometry_msgs::msg::dds_::TwistStamped_&& t) {
+          std::lock_guard<std::mutex> l(m);
+          last_twist = t;
+          ++twists;
+        });
+  }
+  Eigen::Isometry3d pose_now() {
+    std::lock_guard<std::mutex> l(m);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    if (!last_pose) return T;
+    const auto& p = last_pose->pose();
+    T.translation() = Eigen::Vector3d(p.position().x(), p.position().y(), p.position().z());
+    T.linear() = Eigen::Quaterniond(p.orientation().w(), p.orientation().x(), p.orientation().y(), p.orientation().z())
+                     .toRotationMatrix();
+    return T;
+  }
+  long pose_count() {
+    std::lock_guard<std::mutex> l(m);
+    return poses;
+  }
+  template <typename Pred>
+  bool wait_for(Pred pred, std::chrono::milliseconds timeout) {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < until) {
+      {
+        std::lock_guard<std::mutex> l(m);
+        if (pred()) return true;
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    std::lock_guard<std::mutex> l(m);
+    return pred();
+  }
+
+  std::mutex m;
+  std::optional<geometry_msgs::msg::dds_::PoseStamped_> last_pose;
+  std::optional<cell_msgs::msg::dds_::ServoStatus_> last_status;
+  std::optional<geometry_msgs::msg::dds_::TwistStamped_> last_twist;
+  std::chrono::steady_clock::time_point last_pose_time;
+  long poses = 0, twists = 0;
+  bool converged = false, lost = false;
+  cell_dds::ParticipantPtr participant;
+  std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose;
+  std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status;
+  std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist;
+};
+
+std::vector<std::string> servo_args(const std::string& z_hat, const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> a{kBin + "servo", "run", "--pattern", kPattern, "--z-hat", z_hat};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+void expect_converged_pose(const std::string& scenario, Watcher& w) {
+  const sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/" + scenario + ".yaml");
+  const Eigen::Isometry3d wTc = w.pose_now();
+  EXPECT_LT(sim::translation_error(wTc, s.world_T_desired), 1e-3);
+  EXPECT_LT(sim::rotation_error(wTc, s.world_T_desired) * 180 / M_PI, 0.1);
+}
+
+TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
+  const int domain = unique_domain(1);
+  const std::string dir = tmp_dir("plane");
+  Watcher w(domain);
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun", "--exit-on-converged",
+               "--max-frames", "800", "--trace", dir},
+              domain, dir + "/sim.log");
+  ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s)) << "no CONVERGED status received";
+  expect_converged_pose("plane", w);
+
+  // the same scenario and seed in the in-process runner: the same trace, number for number
+  const auto cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml"));
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.out_dir = tmp_dir("plane_in_process");
+  o.write_features = false;
+  cellsim::run_experiment(*cell, o);
+  const auto body = [](const std::string& file) {
+    std::ifstream f(file);
+    std::string line, all;
+    while (std::getline(f, line))
+      if (!line.empty() && line[0] != '#') all += line + "\n";
+    return all;
+  };
+  const std::string service = body(dir + "/trace.csv"), in_process = body(o.out_dir.string() + "/trace.csv");
+  EXPECT_GT(service.size(), 1000u);
+  EXPECT_EQ(service, in_process);
+}
+
+TEST(DdsLoop, CylinderConvergesInLockstep) {
+  const int domain = unique_domain(2);
+  const std::string dir = tmp_dir("cylinder");
+  Watcher w(domain);
+  Process servo(servo_args("0.6"), domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/cylinder.yaml", "--autorun", "--exit-on-converged",
+               "--max-frames", "1200"},
+              domain, dir + "/sim.log");
+  ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
+  expect_converged_pose("cylinder", w);
+}
+
+TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {
+  const int domain = unique_domain(3);
+  const std::string dir = tmp_dir("restart");
+  const std::string reference = dir + "/reference.json";
+  Watcher w(domain);
+  auto servo = std::make_unique<Process>(servo_args("0.9", {"--reference", reference}), domain, dir + "/servo1.log");
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun", "--exit-on-converged",
+               "--max-frames", "2000", "--republish-ms", "300"},
+              domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 60; }, 60s)) << "the run did not start";
+  servo->kill(SIGKILL);  // dies without a word
+  servo.reset();
+  std::this_thread::sleep_for(150ms);  // more than one watchdog period
+  const Eigen::Isometry3d stopped = w.pose_now();
+  std::this_thread::sleep_for(700ms);
+  EXPECT_LT(sim::translation_error(stopped, w.pose_now()), 1e-12) << "the robot moved without a servo";
+  EXPECT_FALSE(w.converged);
+  // a new servo with the saved reference picks the run up where it stopped
+  ASSERT_TRUE(std::filesystem::exists(reference)) << "no reference saved at teach time";
+  Process again(servo_args("0.9", {"--reference", reference, "--autostart"}), domain, dir + "/servo2.log");
+  ASSERT_EQ(sim.wait_exit(120s), 0) << "the run did not finish after the restart; see " << dir;
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
+  expect_converged_pose("plane", w);
+}
+
+TEST(DdsLoop, KilledSimMakesTheServoReportLostAndPublishZero) {
+  const int domain = unique_domain(4);
+  const std::string dir = tmp_dir("lost");
+  Watcher w(domain);
+  Process servo(servo_args("0.9", {"--lost-ms", "300"}), domain, dir + "/servo.log");
+  auto sim = std::make_unique<Process>(
+      std::vector<std::string>{kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun"}, domain,
+      dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return w.twists > 30; }, 60s));
+  sim->kill(SIGKILL);
+  sim.reset();
+  ASSERT_TRUE(w.wait_for([&] { return w.lost; }, 5s)) << "no LOST status";
+  std::lock_guard<std::mutex> l(w.m);
+  const auto& t = w.last_twist->twist();
+  EXPECT_EQ(t.linear().x() + t.linear().y() + t.linear().z() + t.angular().x() + t.angular().y() + t.angular().z(), 0.0);
+}
+
+TEST(DdsLoop, RealtimeWatchdogStopsTheRobotWhenTheServoDies) {
+  const int domain = unique_domain(5);
+  const std::string dir = tmp_dir("realtime");
+  Watcher w(domain);
+  auto servo = std::make_unique<Process>(servo_args("0.9"), domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--mode", "realtime", "--autorun",
+               "--watchdog-ms", "100"},
+              domain, dir + "/sim.log");
+  const auto moved = [&] {
+    const sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
+    return sim::translation_error(w.pose_now(), s.world_T_initial()) > 0.02;
+  };
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 10; }, 60s));
+  ASSERT_TRUE([&] {
+    for (int i = 0; i < 300 && !moved(); ++i) std::this_thread::sleep_for(50ms);
+    return moved();
+  }()) << "the robot never moved towards the goal";
+  servo->kill(SIGKILL);
+  servo.reset();
+  std::this_thread::sleep_for(250ms);  // one watchdog period and a frame or two
+  const Eigen::Isometry3d a = w.pose_now();
+  std::this_thread::sleep_for(500ms);
+  EXPECT_LT(sim::translation_error(a, w.pose_now()), 1e-12) << "the robot kept moving after the watchdog period";
+}
+
+TEST(DdsLoop, NanTwistIsRejectedAndTheRobotDoesNotMove) {
+  const int domain = unique_domain(6);
+  const std::string dir = tmp_dir("nan");
+  Watcher w(domain);
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--mode", "realtime"}, domain,
+              dir + "/sim.log");
+  // start the (servo-less) sim moving, then feed it a NaN twist for the current frame
+  cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType> control(*w.participant, cell_dds::kControlTopic,
+                                                                         cell_dds::writer_qos(cell_dds::Stream::kCommand));
+  cell_dds::Writer<geometry_msgs::msg::dds_::TwistStamped_PubSubType> twist(*w.participant, cell_dds::kTwistTopic,
+                                                                            cell_dds::writer_qos(cell_dds::Stream::kFrame));
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 3 && control.matched() > 0 && twist.matched() > 0; }, 60s));
+  cell_msgs::msg::dds_::SimControl_ start;
+  start.command(SC::START);
+  control.write(start);
+  std::this_thread::sleep_for(200ms);
+  const Eigen::Isometry3d before = w.pose_now();
+  for (int i = 0; i < 10; ++i) {
+    geometry_msgs::msg::dds_::TwistStamped_ t;
+    {
+      std::lock_guard<std::mutex> l(w.m);
+      t.header().stamp(w.last_pose->header().stamp());
+    }
+    t.header().frame_id(cell_dds::kCameraFrame);
+    t.twist().linear().x(std::nan(""));
+    t.twist().angular().z(0.1);
+    twist.write(t);
+    std::this_thread::sleep_for(40ms);
+  }
+  std::this_thread::sleep_for(200ms);
+  EXPECT_LT(sim::translation_error(before, w.pose_now()), 1e-12);
+  EXPECT_LT(sim::rotation_error(before, w.pose_now()), 1e-12);
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(10s), 0);
+  std::ifstream log(dir + "/sim.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), {});
+  // the rejections are counted and reported at exit (reliable delivery keeps only the newest
+  // unread twist, so up to 10)
+  const auto at = text.find("rejected ");
+  ASSERT_NE(at, std::string::npos) << text;
+  EXPECT_GT(std::stoi(text.substr(at + 9)), 0) << text;
+}
+
+}  // namespace

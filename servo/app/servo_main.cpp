@@ -12,6 +12,7 @@
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
 #include "servo/app/servo_service.hpp"
+#include "servo/app/servo_view.hpp"
 #include "dds/participant.hpp"
 
 namespace {
@@ -88,8 +89,21 @@ int main(int argc, char** argv) {
   run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
   run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
 
+  servo::ViewOptions view;
+  std::string view_out;
+  auto* vw = app.add_subcommand("view", "live view of the camera with the decoded ids (window, or PNGs headless)");
+  vw->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
+  vw->add_option("-o,--output", view_out, "write a PNG sequence here instead of opening a window");
+  vw->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
+  vw->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
+
   CLI11_PARSE(app, argc, argv);
   try {
+    if (*vw) {
+      view.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      view.output = view_out;
+      return servo::run_viewer(view);
+    }
     if (*run) {
       svc.pattern = pattern_file;
       if (!config_file.empty()) servo::load_servo_config(config_file, svc.config);

@@ -1,0 +1,112 @@
+#include "servo/app/servo_view.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <mutex>
+#include <opencv2/highgui.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <optional>
+
+#include "cell_msgsPubSubTypes.h"
+#include "dds/endpoint.hpp"
+#include "dds/topics.hpp"
+#include "sensor_msgsPubSubTypes.h"
+
+namespace servo {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop = true; }
+
+using Stamp = std::pair<int32_t, uint32_t>;
+Stamp key(const builtin_interfaces::msg::dds_::Time_& t) { return {t.sec(), t.nanosec()}; }
+
+}  // namespace
+
+int run_viewer(const ViewOptions& o) {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  const bool window = o.output.empty() && std::getenv("DISPLAY") != nullptr;
+  if (!window && o.output.empty()) throw std::runtime_error("no display: give --output DIR for a PNG sequence");
+  if (!o.output.empty()) std::filesystem::create_directories(o.output);
+
+  std::mutex m;
+  std::condition_variable cv;
+  std::optional<sensor_msgs::msg::dds_::Image_> image;
+  std::map<Stamp, cell_msgs::msg::dds_::DecodedSpots_> spots;  // by stamp, a few kept
+  cell_dds::ParticipantOptions po;
+  po.domain_id = o.domain_id;
+  po.name = "servo_view";
+  auto p = cell_dds::make_participant(po);
+  using cell_dds::Stream;
+  cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(
+      *p, cell_dds::kImageTopic, cell_dds::reader_qos(Stream::kFrame), [&](sensor_msgs::msg::dds_::Image_&& i) {
+        std::lock_guard<std::mutex> l(m);
+        image = std::move(i);
+        cv.notify_all();
+      });
+  cell_dds::Reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType> decoded(
+      *p, cell_dds::kSpotsTopic, cell_dds::reader_qos(Stream::kFrame), [&](cell_msgs::msg::dds_::DecodedSpots_&& s) {
+        std::lock_guard<std::mutex> l(m);
+        spots[key(s.header().stamp())] = std::move(s);
+        while (spots.size() > 8) spots.erase(spots.begin());
+        cv.notify_all();
+      });
+  std::printf("servo view: ready (%s, domain %d)\n", window ? "window" : o.output.c_str(), o.domain_id);
+  std::fflush(stdout);
+
+  long shown = 0, seen = 0;
+  std::unique_lock<std::mutex> lock(m);
+  while (!g_stop && (o.frames == 0 || shown < o.frames)) {
+    // an image and its decoded spots (the servo answers each image), or the image alone after 100 ms
+    if (!cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return image.has_value(); })) {
+      if (window) cv::waitKey(1);
+      continue;
+    }
+    const auto stamp = key(image->header().stamp());
+    cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return spots.count(stamp) > 0; });
+    sensor_msgs::msg::dds_::Image_ img = std::move(*image);
+    image.reset();
+    std::optional<cell_msgs::msg::dds_::DecodedSpots_> ids;
+    if (auto it = spots.find(stamp); it != spots.end()) ids = it->second;
+    lock.unlock();
+    if (img.encoding() == "rgb8" && img.data().size() == static_cast<std::size_t>(img.step()) * img.height() &&
+        ++seen % o.every == 0) {
+      cv::Mat rgb(static_cast<int>(img.height()), static_cast<int>(img.width()), CV_8UC3, img.data().data(), img.step());
+      cv::Mat bgr;
+      cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+      if (ids)
+        for (const auto& s : ids->spots()) {
+          cv::circle(bgr, {static_cast<int>(s.u() + 0.5), static_cast<int>(s.v() + 0.5)}, 5, cv::Scalar(255, 255, 255), 1,
+                     cv::LINE_AA);
+          cv::putText(bgr, std::to_string(s.row()) + "," + std::to_string(s.col()),
+                      {static_cast<int>(s.u()) + 4, static_cast<int>(s.v()) - 3}, cv::FONT_HERSHEY_PLAIN, 0.6,
+                      cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+        }
+      char caption[128];
+      std::snprintf(caption, sizeof caption, "t = %.2f s, %zu decoded", cell_dds::seconds(img.header().stamp()),
+                    ids ? ids->spots().size() : 0);
+      cv::putText(bgr, caption, {8, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
+      if (window) {
+        cv::imshow("servo view", bgr);
+        if (cv::waitKey(1) == 27) g_stop = true;
+      } else {
+        char name[64];
+        std::snprintf(name, sizeof name, "frame_%06ld.png", shown);
+        cv::imwrite((o.output / name).string(), bgr);
+      }
+      ++shown;
+    }
+    lock.lock();
+  }
+  std::printf("servo view: %ld frames %s\n", shown, window ? "shown" : ("written to " + o.output.string()).c_str());
+  return 0;
+}
+
+}  // namespace servo

@@ -1,0 +1,18 @@
+// `servo view`: the camera image with the decoded ids drawn on it, live. In an OpenCV window
+// when a display is there, otherwise (or with --output) a PNG sequence.
+#pragma once
+
+#include <filesystem>
+
+namespace servo {
+
+struct ViewOptions {
+  int domain_id = 0;
+  std::filesystem::path output;  // PNG sequence here (headless); empty: a window if possible
+  long frames = 0;               // stop after this many frames (0: until SIGINT / window closed)
+  int every = 1;                 // keep one frame in `every`
+};
+
+int run_viewer(const ViewOptions& options);
+
+}  // namespace servo

@@ -8,7 +8,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "servo/pattern/pattern_file.hpp"
+#include "bench/bench_scenes.hpp"
 #include "servo/vision/spot_decoder.hpp"
 #include "sim/render/renderer.hpp"
 
@@ -25,26 +25,7 @@ const Frame& frame(const std::string& scenario, int pattern_size = 20, double im
   static std::map<std::tuple<std::string, int, double>, Frame> cache;
   auto& f = cache[{scenario, pattern_size, image_scale}];
   if (!f.rgb.empty()) return f;
-  sim::Scenario s = sim::load_scenario(std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + scenario + ".yaml");
-  if (pattern_size != 20) {
-    pattern::GenerationParams p;
-    p.rows = p.cols = pattern_size;
-    const auto path = std::filesystem::temp_directory_path() / ("bench_pattern_" + std::to_string(pattern_size) + ".txt");
-    pattern::write_marray(path, *pattern::generate_marray(p).array);
-    s.projector.pattern = path;
-    s.projector.spot_pitch_px *= 20.0 / pattern_size;
-    s.projector.spot_radius_px *= 20.0 / pattern_size;
-    // keep spots a few camera pixels wide: bring the camera closer to the same spots
-  }
-  if (image_scale != 1.0) {
-    auto& k = s.camera.intrinsics;
-    k.width = static_cast<int>(k.width * image_scale);
-    k.height = static_cast<int>(k.height * image_scale);
-    k.fx *= image_scale;
-    k.fy *= image_scale;
-    k.cx = 0.5 * (k.width - 1);
-    k.cy = 0.5 * (k.height - 1);
-  }
+  const sim::Scenario s = bench::scaled_scenario(scenario, pattern_size, image_scale);
   const auto cell = sim::build_cell(s);
   f.rgb = sim::render_image(*cell, s.world_T_desired, 1);
   f.pattern = cell->projector->pattern();

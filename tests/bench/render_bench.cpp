@@ -6,36 +6,13 @@
 #include <map>
 #include <memory>
 
-#include "servo/pattern/pattern_file.hpp"
+#include "bench/bench_scenes.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {
 
-const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
-
 std::unique_ptr<sim::Cell> make_cell(const std::string& name, int pattern_size = 20, double image_scale = 1.0) {
-  sim::Scenario s = sim::load_scenario(kScenarios + name + ".yaml");
-  if (pattern_size != 20) {
-    pattern::GenerationParams p;
-    p.rows = p.cols = pattern_size;
-    const auto gen = pattern::generate_marray(p);
-    const auto path = std::filesystem::temp_directory_path() / ("bench_pattern_" + std::to_string(pattern_size) + ".txt");
-    pattern::write_marray(path, *gen.array);
-    s.projector.pattern = path;
-    // the same projected extent, denser spots
-    s.projector.spot_pitch_px *= 20.0 / pattern_size;
-    s.projector.spot_radius_px *= 20.0 / pattern_size;
-  }
-  if (image_scale != 1.0) {
-    auto& k = s.camera.intrinsics;
-    k.width = static_cast<int>(k.width * image_scale);
-    k.height = static_cast<int>(k.height * image_scale);
-    k.fx *= image_scale;
-    k.fy *= image_scale;
-    k.cx = 0.5 * (k.width - 1);
-    k.cy = 0.5 * (k.height - 1);
-  }
-  return sim::build_cell(s);
+  return sim::build_cell(bench::scaled_scenario(name, pattern_size, image_scale));
 }
 
 void render(benchmark::State& state, const sim::Cell& cell) {

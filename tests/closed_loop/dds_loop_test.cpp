@@ -18,6 +18,7 @@
 #include "dds/endpoint.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
+#include "sensor_msgsPubSubTypes.h"
 #include "sim/app/experiment.hpp"
 #include "sim/geometry/se3.hpp"
 
@@ -280,6 +281,55 @@ TEST(DdsLoop, NanTwistIsRejectedAndTheRobotDoesNotMove) {
   const auto at = text.find(key);
   ASSERT_NE(at, std::string::npos) << text;
   EXPECT_GT(std::stoi(text.substr(at + key.size())), 0) << text;
+}
+
+TEST(DdsLoop, ServoRejectsBadImagesWithAReasonAndExitsCleanly) {
+  const int domain = unique_domain(7);
+  const std::string dir = tmp_dir("bad_image");
+  Watcher w(domain);
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+  using cell_dds::Stream;
+  cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType> info(*w.participant, cell_dds::kCameraInfoTopic,
+                                                                       cell_dds::writer_qos(Stream::kLatched));
+  cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType> image(*w.participant, cell_dds::kImageTopic,
+                                                                   cell_dds::writer_qos(Stream::kFrame));
+  ASSERT_TRUE(w.wait_for([&] { return image.matched() > 0 && w.status->matched() > 0; }, 60s));
+  sensor_msgs::msg::dds_::CameraInfo_ ci;
+  ci.width(640);
+  ci.height(480);
+  ci.k({800, 0, 319.5, 0, 800, 239.5, 0, 0, 1});
+  info.write(ci);
+  std::this_thread::sleep_for(300ms);
+  const auto send = [&](uint32_t w_px, uint32_t h_px, const std::string& enc, std::size_t bytes, int k) {
+    sensor_msgs::msg::dds_::Image_ img;
+    img.header().stamp(cell_dds::stamp_of(static_cast<std::uint64_t>(k), 0.04));
+    img.header().frame_id(cell_dds::kCameraFrame);
+    img.width(w_px);
+    img.height(h_px);
+    img.encoding(enc);
+    img.step(w_px * 3);
+    img.data().assign(bytes, 0);
+    image.write(img);
+  };
+  const auto reason_has = [&](const std::string& text) {
+    return w.wait_for([&] { return w.last_status && w.last_status->reason().find(text) != std::string::npos; }, 10s);
+  };
+  send(640, 480, "mono8", 640 * 480 * 3, 1);
+  EXPECT_TRUE(reason_has("encoding 'mono8'"));
+  send(320, 240, "rgb8", 320 * 240 * 3, 2);
+  EXPECT_TRUE(reason_has("camera_info says 640 x 480"));
+  send(640, 480, "rgb8", 1000, 3);
+  EXPECT_TRUE(reason_has("1000 bytes"));
+  {
+    std::lock_guard<std::mutex> l(w.m);
+    ASSERT_TRUE(w.last_twist.has_value());
+    EXPECT_EQ(w.last_twist->twist().linear().x(), 0.0);  // a rejected image gets a zero twist
+  }
+  // SIGTERM: a zero twist and state STOPPED, then exit 0
+  const long twists_before = [&] { std::lock_guard<std::mutex> l(w.m); return w.twists; }();
+  servo.kill(SIGTERM);
+  EXPECT_EQ(servo.wait_exit(10s), 0);
+  EXPECT_TRUE(w.wait_for([&] { return w.twists > twists_before && w.last_status && w.last_status->state() == SS::STOPPED; }, 5s));
 }
 
 }  // namespace

@@ -44,89 +44,93 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p) {
   Segmentation out;
   const int W = rgb.cols, H = rgb.rows;
 
-  // chroma and its histogram in one pass
-  cv::Mat chroma(H, W, CV_8U);
+  // chroma = max - min channel, with OpenCV's vectorised per-channel operations (a scalar
+  // loop over interleaved RGB costs five times as much)
+  cv::Mat channels[3], hi, lo, chroma;
+  cv::split(rgb, channels);
+  cv::max(channels[0], channels[1], hi);
+  cv::max(hi, channels[2], hi);
+  cv::min(channels[0], channels[1], lo);
+  cv::min(lo, channels[2], lo);
+  cv::subtract(hi, lo, chroma);
   std::array<int, 256> hist{};
-  for (int v = 0; v < H; ++v) {
-    const std::uint8_t* in = rgb.ptr<std::uint8_t>(v);
-    std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
-    for (int u = 0; u < W; ++u, in += 3) {
-      const int r = in[0], g = in[1], b = in[2];
-      const int hi = r > g ? (r > b ? r : b) : (g > b ? g : b);
-      const int lo = r < g ? (r < b ? r : b) : (g < b ? g : b);
-      c[u] = static_cast<std::uint8_t>(hi - lo);
-    }
+  for (int v = 0; v < H; v += 2) {  // every other row: plenty for a median and an Otsu level
+    const std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
     for (int u = 0; u < W; ++u) ++hist[c[u]];
   }
-  // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
-  // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate
-  // from their neighbours. The global Otsu level only caps that local level.
+  const int sampled = ((H + 1) / 2) * W;
+
   // the floor rises with the sensor noise: the chroma of a noisy grey pixel is the spread of
   // three noisy channels, and most pixels are background, so the median chroma measures it
   int median = 0;
-  for (int acc = 0; median < 255 && (acc += hist[median]) < W * H / 2;) ++median;
+  for (int acc = 0; median < 255 && (acc += hist[median]) < sampled / 2;) ++median;
   const int floor_level = std::max(p.min_threshold, static_cast<int>(p.noise_floor_factor * median));
-  out.threshold = std::max(floor_level, otsu(hist, W * H));
-  cv::Mat local_max;
-  cv::dilate(chroma, local_max, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
-  cv::Mat level(H, W, CV_8U), mask(H, W, CV_8U);
-  const int peak_ratio_256 = static_cast<int>(p.peak_ratio * 256);
-  for (int v = 0; v < H; ++v) {
-    const std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
-    const std::uint8_t* m = local_max.ptr<std::uint8_t>(v);
-    std::uint8_t* l = level.ptr<std::uint8_t>(v);
-    std::uint8_t* k = mask.ptr<std::uint8_t>(v);
-    for (int u = 0; u < W; ++u) {
-      const int t = std::min(out.threshold, std::max(floor_level, (m[u] * peak_ratio_256) >> 8));
-      l[u] = static_cast<std::uint8_t>(t);
-      k[u] = c[u] > t ? 255 : 0;
-    }
-  }
-  cv::Mat labels, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  out.threshold = std::max(floor_level, otsu(hist, sampled));
+
+  // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
+  // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate
+  // from their neighbours. The global Otsu level caps that local level, the floor bounds it.
+  cv::Mat level, mask, labels;
+  cv::dilate(chroma, level, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
+  level.convertTo(level, CV_8U, p.peak_ratio);
+  cv::max(level, floor_level, level);
+  cv::min(level, out.threshold, level);
+  cv::compare(chroma, level, mask, cv::CMP_GT);
+  const int n = cv::connectedComponents(mask, labels, 8, CV_32S);
 
   // palette colours as unit chroma vectors (colour minus its smallest channel)
   std::vector<std::array<double, 3>> palette(p.colours);
   for (int k = 0; k < p.colours; ++k) {
     const pattern::Rgb c = pattern::symbol_colour(k);
-    const double lo = std::min({c.r, c.g, c.b});
-    std::array<double, 3> x{c.r - lo, c.g - lo, c.b - lo};
+    const double lo_c = std::min({c.r, c.g, c.b});
+    std::array<double, 3> x{c.r - lo_c, c.g - lo_c, c.b - lo_c};
     const double norm = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
     for (double& e : x) e /= norm;
     palette[k] = x;
   }
 
+  // one pass over the labelled pixels: area, bounding box, centre of gravity of the chroma
+  // above the local level, and the blob's summed chroma vector
+  struct Blob {
+    int area = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+    double sw = 0, su = 0, sv = 0;
+    std::array<double, 3> col{0, 0, 0};
+  };
+  std::vector<Blob> blobs(static_cast<std::size_t>(n));
+  for (int v = 0; v < H; ++v) {
+    const int* lab = labels.ptr<int>(v);
+    const std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
+    const std::uint8_t* l = level.ptr<std::uint8_t>(v);
+    const std::uint8_t* in = rgb.ptr<std::uint8_t>(v);
+    const std::uint8_t* lo_row = lo.ptr<std::uint8_t>(v);
+    for (int u = 0; u < W; ++u) {
+      const int i = lab[u];
+      if (i == 0) continue;
+      Blob& b = blobs[static_cast<std::size_t>(i)];
+      ++b.area;
+      b.x0 = std::min(b.x0, u), b.x1 = std::max(b.x1, u), b.y0 = std::min(b.y0, v), b.y1 = std::max(b.y1, v);
+      const double wgt = c[u] - l[u] + 1;
+      b.sw += wgt;
+      b.su += wgt * u;
+      b.sv += wgt * v;
+      const std::uint8_t* px = in + 3 * u;
+      b.col[0] += px[0] - lo_row[u];
+      b.col[1] += px[1] - lo_row[u];
+      b.col[2] += px[2] - lo_row[u];
+    }
+  }
+
   out.spots.reserve(static_cast<std::size_t>(n));
   for (int i = 1; i < n; ++i) {
-    const int* s = stats.ptr<int>(i);
-    const int x0 = s[cv::CC_STAT_LEFT], y0 = s[cv::CC_STAT_TOP], w = s[cv::CC_STAT_WIDTH], h = s[cv::CC_STAT_HEIGHT];
-    const int area = s[cv::CC_STAT_AREA];
+    const Blob& b = blobs[static_cast<std::size_t>(i)];
+    const int w = b.x1 - b.x0 + 1, h = b.y1 - b.y0 + 1;
     const double elongation = static_cast<double>(std::max(w, h)) / std::min(w, h);
-    if (area < p.min_area_px || area > p.max_area_px || elongation > p.max_elongation ||
-        area < p.min_fill * w * h) {
+    if (b.area < p.min_area_px || b.area > p.max_area_px || elongation > p.max_elongation ||
+        b.area < p.min_fill * w * h) {
       ++out.rejected;
       continue;
     }
-    // centre of gravity of the chroma above threshold, and the blob's mean chroma vector
-    double sw = 0, su = 0, sv = 0;
-    std::array<double, 3> col{0, 0, 0};
-    for (int v = y0; v < y0 + h; ++v) {
-      const int* lab = labels.ptr<int>(v);
-      const std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
-      const std::uint8_t* in = rgb.ptr<std::uint8_t>(v);
-      for (int u = x0; u < x0 + w; ++u) {
-        if (lab[u] != i) continue;
-        const double wgt = c[u] - level.ptr<std::uint8_t>(v)[u] + 1;
-        sw += wgt;
-        su += wgt * u;
-        sv += wgt * v;
-        const std::uint8_t* px = in + 3 * u;
-        const int lo = std::min({px[0], px[1], px[2]});
-        col[0] += px[0] - lo;
-        col[1] += px[1] - lo;
-        col[2] += px[2] - lo;
-      }
-    }
+    const auto& col = b.col;
     const double norm = std::sqrt(col[0] * col[0] + col[1] * col[1] + col[2] * col[2]);
     int best = -1;
     double best_cos = -1;
@@ -142,12 +146,12 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p) {
       continue;
     }
     Spot spot;
-    spot.u = su / sw;
-    spot.v = sv / sw;
+    spot.u = b.su / b.sw;
+    spot.v = b.sv / b.sw;
     spot.colour = best;
-    spot.area_px = area;
-    spot.strength = static_cast<float>(sw / area);
-    spot.truncated = x0 == 0 || y0 == 0 || x0 + w == W || y0 + h == H;
+    spot.area_px = b.area;
+    spot.strength = static_cast<float>(b.sw / b.area);
+    spot.truncated = b.x0 == 0 || b.y0 == 0 || b.x1 == W - 1 || b.y1 == H - 1;
     out.spots.push_back(spot);
   }
   return out;

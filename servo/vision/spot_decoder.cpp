@@ -75,11 +75,12 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
     int bj = -1;
     grid.around(spots[i].u, spots[i].v, 2, [&](int j) {
       if (j == static_cast<int>(i)) return;
-      const double d = std::hypot(spots[j].u - spots[i].u, spots[j].v - spots[i].v);
-      if (d < best) best = d, bj = j;
+      const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
+      const double d2 = du * du + dv * dv;  // squared: std::hypot is ten times dearer and not needed
+      if (d2 < best) best = d2, bj = j;
     });
     if (bj < 0) continue;
-    nn_dist[i] = best;
+    nn_dist[i] = std::sqrt(best);
     const double a = 4.0 * std::atan2(spots[bj].v - spots[i].v, spots[bj].u - spots[i].u);
     sx += std::cos(a);
     sy += std::sin(a);
@@ -95,11 +96,12 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
   std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
   const auto candidates = [&](std::size_t i, auto&& f) {
     const double reach = 4.0 * std::max(nn_dist[i], 0.5 * spacing);
+    const double reach2 = reach * reach;
     near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
       if (j == static_cast<int>(i)) return;
       const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
-      const double d = std::hypot(du, dv);
-      if (d <= reach && d > 1e-9) f(j, du, dv, d);
+      const double d2 = du * du + dv * dv;
+      if (d2 <= reach2 && d2 > 1e-18) f(j, du, dv, std::sqrt(d2));
     });
   };
   const double row_cos = std::cos(35.0 * kPi / 180.0);

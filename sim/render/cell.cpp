@@ -31,6 +31,13 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
     excess = std::max({excess, -u, -v, u - (k.width - 1), v - (k.height - 1)});
   }
   cell->camera_margin_px = static_cast<int>(std::ceil(std::min(excess, 4.0 * k.width))) + 2;
+  const int m = cell->camera_margin_px, zw = k.width + 2 * m, zh = k.height + 2 * m;
+  cell->pixel_to_zbuffer.resize(rays.size() / 2);
+  for (std::size_t i = 0; i < cell->pixel_to_zbuffer.size(); ++i) {
+    const int zu = DepthBuffer::nearest(k.fx * rays[2 * i] + k.cx) + m;
+    const int zv = DepthBuffer::nearest(k.fy * rays[2 * i + 1] + k.cy) + m;
+    cell->pixel_to_zbuffer[i] = zu < 0 || zv < 0 || zu >= zw || zv >= zh ? -1 : zv * zw + zu;
+  }
 
   std::mt19937_64 rng(scenario.seed);
   std::normal_distribution<float> gauss(0.f, 1.f);

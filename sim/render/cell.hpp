@@ -23,6 +23,9 @@ struct Cell {
   DepthBuffer projector_depth;
   std::vector<SpotHit> spot_hits;
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees
+  // for each camera pixel, the z-buffer cell its ray passes through (-1: none): the lens is
+  // fixed, so this is computed once instead of per pixel and frame
+  std::vector<std::int32_t> pixel_to_zbuffer;
   // unit-variance Gaussian samples drawn once from the scenario seed; each frame reads
   // them from seeded random offsets (one load per pixel value instead of a draw)
   std::vector<float> noise_pool;

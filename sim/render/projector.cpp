@@ -53,9 +53,4 @@ std::vector<SpotHit> Projector::cast_spots(const World& world) const {
   return hits;
 }
 
-double Projector::defocus_sigma_px(double z_p) const {
-  const double outside = std::max({0.0, spec_.focus_near_m - z_p, z_p - spec_.focus_far_m});
-  return spec_.focused_blur_px + spec_.defocus_px_per_m * outside;
-}
-
 }  // namespace sim

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <optional>
 #include <vector>
 
@@ -38,7 +39,10 @@ class Projector {
 
   // Blur (sigma, projector pixels) of the projected image at depth z along the optical axis:
   // the residual blur inside the focus range, growing linearly outside it.
-  double defocus_sigma_px(double z_p) const;
+  double defocus_sigma_px(double z_p) const {  // inline: called per lit pixel
+    const double outside = std::max({0.0, spec_.focus_near_m - z_p, z_p - spec_.focus_far_m});
+    return spec_.focused_blur_px + spec_.defocus_px_per_m * outside;
+  }
 
   const ProjectorSpec& spec() const { return spec_; }
   const pattern::MArray& pattern() const { return pattern_; }

@@ -154,10 +154,10 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   cv::parallel_for_(cv::Range(0, k.height), [&](const cv::Range& band) {
     // ambient light on whatever surface each pixel sees
     for (int v = band.start; v < band.end; ++v) {
-      const float* ray = rays + static_cast<std::size_t>(v) * k.width * 2;
       float* out = &s.radiance[static_cast<std::size_t>(v) * k.width * 3];
-      for (int u = 0; u < k.width; ++u, ray += 2) {
-        const std::int32_t t = s.camera_depth.triangle_at(k.fx * ray[0] + k.cx, k.fy * ray[1] + k.cy);
+      const std::int32_t* zi = &cell.pixel_to_zbuffer[static_cast<std::size_t>(v) * k.width];
+      for (int u = 0; u < k.width; ++u) {
+        const std::int32_t t = zi[u] >= 0 ? s.camera_depth.triangle[static_cast<std::size_t>(zi[u])] : -1;
         out[3 * u] = out[3 * u + 1] = out[3 * u + 2] = t >= 0 ? static_cast<float>(cam.ambient) * tris.albedo[t] : 0.f;
       }
     }
@@ -172,9 +172,10 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
       for (int v = v0; v <= v1; ++v)
         for (int u = box.u0; u <= box.u1; ++u) {
           const std::size_t px = static_cast<std::size_t>(v) * k.width + u;
-          const Eigen::Vector3d d_c(rays[2 * px], rays[2 * px + 1], 1.0);
-          const std::int32_t t = s.camera_depth.triangle_at(k.fx * d_c.x() + k.cx, k.fy * d_c.y() + k.cy);
+          const std::int32_t zi = cell.pixel_to_zbuffer[px];
+          const std::int32_t t = zi >= 0 ? s.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
           if (t < 0) continue;
+          const Eigen::Vector3d d_c(rays[2 * px], rays[2 * px + 1], 1.0);
           // exact intersection of this pixel's ray with the triangle's plane (camera frame)
           const double denom = s.normal_c[t].dot(d_c);
           if (std::abs(denom) < 1e-12) continue;
@@ -225,15 +226,17 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
       const float* __restrict noise = pool + splitmix64(state) % pool_span;
       const float* __restrict in = &s.radiance[static_cast<std::size_t>(v) * row_len];
       std::uint8_t* __restrict row = image.ptr<std::uint8_t>(v);
+      const std::size_t n = row_len;  // a local count: the loop vectorises only when it cannot alias
+      const float g = gain, rv = read_var, sh = shot;
       if (noisy) {
-        for (std::size_t i = 0; i < row_len; ++i) {
-          const float value = gain * in[i];
-          const float noisy_value = value + std::sqrt(read_var + shot * std::max(value, 0.f)) * noise[i];
+        for (std::size_t i = 0; i < n; ++i) {
+          const float value = g * in[i];
+          const float noisy_value = value + std::sqrt(rv + sh * std::max(value, 0.f)) * noise[i];
           row[i] = static_cast<std::uint8_t>(std::min(std::max(noisy_value + 0.5f, 0.f), 255.f));
         }
       } else {
-        for (std::size_t i = 0; i < row_len; ++i)
-          row[i] = static_cast<std::uint8_t>(std::min(std::max(gain * in[i] + 0.5f, 0.f), 255.f));
+        for (std::size_t i = 0; i < n; ++i)
+          row[i] = static_cast<std::uint8_t>(std::min(std::max(g * in[i] + 0.5f, 0.f), 255.f));
       }
     }
   });

@@ -136,6 +136,23 @@ class SimService {
     info_->write(ci);
   }
 
+  void publish_truth(const builtin_interfaces::msg::dds_::Time_& stamp, const Eigen::Isometry3d& wTc) {
+    cell_msgs::msg::dds_::SpotTruthArray_ truth;
+    truth.header().stamp(stamp);
+    truth.header().frame_id(cell_dds::kCameraFrame);
+    for (const auto& t : sim::compute_truth(*cell_, wTc)) {
+      cell_msgs::msg::dds_::SpotTruth_ s;
+      s.row(static_cast<int16_t>(t.row));
+      s.col(static_cast<int16_t>(t.col));
+      s.visible(t.visible);
+      s.u(t.uv.x());
+      s.v(t.uv.y());
+      s.depth_m(t.depth_m);
+      truth.spots().push_back(s);
+    }
+    truth_->write(truth);
+  }
+
   // Frame k: image, camera pose (truth), spot truth, clock, all with the same stamp.
   void publish_frame() {
     const auto stamp = cell_dds::stamp_of(frame_, dt());
@@ -155,20 +172,7 @@ class SimService {
     pose.pose().orientation().w(q.w());
     pose_->write(pose);  // before the image: the servo may need it to triangulate
 
-    cell_msgs::msg::dds_::SpotTruthArray_ truth;
-    truth.header().stamp(stamp);
-    truth.header().frame_id(cell_dds::kCameraFrame);
-    for (const auto& t : sim::compute_truth(*cell_, wTc)) {
-      cell_msgs::msg::dds_::SpotTruth_ s;
-      s.row(static_cast<int16_t>(t.row));
-      s.col(static_cast<int16_t>(t.col));
-      s.visible(t.visible);
-      s.u(t.uv.x());
-      s.v(t.uv.y());
-      s.depth_m(t.depth_m);
-      truth.spots().push_back(s);
-    }
-    truth_->write(truth);
+    if (truth_->matched() > 0) publish_truth(stamp, wTc);  // 400 visibility rays: only when someone listens
 
     sensor_msgs::msg::dds_::Image_ img;
     img.header().stamp(stamp);
@@ -296,9 +300,10 @@ class SimService {
     return std::nullopt;
   }
 
-  void record(const sim::Vector6d& v, const std::optional<ServoStatus_>& st, const Eigen::Isometry3d& wTc) {
+  void record(std::uint64_t frame, const sim::Vector6d& v, const std::optional<ServoStatus_>& st,
+              const Eigen::Isometry3d& wTc) {
     if (!trace_.is_open()) return;
-    trace_ << (frame_ - first_run_frame_) * dt();
+    trace_ << (frame - first_run_frame_) * dt();
     for (int i = 0; i < 6; ++i) trace_ << ',' << v[i];
     trace_ << ',' << (st ? st->error_norm() : std::nan("")) << ',' << (st ? st->decoded() : 0) << ','
            << (st ? st->matched() : 0) << ',' << sim::translation_error(wTc, cell_->scenario.world_T_desired) << ','
@@ -319,6 +324,7 @@ class SimService {
       if (running_ && !run_started_) {
         run_started_ = true;
         first_run_frame_ = frame_;
+        run_start_ = Clock::now();
       }
       // publish frame k and wait for its twist; unanswered frames are sent again
       lock.unlock();
@@ -347,24 +353,39 @@ class SimService {
         inbox_.cv.wait_for(lock, std::chrono::milliseconds(20));
       }
       if (!v) continue;
-      // the servo's status for this frame (published just before its twist)
-      std::optional<ServoStatus_> st = status_for(frame_);
-      for (int i = 0; !st && i < 10; ++i) {
-        inbox_.cv.wait_for(lock, std::chrono::milliseconds(5));
-        st = status_for(frame_);
-      }
+      // The servo's status for this frame travels on another topic and may land after the
+      // twist: the trace row is written once it is here, at the latest one frame later.
+      flush_pending(lock, false);
       const Eigen::Isometry3d wTc = robot_->world_T_camera();
+      const std::optional<ServoStatus_> st = status_for(frame_);
       if (!teaching_frame) {
-        record(*v, st, wTc);
+        pending_ = Pending{frame_, *v, wTc};
+        flush_pending(lock, false);
         robot_->apply_twist(*v, dt());
         ++counters_.applied;
       }
       ++frame_;
       if (pending_steps_ > 0) --pending_steps_;
       if (o_.exit_on_converged && st && st->state() == SS::CONVERGED) break;
+      if (o_.exit_on_converged && converged_seen(lock)) break;
       if (inbox_.statuses.size() > 64) inbox_.statuses.erase(inbox_.statuses.begin(), inbox_.statuses.end() - 8);
     }
+    flush_pending(lock, true);
     return 0;
+  }
+
+  // Writes the pending trace row when its frame's status has arrived (or, at the end, after a
+  // short bounded wait for it).
+  void flush_pending(std::unique_lock<std::mutex>& lock, bool final) {
+    if (!pending_) return;
+    std::optional<ServoStatus_> st = status_for(pending_->frame);
+    for (int i = 0; final && !st && i < 20; ++i) {
+      inbox_.cv.wait_for(lock, std::chrono::milliseconds(5));
+      st = status_for(pending_->frame);
+    }
+    if (!st && !final) return;
+    record(pending_->frame, pending_->twist, st, pending_->world_T_camera);
+    pending_.reset();
   }
 
   int realtime() {
@@ -411,6 +432,11 @@ class SimService {
 
   void summary() {
     const Eigen::Isometry3d wTc = robot_->world_T_camera();
+    if (run_started_ && counters_.applied > 0) {
+      const double secs = std::chrono::duration<double>(Clock::now() - run_start_).count();
+      std::printf("cellsim: loop rate %.0f iterations/s (%ld steps in %.2f s of wall time, after teaching)\n",
+                  counters_.applied / secs, counters_.applied, secs);
+    }
     std::printf("cellsim: %ld frames, %ld twists applied, rejected %ld NaN/Inf, %ld wrong frame, %ld stale; %ld "
                 "watchdog stops; final error %.3f mm, %.4f deg\n",
                 counters_.frames, counters_.applied, counters_.rejected_nan, counters_.rejected_frame,
@@ -426,7 +452,14 @@ class SimService {
   sim::RenderScratch scratch_;
   std::uint64_t frame_ = 0, first_run_frame_ = 0;
   std::optional<std::uint64_t> last_applied_;
+  struct Pending {
+    std::uint64_t frame;
+    sim::Vector6d twist;
+    Eigen::Isometry3d world_T_camera;
+  };
+  std::optional<Pending> pending_;  // the last applied step, its trace row not yet written
   bool running_ = false, run_started_ = false;
+  Clock::time_point run_start_;
   unsigned pending_steps_ = 0;
   Counters counters_;
   Inbox inbox_;

@@ -38,16 +38,25 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
   const Affine iz{w0.a * p0.inv_z + w1.a * p1.inv_z + w2.a * p2.inv_z,
                   w0.b * p0.inv_z + w1.b * p1.inv_z + w2.b * p2.inv_z,
                   w0.c * p0.inv_z + w1.c * p1.inv_z + w2.c * p2.inv_z};
+  const Affine* edges[3] = {&w0, &w1, &w2};
   for (int y = y0; y <= y1; ++y) {
-    float e0 = static_cast<float>(w0.at(x0, y)), e1 = static_cast<float>(w1.at(x0, y)),
-          e2 = static_cast<float>(w2.at(x0, y)), q = static_cast<float>(iz.at(x0, y));
-    const float d0 = static_cast<float>(w0.a), d1 = static_cast<float>(w1.a), d2 = static_cast<float>(w2.a),
-                dq = static_cast<float>(iz.a);
+    // the span of this row inside all three edges, solved per edge (a x + b y + c >= 0), so
+    // the loop below visits only covered pixels (thin triangles leave most of their box empty)
+    double lo = x0, hi = x1;
+    for (const Affine* e : edges) {
+      const double c = e->b * y + e->c;
+      if (e->a > 1e-15) lo = std::max(lo, -(c + 1e-9) / e->a);
+      else if (e->a < -1e-15) hi = std::min(hi, -(c + 1e-9) / e->a);
+      else if (c < -1e-9) hi = lo - 1;  // parallel to this edge and outside it
+    }
+    const int xa = std::max(x0, static_cast<int>(std::ceil(lo))), xb = std::min(x1, static_cast<int>(std::floor(hi)));
+    if (xa > xb) continue;
+    float q = static_cast<float>(iz.at(xa, y));
+    const float dq = static_cast<float>(iz.a);
     float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y) * out.width];
     std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y) * out.width];
-    for (int x = x0; x <= x1; ++x, e0 += d0, e1 += d1, e2 += d2, q += dq) {
-      // inside (with a hair of tolerance so shared edges leave no cracks) and nearer
-      if ((e0 >= -1e-6f) & (e1 >= -1e-6f) & (e2 >= -1e-6f) & (q > inv_depth[x])) {
+    for (int x = xa; x <= xb; ++x, q += dq) {
+      if (q > inv_depth[x]) {  // nearer
         inv_depth[x] = q;
         tri[x] = id;
       }

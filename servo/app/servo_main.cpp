@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   decode->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
       ->check(CLI::Range(1, 9))->capture_default_str();
   servo::ServiceOptions svc;
-  std::string config_file, model, reference;
+  std::string config_file, model, reference, projector_file;
   double z_hat = 0, gain = 0;
   int domain = -1;
   auto* run = app.add_subcommand("run", "run the controller as a DDS service");
@@ -87,6 +87,9 @@ int main(int argc, char** argv) {
   run->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
   run->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
   run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
+  run->add_option("--projector", projector_file,
+                  "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
+                  "desired, current and mean models");
   run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
 
   servo::ViewOptions view;
@@ -112,6 +115,7 @@ int main(int argc, char** argv) {
       if (gain > 0) svc.config.law.gain = {gain, gain, 0};
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       svc.reference = reference;
+      if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       return servo::run_servo_service(svc);
     }
     if (*decode) return run_decode(image, pattern_file, json_out, overlay_out, tolerant, min_votes);

@@ -401,6 +401,55 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
   }
 }
 
+control::ProjectorModel load_projector_calibration(const std::filesystem::path& file) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file.string());
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(file.string() + ": " + e.what());
+  }
+  static const std::set<std::string> keys{"fx", "fy", "cx", "cy", "spot_pitch_px", "rows", "cols", "position_m",
+                                          "orientation_xyzw"};
+  if (!root.IsMap()) throw std::runtime_error(file.string() + ": must be a mapping");
+  for (const auto& kv : root)
+    if (!keys.count(kv.first.as<std::string>()))
+      throw std::runtime_error(file.string() + ": " + kv.first.as<std::string>() + ": unknown key");
+  const auto num = [&](const char* key, double lo) {
+    if (!root[key]) throw std::runtime_error(file.string() + ": " + key + ": missing");
+    double v;
+    try {
+      v = root[key].as<double>();
+    } catch (const YAML::Exception&) {
+      throw std::runtime_error(file.string() + ": " + key + ": must be a number");
+    }
+    if (!std::isfinite(v) || v < lo) throw std::runtime_error(file.string() + ": " + key + ": out of range");
+    return v;
+  };
+  const auto list = [&](const char* key, std::size_t n) {
+    if (!root[key] || !root[key].IsSequence() || root[key].size() != n)
+      throw std::runtime_error(file.string() + ": " + key + ": must be a list of " + std::to_string(n) + " numbers");
+    std::vector<double> v;
+    for (const auto& x : root[key]) v.push_back(x.as<double>());
+    for (double x : v)
+      if (!std::isfinite(x)) throw std::runtime_error(file.string() + ": " + key + ": not finite");
+    return v;
+  };
+  control::ProjectorModel m;
+  m.fx = num("fx", 1e-6);
+  m.fy = num("fy", 1e-6);
+  m.cx = num("cx", -1e9);
+  m.cy = num("cy", -1e9);
+  m.spot_pitch_px = num("spot_pitch_px", 1e-6);
+  m.rows = static_cast<int>(num("rows", 3));
+  m.cols = static_cast<int>(num("cols", 3));
+  const auto p = list("position_m", 3);
+  const auto q = list("orientation_xyzw", 4);
+  m.world_T_projector = Eigen::Isometry3d::Identity();
+  m.world_T_projector.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+  m.world_T_projector.linear() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix();
+  return m;
+}
+
 int run_servo_service(const ServiceOptions& options) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -25,4 +25,9 @@ int run_servo_service(const ServiceOptions& options);
 // min_island, tolerant) over `config`. Throws std::runtime_error naming file and key.
 void load_servo_config(const std::filesystem::path& file, ServoConfig& config);
 
+// Reads the projector's calibration (YAML: fx, fy, cx, cy, spot_pitch_px, rows, cols,
+// position_m [x, y, z], orientation_xyzw [x, y, z, w] in the world): what triangulation needs
+// for the desired, current and mean models. `cellsim calibration` writes one from a scenario.
+control::ProjectorModel load_projector_calibration(const std::filesystem::path& file);
+
 }  // namespace servo

@@ -3,12 +3,14 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "servo/pattern/pattern_file.hpp"
 #include "servo/pattern/window_table.hpp"
 #include "sim/app/decode_sweep.hpp"
 #include "sim/app/experiment.hpp"
@@ -222,8 +224,29 @@ int main(int argc, char** argv) {
   sv->add_flag("--exit-on-converged", svc.exit_on_converged, "exit when the servo reports CONVERGED");
   sv->add_option("--trace", svc_trace, "folder for trace.csv");
 
+  std::string calib_out;
+  auto* cal = app.add_subcommand("calibration", "write the projector calibration the servo triangulates with");
+  cal->add_option("scenario", scenario, "scenario YAML file")->required();
+  cal->add_option("-o,--output", calib_out, "calibration YAML to write")->required();
+
   CLI11_PARSE(app, argc, argv);
   try {
+    if (*cal) {
+      const sim::Scenario s = sim::load_scenario(scenario);
+      const pattern::MArray a = pattern::read_marray(s.projector.pattern);
+      const auto& k = s.projector.intrinsics;
+      const Eigen::Quaterniond q(s.projector.world_T_projector.rotation());
+      const Eigen::Vector3d t = s.projector.world_T_projector.translation();
+      std::ofstream f(calib_out);
+      if (!f) throw std::runtime_error(calib_out + ": cannot write");
+      f << std::setprecision(12) << "# projector calibration of scenario " << s.name << " (exact: the simulator's own)\n"
+        << "fx: " << k.fx << "\nfy: " << k.fy << "\ncx: " << k.cx << "\ncy: " << k.cy
+        << "\nspot_pitch_px: " << s.projector.spot_pitch_px << "\nrows: " << a.rows << "\ncols: " << a.cols
+        << "\nposition_m: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", "
+        << q.y() << ", " << q.z() << ", " << q.w() << "]\n";
+      std::printf("wrote %s\n", calib_out.c_str());
+      return 0;
+    }
     if (*sv) {
       svc.scenario = scenario;
       if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");

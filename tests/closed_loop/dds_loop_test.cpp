@@ -172,6 +172,23 @@ TEST(DdsLoop, CylinderConvergesInLockstep) {
   expect_converged_pose("cylinder", w);
 }
 
+TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
+  const int domain = unique_domain(8);
+  const std::string dir = tmp_dir("cylinder_current");
+  Process calib({kBin + "cellsim", "calibration", kSrc + "/sim/scenarios/cylinder.yaml", "-o", dir + "/projector.yaml"},
+                domain, dir + "/calib.log");
+  ASSERT_EQ(calib.wait_exit(30s), 0);
+  Watcher w(domain);
+  Process servo({kBin + "servo", "run", "--pattern", kPattern, "--model", "current", "--projector", dir + "/projector.yaml"},
+                domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/cylinder.yaml", "--autorun", "--exit-on-converged",
+               "--max-frames", "1200"},
+              domain, dir + "/sim.log");
+  ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
+  expect_converged_pose("cylinder", w);
+}
+
 TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {
   const int domain = unique_domain(3);
   const std::string dir = tmp_dir("restart");

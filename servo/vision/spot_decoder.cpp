@@ -94,28 +94,31 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
   // south candidates are ranked by distance weighted by their angle to the local perpendicular.
   const SpatialGrid near(spots, std::max(2.0, spacing));
   std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
-  const auto candidates = [&](std::size_t i, auto&& f) {
+  struct Candidate {
+    int j;
+    double du, dv, d;
+  };
+  std::vector<Candidate> around;  // one spot's neighbours within reach, gathered once for both passes
+  const double row_cos = std::cos(35.0 * kPi / 180.0);
+  const double col_cos = std::cos(45.0 * kPi / 180.0);
+  const double ce = std::cos(g.grid_angle_rad), se = std::sin(g.grid_angle_rad);
+  for (std::size_t i = 0; i < n; ++i) {
     const double reach = 4.0 * std::max(nn_dist[i], 0.5 * spacing);
     const double reach2 = reach * reach;
+    around.clear();
     near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
       if (j == static_cast<int>(i)) return;
       const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
       const double d2 = du * du + dv * dv;
-      if (d2 <= reach2 && d2 > 1e-18) f(j, du, dv, std::sqrt(d2));
+      if (d2 <= reach2 && d2 > 1e-18) around.push_back({j, du, dv, std::sqrt(d2)});
     });
-  };
-  const double row_cos = std::cos(35.0 * kPi / 180.0);
-  const double ce = std::cos(g.grid_angle_rad), se = std::sin(g.grid_angle_rad);
-  for (std::size_t i = 0; i < n; ++i) {
+    // rows
     std::array<double, 2> best{1e18, 1e18};
-    candidates(i, [&](int j, double du, double dv, double d) {
-      const double c = (du * ce + dv * se) / d;
-      if (c >= row_cos && d < best[0]) best[0] = d, cand[i][kEast] = j;
-      if (-c >= row_cos && d < best[1]) best[1] = d, cand[i][kWest] = j;
-    });
-  }
-  const double col_cos = std::cos(45.0 * kPi / 180.0);
-  for (std::size_t i = 0; i < n; ++i) {
+    for (const Candidate& c : around) {
+      const double cosine = (c.du * ce + c.dv * se) / c.d;
+      if (cosine >= row_cos && c.d < best[0]) best[0] = c.d, cand[i][kEast] = c.j;
+      if (-cosine >= row_cos && c.d < best[1]) best[1] = c.d, cand[i][kWest] = c.j;
+    }
     // this spot's row direction, from its east and west candidates when it has them
     double ru = ce, rv = se;
     const int e = cand[i][kEast], w = cand[i][kWest];
@@ -123,22 +126,24 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
       ru = rv = 0;
       for (const auto& [j, sign] : {std::pair{e, 1.0}, std::pair{w, -1.0}}) {
         if (j < 0) continue;
-        const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v, d = std::hypot(du, dv);
+        const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v, d = std::sqrt(du * du + dv * dv);
         ru += sign * du / d;
         rv += sign * dv / d;
       }
-      const double norm = std::hypot(ru, rv);
+      const double norm = std::sqrt(ru * ru + rv * rv);
       ru /= norm, rv /= norm;
     }
+    // columns
     const double pu = -rv, pv = ru;  // the perpendicular, pointing south (image y down)
-    std::array<double, 2> best{1e18, 1e18};
-    candidates(i, [&](int j, double du, double dv, double d) {
-      const double c = (du * pu + dv * pv) / d;
+    best = {1e18, 1e18};
+    for (const Candidate& c : around) {
+      const double cosine = (c.du * pu + c.dv * pv) / c.d;
+      if (std::abs(cosine) < col_cos) continue;
       // ~ d (1 + 2 angle): sqrt(2 (1 - cos)) is the angle to within 4 % below 45 deg, sans acos
-      const double score = d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - std::min(1.0, std::abs(c)))));
-      if (c >= col_cos && score < best[0]) best[0] = score, cand[i][kSouth] = j;
-      if (-c >= col_cos && score < best[1]) best[1] = score, cand[i][kNorth] = j;
-    });
+      const double score = c.d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - std::min(1.0, std::abs(cosine)))));
+      if (cosine > 0 && score < best[0]) best[0] = score, cand[i][kSouth] = c.j;
+      if (cosine < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
+    }
   }
   std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
   for (std::size_t i = 0; i < n; ++i)

@@ -35,7 +35,7 @@ int otsu(const std::array<int, 256>& hist, int total) {
 
 }  // namespace
 
-Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p) {
+Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, SegmentationScratch* scratch) {
   if (rgb.empty()) throw std::invalid_argument("segment_spots: empty image");
   if (rgb.type() != CV_8UC3)
     throw std::invalid_argument("segment_spots: expected an 8-bit 3-channel RGB image, got type " +
@@ -47,7 +47,10 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p) {
 
   // chroma = max - min channel, with OpenCV's vectorised per-channel operations (a scalar
   // loop over interleaved RGB costs five times as much)
-  cv::Mat channels[3], hi, lo, chroma;
+  SegmentationScratch local;
+  SegmentationScratch& sc = scratch ? *scratch : local;
+  cv::Mat* channels = sc.channels;
+  cv::Mat &hi = sc.hi, &lo = sc.lo, &chroma = sc.chroma;
   cv::split(rgb, channels);
   cv::max(channels[0], channels[1], hi);
   cv::max(hi, channels[2], hi);
@@ -71,7 +74,7 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p) {
   // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
   // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate
   // from their neighbours. The global Otsu level caps that local level, the floor bounds it.
-  cv::Mat level, mask, labels;
+  cv::Mat &level = sc.level, &mask = sc.mask, &labels = sc.labels;
   cv::dilate(chroma, level, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
   level.convertTo(level, CV_8U, p.peak_ratio);
   cv::max(level, floor_level, level);

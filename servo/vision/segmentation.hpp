@@ -33,7 +33,14 @@ struct Segmentation {
   int rejected = 0;  // blobs that were not spots (size, shape, colour)
 };
 
+// Per-frame buffers, reused from call to call when the caller keeps one (allocating and
+// first-touching ~4 MB of images per frame costs as much as half the segmentation).
+struct SegmentationScratch {
+  cv::Mat channels[3], hi, lo, chroma, level, mask, labels;
+};
+
 // Throws std::invalid_argument when the image is empty or not 8-bit, 3-channel.
-Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& params = {});
+Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& params = {},
+                           SegmentationScratch* scratch = nullptr);
 
 }  // namespace vision

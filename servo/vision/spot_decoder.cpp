@@ -356,7 +356,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots) const {
 }
 
 DecodeResult SpotDecoder::decode(const cv::Mat& rgb) const {
-  Segmentation seg = segment_spots(rgb, options_.segmentation);
+  Segmentation seg = segment_spots(rgb, options_.segmentation, &scratch_);
   DecodeResult r = decode_spots(std::move(seg.spots));
   r.rejected_blobs = seg.rejected;
   return r;

@@ -71,6 +71,7 @@ struct DecodeResult {
   int rejected_blobs = 0;
 };
 
+// Not for concurrent use: decode() reuses per-frame buffers (one decoder per thread).
 class SpotDecoder {
  public:
   SpotDecoder(pattern::WindowTable table, DecoderOptions options = {});
@@ -82,6 +83,7 @@ class SpotDecoder {
  private:
   pattern::WindowTable table_;
   DecoderOptions options_;
+  mutable SegmentationScratch scratch_;
 };
 
 }  // namespace vision

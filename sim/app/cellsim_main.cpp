@@ -95,8 +95,8 @@ struct LawFlags {
 
   void add(CLI::App* c) {
     c->add_option("--model", model, "desired-constant-depth | desired | current | mean")->capture_default_str();
-    c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the distance at the desired pose "
-                                    "to the decoded spots' centre");
+    c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the mean depth of the lit spots "
+                                    "at the desired pose, from the simulator (the paper's runs pass 0.9 or 0.6)");
     c->add_option("--gain", gain, "constant gain lambda")->capture_default_str();
     c->add_option("--gain-adaptive", adaptive, "adaptive gain: lambda0 lambda_inf slope0")->expected(3);
     c->add_option("--converge-mm", converge_mm, "task-function translation that counts as converged (mm)")

@@ -36,7 +36,7 @@ struct Segmentation {
 // Per-frame buffers, reused from call to call when the caller keeps one (allocating and
 // first-touching ~4 MB of images per frame costs as much as half the segmentation).
 struct SegmentationScratch {
-  cv::Mat channels[3], hi, lo, chroma, level, mask, labels;
+  cv::Mat channels[3], hi, lo, chroma, level, mask;
 };
 
 // Throws std::invalid_argument when the image is empty or not 8-bit, 3-channel.

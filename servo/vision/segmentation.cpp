@@ -58,11 +58,12 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
   cv::min(lo, channels[2], lo);
   cv::subtract(hi, lo, chroma);
   std::array<int, 256> hist{};
-  for (int v = 0; v < H; v += 2) {  // every other row: plenty for a median and an Otsu level
+  int sampled = 0;
+  for (int v = 0; v < H; v += 4) {  // every fourth row: plenty for a median and an Otsu level
     const std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
     for (int u = 0; u < W; ++u) ++hist[c[u]];
+    sampled += W;
   }
-  const int sampled = ((H + 1) / 2) * W;
 
   // the floor rises with the sensor noise: the chroma of a noisy grey pixel is the spread of
   // three noisy channels, and most pixels are background, so the median chroma measures it
@@ -102,40 +103,53 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     std::array<double, 3> col{0, 0, 0};
   };
   std::vector<Blob> blobs;
-  std::vector<int> stack;
+  std::vector<std::pair<int, int>> stack;  // (u, v): no division to recover them from an index
   std::uint8_t* mk = mask.ptr<std::uint8_t>(0);  // continuous (created by compare)
-  const auto grow = [&](int seed) {
+  const std::uint8_t* chroma_px = chroma.ptr<std::uint8_t>(0);
+  const std::uint8_t* level_px = level.ptr<std::uint8_t>(0);
+  const std::uint8_t* lo_px = lo.ptr<std::uint8_t>(0);
+  // scanline fill: each popped seed takes its whole run of the row at once, and seeds one
+  // pixel per run in the rows above and below (from one left of the run to one right of it:
+  // 8-connectivity)
+  const auto grow = [&](int u0, int v0) {
     Blob b;
     stack.clear();
-    stack.push_back(seed);
-    mk[seed] = 0;
+    stack.emplace_back(u0, v0);
     while (!stack.empty()) {
-      const int idx = stack.back();
+      const auto [us, v] = stack.back();
       stack.pop_back();
-      const int v = idx / W, u = idx - v * W;
-      ++b.area;
-      b.x0 = std::min(b.x0, u), b.x1 = std::max(b.x1, u), b.y0 = std::min(b.y0, v), b.y1 = std::max(b.y1, v);
-      const double wgt = chroma.data[idx] - level.data[idx] + 1;
-      b.sw += wgt;
-      b.su += wgt * u;
-      b.sv += wgt * v;
-      const std::uint8_t* px = rgb.ptr<std::uint8_t>(v) + 3 * u;
-      const int low = lo.data[idx];
-      b.col[0] += px[0] - low;
-      b.col[1] += px[1] - low;
-      b.col[2] += px[2] - low;
-      for (int dv = -1; dv <= 1; ++dv) {
-        const int vv = v + dv;
+      std::uint8_t* row = mk + static_cast<std::ptrdiff_t>(v) * W;
+      if (!row[us]) continue;
+      int xl = us, xr = us;
+      while (xl > 0 && row[xl - 1]) --xl;
+      while (xr + 1 < W && row[xr + 1]) ++xr;
+      std::memset(row + xl, 0, static_cast<std::size_t>(xr - xl + 1));
+      const std::ptrdiff_t base = static_cast<std::ptrdiff_t>(v) * W;
+      const std::uint8_t* px = rgb.ptr<std::uint8_t>(v);
+      b.area += xr - xl + 1;
+      b.x0 = std::min(b.x0, xl), b.x1 = std::max(b.x1, xr), b.y0 = std::min(b.y0, v), b.y1 = std::max(b.y1, v);
+      double sw = 0, su = 0, r = 0, g = 0, bl = 0;
+      for (int u = xl; u <= xr; ++u) {
+        const double wgt = chroma_px[base + u] - level_px[base + u] + 1;
+        sw += wgt;
+        su += wgt * u;
+        const int low = lo_px[base + u];
+        r += px[3 * u] - low;
+        g += px[3 * u + 1] - low;
+        bl += px[3 * u + 2] - low;
+      }
+      b.sw += sw;
+      b.su += su;
+      b.sv += sw * v;
+      b.col[0] += r;
+      b.col[1] += g;
+      b.col[2] += bl;
+      for (const int vv : {v - 1, v + 1}) {
         if (vv < 0 || vv >= H) continue;
-        for (int du = -1; du <= 1; ++du) {
-          const int uu = u + du;
-          if (uu < 0 || uu >= W) continue;
-          const int j = vv * W + uu;
-          if (mk[j]) {
-            mk[j] = 0;
-            stack.push_back(j);
-          }
-        }
+        const std::uint8_t* nrow = mk + static_cast<std::ptrdiff_t>(vv) * W;
+        const int a = std::max(xl - 1, 0), z = std::min(xr + 1, W - 1);
+        for (int u = a; u <= z; ++u)
+          if (nrow[u] && (u == a || !nrow[u - 1])) stack.emplace_back(u, vv);  // one seed per run
       }
     }
     blobs.push_back(b);
@@ -151,7 +165,7 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
           continue;
         }
       }
-      if (m[u]) grow(v * W + u);
+      if (m[u]) grow(u, v);
     }
   }
   const int n = static_cast<int>(blobs.size()) + 1;  // (label 0 was the background)

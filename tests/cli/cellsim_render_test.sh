@@ -3,7 +3,7 @@
 set -u
 cellsim="$1"; src="$2"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "$0")/lib.sh"
 
 for s in plane cylinder ham fig5; do
   out=$("$cellsim" render "$src/sim/scenarios/$s.yaml" --pose initial -o "$tmp/$s.png" --truth "$tmp/$s.json") || fail "$s: $out"
@@ -14,19 +14,12 @@ done
 out=$("$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "1 -2 3 4 -5 6" -o "$tmp/p.png") || fail "numeric pose: $out"
 
 # bad input: one line on stderr naming the problem, non-zero exit, no image
-check_bad() {
-  local what="$1" expect="$2"; shift 2
-  err=$("$@" 2>&1 >/dev/null); rc=$?
-  [ $rc -ne 0 ] || fail "$what: exit 0"
-  [ "$(printf '%s\n' "$err" | wc -l)" -eq 1 ] || fail "$what: not one line: $err"
-  grep -q -- "$expect" <<<"$err" || fail "$what: '$err' lacks '$expect'"
-}
 sed 's/focal_px: \[800, 800\]/focal_px: [0, 800]/' "$src/sim/scenarios/plane.yaml" | sed "s#\.\./\.\./#$src/#" > "$tmp/bad.yaml"
-check_bad "zero focal" "camera.focal_px\[0\]: must be positive" "$cellsim" render "$tmp/bad.yaml" -o "$tmp/x.png"
-check_bad "bad pose" "expected desired, initial or six numbers" "$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "1 2" -o "$tmp/x.png"
-check_bad "missing scenario" "scenario file not found" "$cellsim" render "$tmp/none.yaml" -o "$tmp/x.png"
+one_line_error "zero focal" "camera.focal_px\[0\]: must be positive" "$cellsim" render "$tmp/bad.yaml" -o "$tmp/x.png"
+one_line_error "bad pose" "expected desired, initial or six numbers" "$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "1 2" -o "$tmp/x.png"
+one_line_error "missing scenario" "scenario file not found" "$cellsim" render "$tmp/none.yaml" -o "$tmp/x.png"
 printf 'v 0 0 0\nv 1 0 0\nf 1 2 7\n' > "$tmp/broken.obj"
 sed "s#\.\./\.\./meshes/plane.obj#$tmp/broken.obj#" "$src/sim/scenarios/plane.yaml" | sed "s#\.\./\.\./#$src/#" > "$tmp/badmesh.yaml"
-check_bad "corrupt mesh" "broken.obj: cannot read mesh" "$cellsim" render "$tmp/badmesh.yaml" -o "$tmp/x.png"
+one_line_error "corrupt mesh" "broken.obj: cannot read mesh" "$cellsim" render "$tmp/badmesh.yaml" -o "$tmp/x.png"
 [ ! -e "$tmp/x.png" ] || fail "an image was written despite bad input"
 echo "cellsim render: all checks passed"

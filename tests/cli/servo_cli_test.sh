@@ -3,7 +3,7 @@
 set -u
 servo="$1"; cellsim="$2"; src="$3"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "$0")/lib.sh"
 pattern="$src/servo/pattern/data/marray_20x20_k3_w3.txt"
 
 "$cellsim" render "$src/sim/scenarios/plane.yaml" -o "$tmp/plane.png" >/dev/null || fail "render"
@@ -11,13 +11,6 @@ out=$("$servo" decode "$tmp/plane.png" --pattern "$pattern" --json "$tmp/d.json"
 grep -q '"decoded": 388' "$tmp/d.json" || fail "decoded count: $(grep decoded "$tmp/d.json")"
 [ -s "$tmp/o.png" ] || fail "no overlay"
 
-one_line_error() {
-  local what="$1" expect="$2"; shift 2
-  err=$("$@" 2>&1 >/dev/null); rc=$?
-  [ $rc -ne 0 ] || fail "$what: exit 0"
-  [ "$(printf '%s\n' "$err" | wc -l)" -eq 1 ] || fail "$what: not one line: $err"
-  grep -q -- "$expect" <<<"$err" || fail "$what: '$err' lacks '$expect'"
-}
 printf 'not an image' > "$tmp/bad.png"
 one_line_error "unreadable image" "cannot read image" "$servo" decode "$tmp/bad.png" --pattern "$pattern"
 : > "$tmp/empty.png"

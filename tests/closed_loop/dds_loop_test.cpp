@@ -159,17 +159,21 @@ TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
   EXPECT_EQ(service, in_process);
 }
 
-TEST(DdsLoop, CylinderConvergesInLockstep) {
-  const int domain = unique_domain(2);
-  const std::string dir = tmp_dir("cylinder");
+// The servo with `servo_argv` and cellsim serving `scenario` to convergence, checked on the topics.
+void expect_lockstep_convergence(int domain, const std::string& dir, const std::vector<std::string>& servo_argv,
+                                 const std::string& scenario, const std::string& max_frames) {
   Watcher w(domain);
-  Process servo(servo_args("0.6"), domain, dir + "/servo.log");
-  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/cylinder.yaml", "--autorun", "--exit-on-converged",
-               "--max-frames", "1200"},
+  Process servo(servo_argv, domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/" + scenario + ".yaml", "--autorun",
+               "--exit-on-converged", "--max-frames", max_frames},
               domain, dir + "/sim.log");
   ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
-  expect_converged_pose("cylinder", w);
+  expect_converged_pose(scenario, w);
+}
+
+TEST(DdsLoop, CylinderConvergesInLockstep) {
+  expect_lockstep_convergence(unique_domain(2), tmp_dir("cylinder"), servo_args("0.6"), "cylinder", "1200");
 }
 
 TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
@@ -178,15 +182,9 @@ TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
   Process calib({kBin + "cellsim", "calibration", kSrc + "/sim/scenarios/cylinder.yaml", "-o", dir + "/projector.yaml"},
                 domain, dir + "/calib.log");
   ASSERT_EQ(calib.wait_exit(30s), 0);
-  Watcher w(domain);
-  Process servo({kBin + "servo", "run", "--pattern", kPattern, "--model", "current", "--projector", dir + "/projector.yaml"},
-                domain, dir + "/servo.log");
-  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/cylinder.yaml", "--autorun", "--exit-on-converged",
-               "--max-frames", "1200"},
-              domain, dir + "/sim.log");
-  ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
-  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
-  expect_converged_pose("cylinder", w);
+  expect_lockstep_convergence(
+      domain, dir, {kBin + "servo", "run", "--pattern", kPattern, "--model", "current", "--projector", dir + "/projector.yaml"},
+      "cylinder", "1200");
 }
 
 TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {

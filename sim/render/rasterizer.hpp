@@ -35,14 +35,9 @@ struct DepthBuffer {
 
   // Nearest pixel. Runs per pixel: truncation of a shifted value is floor() for anything
   // above -kShift, where std::floor and std::lround are libm calls on baseline x86-64.
+  // (Camera pixels look their cell up in Cell::pixel_to_zbuffer, computed once with it.)
   static constexpr double kShift = 1 << 20;
   static int nearest(double x) { return static_cast<int>(x + 0.5 + kShift) - static_cast<int>(kShift); }
-  std::int32_t triangle_at(double u, double v) const {
-    const int i = nearest(u) + margin;
-    const int j = nearest(v) + margin;
-    if (i < 0 || j < 0 || i >= width || j >= height) return -1;
-    return triangle[static_cast<std::size_t>(j) * width + i];
-  }
   float depth_at(double u, double v) const {
     const int i = nearest(u) + margin;
     const int j = nearest(v) + margin;

@@ -45,6 +45,15 @@ int run_check(const std::string& file, pattern::WindowShape w, int colours) {
 // Draws the pattern as the projector shows it: coloured discs on black, like the paper's Fig. 2.
 int run_render(const std::string& file, const std::string& out, int pitch) {
   const pattern::MArray a = pattern::read_marray(file);
+  // the image is allocated whole: bound it before asking for it
+  constexpr long long kMaxRenderPixels = 64LL << 20;
+  const long long pixels = static_cast<long long>(a.rows) * pitch * a.cols * pitch;
+  if (pixels > kMaxRenderPixels) {
+    std::cerr << "pattern render: " << file << ": " << a.rows << " x " << a.cols << " spots at pitch " << pitch << " make "
+              << a.cols * pitch << " x " << a.rows * pitch << " px, more than the limit of " << kMaxRenderPixels
+              << " pixels (use a smaller --pitch)\n";
+    return 2;
+  }
   cv::Mat img(a.rows * pitch, a.cols * pitch, CV_8UC3, cv::Scalar(0, 0, 0));
   for (int r = 0; r < a.rows; ++r)
     for (int c = 0; c < a.cols; ++c) {

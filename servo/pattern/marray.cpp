@@ -201,6 +201,48 @@ GenerationResult generate_marray(const GenerationParams& p) {
   return result;
 }
 
+namespace {
+
+// Smallest Hamming distance between any two windows, all windows being distinct (d >= 1).
+// Two windows are within distance d iff they agree once some d cells are masked out in
+// both; so for d = 1, 2, ... every set of d masked cells is tried, the masked codes of all
+// windows sorted and scanned for a repeat. Cost: W log W per mask, C(n, 1) + ... + C(n, d)
+// masks for a distance of d (9 + 36 masks for the paper's 3 x 3 windows at d = 2), instead of
+// the W^2 / 2 window pairs compared before (59 s for a 400 x 400 pattern).
+int min_hamming_distance(const MArray& array, WindowShape window, std::size_t count) {
+  const int n = window.size();
+  const std::uint64_t base = static_cast<std::uint64_t>(array.colours) + 1;  // digit value k: masked
+  // codes must fit 64 bits and masks 32: beyond, only distinctness (d >= 1) is known, which is
+  // all decoding needs
+  if (n > 20 || code_space_size(static_cast<int>(base), window) == std::numeric_limits<std::uint64_t>::max()) return 1;
+  std::vector<std::uint8_t> digits;
+  digits.reserve(count * static_cast<std::size_t>(n));
+  for (int r = 0; r + window.rows <= array.rows; ++r)
+    for (int c = 0; c + window.cols <= array.cols; ++c)
+      for (int wr = 0; wr < window.rows; ++wr)
+        for (int wc = 0; wc < window.cols; ++wc) digits.push_back(array.at(r + wr, c + wc));
+  std::vector<std::uint64_t> codes(count);
+  for (int d = 1; d < n; ++d) {
+    // every mask of n bits with d set, in increasing order (Gosper's hack)
+    for (std::uint32_t mask = (1u << d) - 1; mask < (1u << n);) {
+      for (std::size_t w = 0; w < count; ++w) {
+        std::uint64_t code = 0;
+        const std::uint8_t* px = &digits[w * static_cast<std::size_t>(n)];
+        for (int i = 0; i < n; ++i) code = code * base + ((mask >> i) & 1u ? array.colours : px[i]);
+        codes[w] = code;
+      }
+      std::sort(codes.begin(), codes.end());
+      if (std::adjacent_find(codes.begin(), codes.end()) != codes.end()) return d;
+      const std::uint32_t lowest = mask & (~mask + 1u);
+      const std::uint32_t ripple = mask + lowest;
+      mask = (((ripple ^ mask) >> 2) / lowest) | ripple;
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 WindowPropertyReport check_window_property(const MArray& array, WindowShape window) {
   WindowPropertyReport rep;
   if (array.rows < window.rows || array.cols < window.cols) return rep;
@@ -222,22 +264,7 @@ WindowPropertyReport check_window_property(const MArray& array, WindowShape wind
   }
   rep.holds = rep.distinct_windows == rep.total_windows;
 
-  // minimum pairwise Hamming distance, on unpacked digits (O(W^2 n m): 0.1 s at 64 x 64)
-  const int n = window.size();
-  std::vector<std::uint8_t> digits(ws.size() * n);
-  for (std::size_t w = 0; w < ws.size(); ++w)
-    for (int r = 0, i = 0; r < window.rows; ++r)
-      for (int c = 0; c < window.cols; ++c, ++i) digits[w * n + i] = array.at(ws[w].top + r, ws[w].left + c);
-  int best = n;
-  for (std::size_t x = 0; x < ws.size() && best > 0; ++x)
-    for (std::size_t y = x + 1; y < ws.size(); ++y) {
-      int d = 0;
-      const std::uint8_t* px = &digits[x * n];
-      const std::uint8_t* py = &digits[y * n];
-      for (int i = 0; i < n; ++i) d += px[i] != py[i];
-      if (d < best) { best = d; if (best == 0) break; }
-    }
-  rep.min_hamming = ws.size() < 2 ? 0 : best;
+  rep.min_hamming = ws.size() < 2 || !rep.holds ? 0 : min_hamming_distance(array, window, ws.size());
   return rep;
 }
 

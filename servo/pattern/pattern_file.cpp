@@ -1,9 +1,23 @@
 #include "servo/pattern/pattern_file.hpp"
 
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
 namespace pattern {
+
+namespace {
+
+// a byte of an untrusted file, safe to print
+std::string shown_byte(char ch) {
+  const auto b = static_cast<unsigned char>(ch);
+  if (b >= 0x20 && b < 0x7f) return std::string("'") + ch + "'";
+  char hex[8];
+  std::snprintf(hex, sizeof hex, "\\x%02x", b);
+  return hex;
+}
+
+}  // namespace
 
 MArray parse_marray(const std::string& text, const std::string& source, int colours) {
   const auto fail = [&](int line, const std::string& what) {
@@ -24,6 +38,9 @@ MArray parse_marray(const std::string& text, const std::string& source, int colo
         if (rest.find_first_not_of(" \t\r") != std::string::npos) fail(line, "blank line inside the array");
       break;
     }
+    if (row.size() > static_cast<std::size_t>(kMaxPatternSide))
+      fail(line, "row of " + std::to_string(row.size()) + " spots, more than the limit of " + std::to_string(kMaxPatternSide));
+    if (a.rows >= kMaxPatternSide) fail(line, "more than " + std::to_string(kMaxPatternSide) + " rows (the limit)");
     if (a.rows == 0) a.cols = static_cast<int>(row.size());
     if (static_cast<int>(row.size()) != a.cols)
       fail(line, "ragged rows: this row has " + std::to_string(row.size()) + " spots, the first has " +
@@ -31,7 +48,7 @@ MArray parse_marray(const std::string& text, const std::string& source, int colo
     for (std::size_t i = 0; i < row.size(); ++i) {
       const char ch = row[i];
       if (ch < '0' || ch > '9')
-        fail(line, std::string("wrong digit '") + ch + "' at column " + std::to_string(i + 1) +
+        fail(line, "wrong digit " + shown_byte(ch) + " at column " + std::to_string(i + 1) +
                        " (expected a colour index 0-9, no separators)");
       const int d = ch - '0';
       if (colours > 0 && d >= colours)
@@ -48,6 +65,13 @@ MArray parse_marray(const std::string& text, const std::string& source, int colo
 }
 
 MArray read_marray(const std::filesystem::path& path, int colours) {
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+  if (ec) throw PatternFileError(path.string() + ": cannot open pattern file");
+  const std::uintmax_t limit = static_cast<std::uintmax_t>(kMaxPatternSide) * (kMaxPatternSide + 2);
+  if (bytes > limit)
+    throw PatternFileError(path.string() + ": " + std::to_string(bytes) + " bytes, more than a " +
+                           std::to_string(kMaxPatternSide) + " x " + std::to_string(kMaxPatternSide) + " pattern can take");
   std::ifstream f(path, std::ios::binary);
   if (!f) throw PatternFileError(path.string() + ": cannot open pattern file");
   std::ostringstream s;

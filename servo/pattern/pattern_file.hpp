@@ -15,6 +15,9 @@ class PatternFileError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The largest pattern any tool reads: 1024 x 1024 spots (about 1 MB of file).
+inline constexpr int kMaxPatternSide = 1024;
+
 // Parses the text of a pattern file. `source` names it in errors. When `colours` > 0 every
 // digit must be below it; otherwise k is the largest digit + 1 (at least 2).
 MArray parse_marray(const std::string& text, const std::string& source, int colours = 0);

@@ -1,5 +1,7 @@
 #include "sim/render/cell.hpp"
 
+#include "sim/scene/mesh_check.hpp"
+
 #include <cmath>
 #include <random>
 
@@ -10,6 +12,15 @@ namespace sim {
 std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   auto cell = std::make_unique<Cell>();
   cell->scenario = scenario;
+  // every file is checked (and counted) before any is imported: a scenario of many large
+  // meshes is refused before it costs gigabytes
+  std::size_t total = 0;
+  for (const ObjectSpec& o : scenario.objects) {
+    total += check_mesh_file(o.mesh).triangles;
+    if (total > kMaxSceneTriangles)
+      throw MeshError(scenario.file.string() + ": objects: more than " + std::to_string(kMaxSceneTriangles) +
+                      " triangles in the scene (the limit), reached at mesh " + o.mesh.string());
+  }
   for (const ObjectSpec& o : scenario.objects)
     cell->world.add_object(load_mesh(o.mesh), o.world_T_object, o.albedo);
   cell->triangles = collect_triangles(cell->world);

@@ -18,6 +18,30 @@ class ScenarioError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Limits every scenario is checked against at load (docs/topics.md, Safety): beyond them a
+// frame would take gigabytes or a step would divide by almost nothing.
+inline constexpr int kMinImageSide = 8;
+inline constexpr int kMaxImageSide = 4096;
+inline constexpr long long kMaxImagePixels = 4096LL * 2304;  // 4K UHD fits
+inline constexpr double kMinFocalPx = 1.0, kMaxFocalPx = 1e5;
+inline constexpr double kMaxDistortion = 10.0;               // |k1..k3|, |p1|, |p2|
+inline constexpr double kMinDtS = 1e-4, kMaxDtS = 1.0;       // camera period
+inline constexpr std::size_t kMaxObjects = 64;
+inline constexpr double kMaxCoordinateM = 100.0;             // |x|, |y|, |z| of anything placed
+inline constexpr double kMaxAngleDeg = 3600.0;
+inline constexpr int kMaxPatternSide = 1024;
+inline constexpr double kDefaultWorkspaceMarginM = 1.0;
+
+// Where the camera may be: RESET poses outside are refused and a twist that would leave it
+// stops the robot.
+struct Workspace {
+  Eigen::Vector3d min_m = Eigen::Vector3d::Constant(-kMaxCoordinateM);
+  Eigen::Vector3d max_m = Eigen::Vector3d::Constant(kMaxCoordinateM);
+  bool contains(const Eigen::Vector3d& p) const {
+    return (p.array() >= min_m.array()).all() && (p.array() <= max_m.array()).all();
+  }
+};
+
 struct ObjectSpec {
   std::string name;
   std::filesystem::path mesh;            // absolute (resolved against the scenario file)
@@ -71,6 +95,7 @@ struct Scenario {
   CameraSpec camera;
   RobotSpec robot;
   Eigen::Isometry3d world_T_desired = Eigen::Isometry3d::Identity();  // camera, desired pose
+  Workspace workspace;  // default: the desired and initial positions, kDefaultWorkspaceMarginM around
   // initial pose as the paper gives it: translation (cm) along the X, Y, Z axes of the
   // offset frame F, then rotations (deg) about the moved frame's X, then Y, then Z. F is
   // the desired camera frame turned by offset_frame_rotation_deg (same convention) about
@@ -85,9 +110,9 @@ struct Scenario {
 // missing files, non-positive focal lengths or sizes, NaN or infinite numbers.
 Scenario load_scenario(const std::filesystem::path& file);
 
-// The camera pose for a --pose argument: "desired", "initial" or "x y z rx ry rz" (metres,
+// The camera pose for a --pose argument: "desired", "initial" or "x y z rx ry rz" (cm,
 // degrees, an offset from the desired pose in the paper's convention). Throws
-// std::invalid_argument with the reason.
+// std::invalid_argument with the reason, also for a pose outside the workspace.
 Eigen::Isometry3d resolve_pose(const Scenario& scenario, const std::string& spec);
 
 // The paper's displacement (translation cm, rotations deg) applied to a desired pose.

@@ -1,5 +1,7 @@
 #include "sim/scene/triangle_mesh.hpp"
 
+#include "sim/scene/mesh_check.hpp"
+
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
@@ -37,23 +39,6 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
   for (unsigned c = 0; c < node->mNumChildren; ++c) collect(scene, node->mChildren[c], world, out, file);
 }
 
-std::string lower_extension(const std::filesystem::path& p) {
-  std::string e = p.extension().string();
-  for (char& ch : e) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  return e;
-}
-
-// assimp 5.2's PLY reader loops forever on a header with no end_header (a truncated
-// file): check the header ourselves before handing the file over.
-void check_ply_header(const std::filesystem::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::string head(64 * 1024, '\0');
-  f.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(f.gcount()));
-  if (head.rfind("ply", 0) != 0) throw MeshError(path.string() + ": not a PLY file (no 'ply' magic)");
-  if (head.find("end_header") == std::string::npos)
-    throw MeshError(path.string() + ": PLY header has no end_header (truncated or corrupt file)");
-}
 
 }  // namespace
 
@@ -61,10 +46,7 @@ TriangleMesh load_mesh(const std::filesystem::path& path) {
   const std::string file = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw MeshError(file + ": mesh file not found");
-  const std::string ext = lower_extension(path);
-  if (ext != ".obj" && ext != ".ply" && ext != ".stl")
-    throw MeshError(file + ": unsupported mesh format '" + ext + "' (use .obj, .ply or .stl)");
-  if (ext == ".ply") check_ply_header(path);
+  check_mesh_file(path);  // assimp only ever sees a file whose structure was walked here
   Assimp::Importer importer;
   const aiScene* scene = importer.ReadFile(
       file, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |

@@ -156,3 +156,60 @@ TEST(CommittedPattern, RegeneratesBitForBit) {
 
 }  // namespace
 }  // namespace pattern
+
+namespace pattern {
+namespace {
+
+int brute_force_min_hamming(const MArray& a, WindowShape w) {
+  int best = w.size();
+  for (int r1 = 0; r1 + w.rows <= a.rows; ++r1)
+    for (int c1 = 0; c1 + w.cols <= a.cols; ++c1)
+      for (int r2 = 0; r2 + w.rows <= a.rows; ++r2)
+        for (int c2 = 0; c2 + w.cols <= a.cols; ++c2) {
+          if (r1 * a.cols + c1 >= r2 * a.cols + c2) continue;
+          int d = 0;
+          for (int i = 0; i < w.rows; ++i)
+            for (int j = 0; j < w.cols; ++j) d += a.at(r1 + i, c1 + j) != a.at(r2 + i, c2 + j);
+          best = std::min(best, d);
+        }
+  return best;
+}
+
+// Issue 9, item 6: the window check is no longer quadratic; it must still give the exact
+// minimum distance the pairwise comparison gave.
+TEST(WindowProperty, MaskedHashingGivesThePairwiseMinimumDistance) {
+  for (int h : {1, 2, 3}) {
+    GenerationParams p;
+    p.rows = 9;
+    p.cols = 11;
+    p.colours = 4;
+    p.window = {3, 3};
+    p.min_hamming = h;
+    p.seed = 7;
+    p.time_budget_s = 10;
+    const GenerationResult g = generate_marray(p);
+    ASSERT_TRUE(g.array) << g.failure;
+    const WindowPropertyReport rep = check_window_property(*g.array, p.window);
+    EXPECT_TRUE(rep.holds);
+    EXPECT_EQ(rep.min_hamming, brute_force_min_hamming(*g.array, p.window)) << "asked h >= " << h;
+    EXPECT_GE(rep.min_hamming, h);
+  }
+}
+
+TEST(WindowProperty, LargePatternIsCheckedWithoutComparingEveryPair) {
+  GenerationParams p;
+  p.rows = 400;
+  p.cols = 400;
+  p.colours = 4;
+  p.window = {3, 3};
+  p.seed = 1;
+  const GenerationResult g = generate_marray(p);
+  ASSERT_TRUE(g.array) << g.failure;
+  const WindowPropertyReport rep = check_window_property(*g.array, p.window);
+  EXPECT_TRUE(rep.holds);
+  EXPECT_EQ(rep.total_windows, 398 * 398);
+  EXPECT_EQ(rep.min_hamming, 1);
+}
+
+}  // namespace
+}  // namespace pattern

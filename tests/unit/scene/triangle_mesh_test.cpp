@@ -19,6 +19,63 @@ std::string error_of(const std::filesystem::path& p) {
   return "";
 }
 
+
+std::filesystem::path write_bytes(const std::string& name, const std::string& bytes) {
+  const auto p = std::filesystem::temp_directory_path() / name;
+  std::ofstream(p, std::ios::binary) << bytes;
+  return p;
+}
+
+void expect_refused(const std::string& name, const std::string& bytes, const std::string& what) {
+  const auto p = write_bytes(name, bytes);
+  const std::string e = error_of(p);
+  EXPECT_NE(e.find(p.string()), std::string::npos) << e;
+  EXPECT_NE(e.find(what), std::string::npos) << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+  std::filesystem::remove(p);
+}
+
+std::string binary_ply_header(int vertices, int faces) {
+  return "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(vertices) +
+         "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(faces) +
+         "\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+// Issue 9, item 2: a PLY whose body is shorter than its header says made assimp abort the
+// whole process (SIGABRT). Every mesh is now walked before assimp sees it.
+TEST(Meshes, ShortBinaryPlyIsRefusedNotAborted) {
+  std::string body(3 * 12, '\0');  // 3 vertices, then the face is missing
+  expect_refused("_short.ply", binary_ply_header(3, 1) + body, "body ends early");
+  expect_refused("_short2.ply", binary_ply_header(3, 1) + std::string(10, '\0'), "body ends early");
+}
+
+TEST(Meshes, MalformedFilesAreRefusedBeforeImport) {
+  std::string face;
+  face.push_back(3);
+  for (int i : {0, 1, 7}) face.append(reinterpret_cast<const char*>(&i), 4);
+  expect_refused("_badindex.ply", binary_ply_header(3, 1) + std::string(36, '\0') + face, "refers to vertex 7");
+  expect_refused("_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                 "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n", "ends early");
+  expect_refused("_bomb.ply", binary_ply_header(2000000000, 1), "limit");
+  expect_refused("_bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "refers to no vertex");
+  expect_refused("_nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "not a finite number");
+  expect_refused("_odd.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nxyz\xff 1\nf 1 2 3\n", "unknown OBJ statement");
+  std::string stl(80, ' ');
+  const std::uint32_t n = 5;
+  stl.append(reinterpret_cast<const char*>(&n), 4);
+  expect_refused("_short.stl", stl + std::string(50, '\0'), "expected 334");
+}
+
+TEST(Meshes, ValidBinaryPlyStillLoads) {
+  std::string body;
+  for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) body.append(reinterpret_cast<const char*>(&v), 4);
+  body.push_back(3);
+  for (int i : {0, 1, 2}) body.append(reinterpret_cast<const char*>(&i), 4);
+  const auto p = write_bytes("_ok.ply", binary_ply_header(3, 1) + body);
+  EXPECT_EQ(load_mesh(p).triangles.size(), 1u);
+  std::filesystem::remove(p);
+}
+
 TEST(Meshes, PlaneIsA2_4MetreWall) {
   const MeshStats s = mesh_stats(load_mesh(kMeshes + "plane.obj"));
   EXPECT_EQ(s.triangle_count, 2u * 12 * 12);

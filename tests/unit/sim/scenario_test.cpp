@@ -112,7 +112,7 @@ TEST(Scenario, MissingMesh) {
 
 TEST(Scenario, NonPositiveFocalLength) {
   const std::string e = error_of(variant("focal", "focal_px: [800, 800]", "focal_px: [800, -800]"));
-  expect_one_line(e, "_test_focal.yaml", "camera.focal_px[1]", "must be positive");
+  expect_one_line(e, "_test_focal.yaml", "camera.focal_px[1]", "must be in [1, 100000]");
 }
 
 TEST(Scenario, NaN) {
@@ -125,6 +125,61 @@ TEST(Scenario, MissingKeyAndBadYaml) {
   expect_one_line(error_of(variant("syntax", "name: plane", "name: [plane")), "_test_syntax.yaml", "line",
                   "YAML syntax error");
   EXPECT_NE(error_of("/nonexistent/s.yaml").find("scenario file not found"), std::string::npos);
+}
+
+
+// Issue 9, items 3-5 and 15-16: values that used to pass the reader and then divide by almost
+// nothing, overflow, or allocate gigabytes are refused at load, naming file, key and value.
+TEST(Scenario, RefusesValuesThatWouldBreakTheSimulation) {
+  expect_one_line(error_of(variant("dt", "dt_s: 0.04", "dt_s: 1e-12")), "_test_dt.yaml", "timing.dt_s", "1e-12");
+  expect_one_line(error_of(variant("huge", "resolution: [640, 480]", "resolution: [16384, 16384]")), "_test_huge.yaml",
+                  "camera.resolution", "16384");
+  expect_one_line(error_of(variant("tinyf", "focal_px: [800, 800]", "focal_px: [1e-300, 800]")), "_test_tinyf.yaml",
+                  "camera.focal_px[0]", "1e-300");
+  expect_one_line(error_of(variant("pp", "focal_px: [800, 800]", "focal_px: [800, 800]\n  principal_point_px: [1e300, 10]")),
+                  "_test_pp.yaml", "camera.principal_point_px[0]", "1e300");
+  expect_one_line(error_of(variant("dist", "distortion: [-0.08,", "distortion: [-1e300,")), "_test_dist.yaml",
+                  "camera.distortion[0]", "-1e300");
+}
+
+TEST(Scenario, RefusesAliasBombsDuplicateKeysAndOddKeys) {
+  // 5,000 objects aliased from one: a 36 kB file that used to build 5,000 Bullet bodies
+  std::string text = read(kScenarios + "plane.yaml");
+  const auto a = text.find("objects:");
+  const auto b = text.find("projector:");
+  std::string objs = "objects:\n";
+  for (int i = 0; i < 5000; ++i) objs += "  - {mesh: ../../meshes/plane.obj, position_m: [1.4, 0.0, 0.4]}\n";
+  text.replace(a, b - a, objs);
+  for (std::size_t p; (p = text.find("../../")) != std::string::npos;) text.replace(p, 6, std::string(CELL_SOURCE_DIR) + "/");
+  const std::string path = (std::filesystem::temp_directory_path() / "_test_many.yaml").string();
+  std::ofstream(path) << text;
+  expect_one_line(error_of(path), "_test_many.yaml", "objects", "limit of 64");
+  expect_one_line(error_of(variant("dup", "seed: 1\n", "seed: 1\nseed: 2\n")), "_test_dup.yaml", "seed", "twice");
+  expect_one_line(error_of(variant("listkey", "seed: 1\n", "seed: 1\n[a, b]: 3\n")), "_test_listkey.yaml", "key",
+                  "plain word");
+  // binary bytes in a value are shown escaped, never raw
+  const std::string e = error_of(variant("bin", "seed: 1", "seed: \"\\x01\\x02\\xff\""));
+  EXPECT_EQ(e.find('\x01'), std::string::npos) << e;
+  EXPECT_NE(e.find("seed"), std::string::npos) << e;
+}
+
+TEST(Scenario, ResetPosesOutsideTheWorkspaceAreRefused) {
+  const Scenario s = load_scenario(kScenarios + "plane.yaml");
+  EXPECT_NO_THROW(resolve_pose(s, "10 0 0 0 0 5"));
+  try {
+    resolve_pose(s, "1e300 0 0 0 0 0");
+    FAIL() << "accepted a pose 1e298 m away";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("beyond 100 m"), std::string::npos) << e.what();
+  }
+  try {
+    resolve_pose(s, "500 0 0 0 0 0");
+    FAIL() << "accepted a pose 5 m away";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("outside the workspace"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(s.workspace.contains(s.world_T_desired.translation()));
+  EXPECT_TRUE(s.workspace.contains(s.world_T_initial().translation()));
 }
 
 }  // namespace

@@ -1,0 +1,357 @@
+#include "sim/scene/mesh_check.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sim/scene/triangle_mesh.hpp"
+
+namespace sim {
+namespace {
+
+[[noreturn]] void fail(const std::filesystem::path& p, const std::string& what) {
+  throw MeshError(p.string() + ": " + what);
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Printable excerpt of untrusted bytes for a message.
+std::string shown(const std::string& s) {
+  std::string out;
+  for (char c : s.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
+  return s.size() > 40 ? out + "..." : out;
+}
+
+bool parse_double(const std::string& tok, double& v) {
+  if (tok.empty() || tok.size() > 64) return false;
+  char* end = nullptr;
+  v = std::strtod(tok.c_str(), &end);
+  return end == tok.c_str() + tok.size() && std::isfinite(v);
+}
+
+bool parse_long(const std::string& tok, long long& v) {
+  if (tok.empty() || tok.size() > 20) return false;
+  char* end = nullptr;
+  errno = 0;
+  v = std::strtoll(tok.c_str(), &end, 10);
+  return errno == 0 && end == tok.c_str() + tok.size();
+}
+
+std::string read_all(const std::filesystem::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) fail(path, "cannot open mesh file");
+  std::string data;
+  data.resize(static_cast<std::size_t>(std::filesystem::file_size(path)));
+  f.read(data.data(), static_cast<std::streamsize>(data.size()));
+  if (f.gcount() != static_cast<std::streamsize>(data.size())) fail(path, "cannot read the whole mesh file");
+  return data;
+}
+
+void add_triangles(const std::filesystem::path& p, MeshFileCounts& c, std::size_t corners) {
+  c.triangles += corners - 2;
+  if (c.triangles > kMaxMeshTriangles)
+    fail(p, "more than " + std::to_string(kMaxMeshTriangles) + " triangles (the limit per mesh)");
+}
+
+// ---------------------------------------------------------------- OBJ
+MeshFileCounts check_obj(const std::filesystem::path& p, const std::string& data) {
+  // first pass: how many of each kind of vertex the indices may refer to
+  std::size_t nv = 0, nt = 0, nn = 0;
+  {
+    std::istringstream in(data);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("v ", 0) == 0 || line.rfind("v\t", 0) == 0) ++nv;
+      else if (line.rfind("vt", 0) == 0) ++nt;
+      else if (line.rfind("vn", 0) == 0) ++nn;
+    }
+  }
+  if (nv > kMaxMeshVertices) fail(p, std::to_string(nv) + " vertices, more than the limit of " + std::to_string(kMaxMeshVertices));
+  MeshFileCounts c;
+  c.vertices = nv;
+  std::istringstream in(data);
+  std::string line;
+  std::size_t n = 0;
+  const auto index_ok = [](const std::string& t, std::size_t count, bool allow_empty) {
+    if (t.empty()) return allow_empty;
+    long long i = 0;
+    if (!parse_long(t, i) || i == 0) return false;
+    return i > 0 ? static_cast<std::size_t>(i) <= count : static_cast<std::size_t>(-i) <= count;
+  };
+  while (std::getline(in, line)) {
+    ++n;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string key;
+    if (!(ls >> key) || key[0] == '#') continue;
+    const std::string at = "line " + std::to_string(n) + ": ";
+    std::vector<std::string> toks;
+    for (std::string t; ls >> t;) {
+      if (t[0] == '#') break;
+      toks.push_back(t);
+      if (toks.size() > kMaxFaceCorners + 4) fail(p, at + "too many values on one line");
+    }
+    if (key == "v" || key == "vn" || key == "vt") {
+      const std::size_t need = key == "vt" ? 1 : 3;
+      if (toks.size() < need || toks.size() > 4) fail(p, at + "'" + key + "' needs " + std::to_string(need) + " to 4 numbers");
+      for (const auto& t : toks) {
+        double v;
+        if (!parse_double(t, v)) fail(p, at + "'" + shown(t) + "' is not a finite number");
+      }
+    } else if (key == "f") {
+      if (toks.size() < 3) fail(p, at + "a face needs at least 3 corners");
+      if (toks.size() > kMaxFaceCorners) fail(p, at + "a face with more than " + std::to_string(kMaxFaceCorners) + " corners");
+      for (const auto& t : toks) {
+        const std::size_t a = t.find('/');
+        const std::size_t b = a == std::string::npos ? std::string::npos : t.find('/', a + 1);
+        const std::string vi = t.substr(0, a);
+        const std::string ti = a == std::string::npos ? "" : t.substr(a + 1, b == std::string::npos ? std::string::npos : b - a - 1);
+        const std::string ni = b == std::string::npos ? "" : t.substr(b + 1);
+        if (!index_ok(vi, nv, false) || !index_ok(ti, nt, true) || !index_ok(ni, nn, true))
+          fail(p, at + "face corner '" + shown(t) + "' refers to no vertex (" + std::to_string(nv) + " vertices)");
+      }
+      add_triangles(p, c, toks.size());
+    } else if (key == "o" || key == "g" || key == "s" || key == "usemtl" || key == "mtllib" || key == "l" || key == "p") {
+      // names, smoothing groups, materials, lines and points: no surface, nothing to check
+    } else {
+      fail(p, at + "unknown OBJ statement '" + shown(key) + "'");
+    }
+  }
+  if (c.triangles == 0) fail(p, "mesh has no faces");
+  return c;
+}
+
+// ---------------------------------------------------------------- PLY
+struct PlyProperty {
+  std::string name;
+  int size = 0;        // bytes of the value (or of each list item)
+  bool is_float = false;
+  bool list = false;
+  int count_size = 0;  // bytes of a list's length
+};
+struct PlyElement {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<PlyProperty> props;
+};
+
+int ply_type_size(const std::string& t, bool& is_float) {
+  is_float = t == "float" || t == "float32" || t == "double" || t == "float64";
+  if (t == "char" || t == "int8" || t == "uchar" || t == "uint8") return 1;
+  if (t == "short" || t == "int16" || t == "ushort" || t == "uint16") return 2;
+  if (t == "int" || t == "int32" || t == "uint" || t == "uint32" || t == "float" || t == "float32") return 4;
+  if (t == "double" || t == "float64") return 8;
+  return 0;
+}
+
+MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data) {
+  const std::size_t end_header = data.find("end_header");
+  if (data.rfind("ply", 0) != 0) fail(p, "not a PLY file (no 'ply' magic)");
+  if (end_header == std::string::npos || end_header > 64 * 1024)
+    fail(p, "PLY header has no end_header in its first 64 kB (truncated or corrupt file)");
+  std::size_t body = data.find('\n', end_header);
+  if (body == std::string::npos) fail(p, "PLY header ends without a newline");
+  ++body;
+  std::istringstream in(data.substr(0, end_header));
+  std::string line, format;
+  std::vector<PlyElement> elements;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string key;
+    ls >> key;
+    if (key.empty() || key == "ply" || key == "comment" || key == "obj_info") continue;
+    if (key == "format") {
+      std::string version;
+      ls >> format >> version;
+      if (format != "ascii" && format != "binary_little_endian" && format != "binary_big_endian")
+        fail(p, "unknown PLY format '" + shown(format) + "'");
+    } else if (key == "element") {
+      PlyElement e;
+      std::string count;
+      ls >> e.name >> count;
+      long long n = 0;
+      if (!parse_long(count, n) || n < 0) fail(p, "PLY element '" + shown(e.name) + "' has count '" + shown(count) + "'");
+      const std::size_t limit = e.name == "face" ? kMaxMeshTriangles : kMaxMeshVertices;
+      if (static_cast<unsigned long long>(n) > limit)
+        fail(p, "PLY element '" + shown(e.name) + "' has " + std::to_string(n) + " entries, more than the limit of " +
+                    std::to_string(limit));
+      e.count = static_cast<std::size_t>(n);
+      elements.push_back(e);
+    } else if (key == "property") {
+      if (elements.empty()) fail(p, "PLY property before any element");
+      PlyProperty prop;
+      std::string type;
+      ls >> type;
+      if (type == "list") {
+        std::string count_type, item_type;
+        ls >> count_type >> item_type >> prop.name;
+        bool f = false;
+        prop.list = true;
+        prop.count_size = ply_type_size(count_type, f);
+        if (prop.count_size == 0 || f) fail(p, "PLY list length type '" + shown(count_type) + "'");
+        prop.size = ply_type_size(item_type, prop.is_float);
+        if (prop.size == 0) fail(p, "unknown PLY type '" + shown(item_type) + "'");
+      } else {
+        ls >> prop.name;
+        prop.size = ply_type_size(type, prop.is_float);
+        if (prop.size == 0) fail(p, "unknown PLY type '" + shown(type) + "'");
+      }
+      elements.back().props.push_back(prop);
+    } else {
+      fail(p, "unknown PLY header line '" + shown(line) + "'");
+    }
+  }
+  if (format.empty()) fail(p, "PLY header has no format line");
+  MeshFileCounts c;
+  for (const auto& e : elements)
+    if (e.name == "vertex") c.vertices = e.count;
+
+  if (format == "ascii") {
+    std::istringstream b(data.substr(body));
+    for (const auto& e : elements)
+      for (std::size_t i = 0; i < e.count; ++i)
+        for (const auto& prop : e.props) {
+          std::string tok;
+          const auto next = [&]() {
+            if (!(b >> tok))
+              fail(p, "PLY body ends early: element '" + shown(e.name) + "' " + std::to_string(i) + " of " +
+                          std::to_string(e.count) + " is missing");
+            double v;
+            if (!parse_double(tok, v)) fail(p, "PLY value '" + shown(tok) + "' is not a finite number");
+            return v;
+          };
+          if (!prop.list) {
+            next();
+            continue;
+          }
+          const double n = next();
+          if (n < 0 || n > kMaxFaceCorners || n != std::floor(n)) fail(p, "PLY list of length '" + shown(tok) + "'");
+          for (int k = 0; k < static_cast<int>(n); ++k) {
+            const double idx = next();
+            if (e.name == "face" && (idx < 0 || idx >= static_cast<double>(c.vertices) || idx != std::floor(idx)))
+              fail(p, "PLY face " + std::to_string(i) + " refers to vertex " + shown(tok) + " of " + std::to_string(c.vertices));
+          }
+          if (e.name == "face") {
+            if (n < 3) fail(p, "PLY face " + std::to_string(i) + " has fewer than 3 corners");
+            add_triangles(p, c, static_cast<std::size_t>(n));
+          }
+        }
+  } else {
+    const bool swap = format == "binary_big_endian";
+    std::size_t at = body;
+    const auto read_uint = [&](int size, bool is_float, const std::string& what) -> double {
+      if (data.size() - at < static_cast<std::size_t>(size))
+        fail(p, "PLY body ends early (" + std::to_string(data.size()) + " bytes) while reading " + what);
+      unsigned char b[8];
+      std::memcpy(b, data.data() + at, static_cast<std::size_t>(size));
+      at += static_cast<std::size_t>(size);
+      if (swap) std::reverse(b, b + size);
+      if (is_float) {
+        if (size == 4) {
+          float f;
+          std::memcpy(&f, b, 4);
+          return f;
+        }
+        double d;
+        std::memcpy(&d, b, 8);
+        return d;
+      }
+      std::uint64_t v = 0;
+      std::memcpy(&v, b, static_cast<std::size_t>(size));
+      return static_cast<double>(v);
+    };
+    for (const auto& e : elements)
+      for (std::size_t i = 0; i < e.count; ++i)
+        for (const auto& prop : e.props) {
+          const std::string what = "element '" + shown(e.name) + "' " + std::to_string(i) + " of " + std::to_string(e.count);
+          if (!prop.list) {
+            const double v = read_uint(prop.size, prop.is_float, what);
+            if (prop.is_float && !std::isfinite(v)) fail(p, "PLY value of " + what + " is not a finite number");
+            continue;
+          }
+          const double n = read_uint(prop.count_size, false, what);
+          if (n > kMaxFaceCorners) fail(p, "PLY list of " + what + " has length " + std::to_string(static_cast<long long>(n)));
+          for (int k = 0; k < static_cast<int>(n); ++k) {
+            const double idx = read_uint(prop.size, prop.is_float, what);
+            if (e.name == "face" && (prop.is_float || idx >= static_cast<double>(c.vertices)))
+              fail(p, "PLY " + what + " refers to vertex " + std::to_string(static_cast<long long>(idx)) + " of " +
+                          std::to_string(c.vertices));
+          }
+          if (e.name == "face") {
+            if (n < 3) fail(p, "PLY " + what + " has fewer than 3 corners");
+            add_triangles(p, c, static_cast<std::size_t>(n));
+          }
+        }
+  }
+  if (c.triangles == 0) fail(p, "mesh has no faces");
+  return c;
+}
+
+// ---------------------------------------------------------------- STL
+MeshFileCounts check_stl(const std::filesystem::path& p, const std::string& data) {
+  MeshFileCounts c;
+  const bool ascii = data.rfind("solid", 0) == 0 && data.find("facet") != std::string::npos;
+  if (!ascii) {
+    if (data.size() < 84) fail(p, "binary STL shorter than its 84-byte header");
+    std::uint32_t n = 0;
+    std::memcpy(&n, data.data() + 80, 4);
+    if (n > kMaxMeshTriangles) fail(p, "binary STL says " + std::to_string(n) + " triangles, more than the limit");
+    if (data.size() != 84 + 50ull * n)
+      fail(p, "binary STL of " + std::to_string(data.size()) + " bytes for " + std::to_string(n) + " triangles (expected " +
+                  std::to_string(84 + 50ull * n) + ")");
+    for (std::uint32_t t = 0; t < n; ++t)
+      for (int k = 0; k < 12; ++k) {
+        float f;
+        std::memcpy(&f, data.data() + 84 + 50ull * t + 4 * k, 4);
+        if (!std::isfinite(f)) fail(p, "binary STL triangle " + std::to_string(t) + " has a non-finite number");
+      }
+    c.triangles = n;
+    c.vertices = 3ull * n;
+  } else {
+    std::istringstream in(data);
+    std::string tok;
+    std::size_t vertices = 0;
+    while (in >> tok) {
+      if (tok != "vertex") continue;
+      for (int k = 0; k < 3; ++k) {
+        double v;
+        if (!(in >> tok) || !parse_double(tok, v)) fail(p, "ASCII STL vertex " + std::to_string(vertices) + " is not 3 numbers");
+      }
+      if (++vertices > 3 * kMaxMeshTriangles) fail(p, "ASCII STL with more triangles than the limit");
+    }
+    if (vertices % 3 != 0) fail(p, "ASCII STL with " + std::to_string(vertices) + " vertices, not whole triangles");
+    c.vertices = vertices;
+    c.triangles = vertices / 3;
+  }
+  if (c.triangles == 0) fail(p, "mesh has no faces");
+  return c;
+}
+
+}  // namespace
+
+MeshFileCounts check_mesh_file(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) fail(path, "mesh file not found");
+  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+  if (ec) fail(path, "cannot read mesh file: " + ec.message());
+  if (bytes > kMaxMeshFileBytes)
+    fail(path, std::to_string(bytes) + " bytes, more than the limit of " + std::to_string(kMaxMeshFileBytes) + " per mesh file");
+  const std::string ext = lower(path.extension().string());
+  const std::string data = read_all(path);
+  if (ext == ".obj") return check_obj(path, data);
+  if (ext == ".ply") return check_ply(path, data);
+  if (ext == ".stl") return check_stl(path, data);
+  fail(path, "unsupported mesh format '" + shown(ext) + "' (use .obj, .ply or .stl)");
+}
+
+}  // namespace sim

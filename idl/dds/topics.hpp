@@ -19,6 +19,7 @@ inline constexpr const char* kSpotsTopic = "rt/servo/spots";
 inline constexpr const char* kStatusTopic = "rt/servo/status";
 inline constexpr const char* kControlTopic = "rt/sim/control";
 inline constexpr const char* kClockTopic = "rt/clock";
+inline constexpr const char* kSimStatusTopic = "rt/sim/status";
 
 inline constexpr const char* kCameraFrame = "camera_optical";
 inline constexpr const char* kWorldFrame = "world";

@@ -1,6 +1,11 @@
 // `servo`: the visual-servoing controller's command line. `decode` decodes one image.
 #include <CLI/CLI.hpp>
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <optional>
+#include <sstream>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -13,16 +18,87 @@
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
 #include "servo/app/servo_service.hpp"
+#include "servo/node/servo_state_machine.hpp"
 #include "servo/app/servo_view.hpp"
 #include "dds/participant.hpp"
 
 namespace {
 
+// Width and height from an image file's header, for the formats whose header says them
+// plainly (PNG, JPEG, BMP, PNM); nullopt when the header does not tell.
+std::optional<std::pair<std::uint64_t, std::uint64_t>> header_size(const std::string& head) {
+  const auto u8 = [&](std::size_t i) { return static_cast<std::uint64_t>(static_cast<unsigned char>(head[i])); };
+  const auto be32 = [&](std::size_t i) { return u8(i) << 24 | u8(i + 1) << 16 | u8(i + 2) << 8 | u8(i + 3); };
+  if (head.size() >= 24 && head.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0) return std::make_pair(be32(16), be32(20));
+  if (head.size() >= 26 && head.compare(0, 2, "BM") == 0) {
+    const auto le32 = [&](std::size_t i) { return u8(i) | u8(i + 1) << 8 | u8(i + 2) << 16 | u8(i + 3) << 24; };
+    const std::int64_t h = static_cast<std::int32_t>(le32(22));
+    return std::make_pair(le32(18), static_cast<std::uint64_t>(h < 0 ? -h : h));
+  }
+  if (head.size() >= 4 && u8(0) == 0xFF && u8(1) == 0xD8) {
+    // walk the JPEG markers to the first frame header (SOF0..SOF15 but DHT, JPG, DAC)
+    for (std::size_t i = 2; i + 9 < head.size();) {
+      if (u8(i) != 0xFF) return std::nullopt;
+      const std::uint64_t marker = u8(i + 1);
+      const std::uint64_t len = u8(i + 2) << 8 | u8(i + 3);
+      if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC)
+        return std::make_pair(u8(i + 7) << 8 | u8(i + 8), u8(i + 5) << 8 | u8(i + 6));
+      i += 2 + len;
+    }
+    return std::nullopt;
+  }
+  if (head.size() >= 3 && head[0] == 'P' && head[1] >= '1' && head[1] <= '6') {
+    std::istringstream in(head.substr(2));
+    std::string w, h;
+    in >> w >> h;
+    if (w.size() > 12 || h.size() > 12 || w.find_first_not_of("0123456789") != std::string::npos || w.empty() ||
+        h.empty() || h.find_first_not_of("0123456789") != std::string::npos)
+      return std::nullopt;
+    return std::make_pair(std::stoull(w), std::stoull(h));
+  }
+  return std::nullopt;
+}
+
 cv::Mat read_rgb(const std::string& path) {
-  // IMREAD_COLOR turns grey and binary images into 3 equal channels: they have no chroma,
-  // so they decode to zero spots instead of failing
-  cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
-  if (bgr.empty()) throw std::runtime_error(path + ": cannot read image (missing, empty or not an image)");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error(path + ": cannot read image (missing or unreadable)");
+  std::string head(64 * 1024, '\0');
+  f.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(f.gcount()));
+  // a 1 MB PNG can decode to 20000 x 20000 (1.2 GB): the header is checked before decoding
+  if (const auto wh = header_size(head)) {
+    const auto [w, h] = *wh;
+    if (w == 0 || h == 0 || w > servo::kMaxImageSide || h > servo::kMaxImageSide || w * h > servo::kMaxImagePixels)
+      throw std::runtime_error(path + ": image of " + std::to_string(w) + " x " + std::to_string(h) +
+                               " px, beyond the limit of " + std::to_string(servo::kMaxImageSide) + " per side and " +
+                               std::to_string(servo::kMaxImagePixels) + " pixels");
+  }
+  // the codecs print their own complaints (libpng error: ...) on stderr: our one line says it
+  cv::Mat bgr;
+  {
+    std::fflush(stderr);
+    const int saved = dup(STDERR_FILENO);
+    const int devnull = open("/dev/null", O_WRONLY);
+    if (saved >= 0 && devnull >= 0) dup2(devnull, STDERR_FILENO);
+    try {
+      // IMREAD_COLOR turns grey and binary images into 3 equal channels: they have no chroma,
+      // so they decode to zero spots instead of failing
+      bgr = cv::imread(path, cv::IMREAD_COLOR);
+    } catch (const cv::Exception&) {
+      bgr.release();
+    }
+    std::fflush(stderr);
+    if (saved >= 0) {
+      dup2(saved, STDERR_FILENO);
+      close(saved);
+    }
+    if (devnull >= 0) close(devnull);
+  }
+  if (bgr.empty()) throw std::runtime_error(path + ": cannot read image (empty, corrupt, too large or not an image)");
+  if (static_cast<std::uint64_t>(bgr.cols) * bgr.rows > servo::kMaxImagePixels || bgr.cols > int(servo::kMaxImageSide) ||
+      bgr.rows > int(servo::kMaxImageSide))
+    throw std::runtime_error(path + ": image of " + std::to_string(bgr.cols) + " x " + std::to_string(bgr.rows) +
+                             " px, beyond the limit");
   cv::Mat rgb;
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   return rgb;
@@ -30,7 +106,7 @@ cv::Mat read_rgb(const std::string& path) {
 
 int run_decode(const std::string& image, const std::string& pattern_file, const std::string& json_out,
                const std::string& overlay_out, bool tolerant, int min_votes) {
-  const pattern::MArray marray = pattern::load_pattern(pattern_file, {3, 3});
+  const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
   vision::DecoderOptions options;
   options.tolerance.enabled = tolerant;
   options.min_votes = min_votes;
@@ -101,6 +177,9 @@ int main(int argc, char** argv) {
   vw->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
   vw->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
 
+  // a backstop for the formats whose header read_rgb does not read: OpenCV refuses to
+  // decode beyond this many pixels (read once, before the first decode)
+  setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(servo::kMaxImagePixels).c_str(), 1);
   CLI11_PARSE(app, argc, argv);
   // The decoder's per-frame OpenCV operations are too small to gain from OpenCV's thread
   // pool: measured 2.1 ms per VGA frame with it, 1.5 ms without (docs/performance.md).
@@ -124,7 +203,10 @@ int main(int argc, char** argv) {
     }
     if (*decode) return run_decode(image, pattern_file, json_out, overlay_out, tolerant, min_votes);
   } catch (const std::exception& e) {
-    std::cerr << "servo: " << e.what() << "\n";
+    std::string what = e.what();
+    for (char& ch : what)
+      if (ch == '\n' || ch == '\r') ch = ' ';
+    std::cerr << "servo: " << what << "\n";
     return 1;
   }
   return 0;

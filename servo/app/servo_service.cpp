@@ -1,6 +1,5 @@
 #include "servo/app/servo_service.hpp"
 
-#include <yaml-cpp/yaml.h>
 
 #include <atomic>
 #include <chrono>
@@ -20,6 +19,8 @@
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
+#include "servo/config/strict_yaml.hpp"
+#include "servo/node/servo_state_machine.hpp"
 #include "servo/pattern/pattern_file.hpp"
 
 namespace servo {
@@ -30,8 +31,7 @@ using sensor_msgs::msg::dds_::Image_;
 using sensor_msgs::msg::dds_::CameraInfo_;
 using geometry_msgs::msg::dds_::PoseStamped_;
 using cell_msgs::msg::dds_::SimControl_;
-namespace SS = cell_msgs::msg::dds_::ServoStatus_Constants;
-namespace SC = cell_msgs::msg::dds_::SimControl_Constants;
+using cell_msgs::msg::dds_::SimStatus_;
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
@@ -47,42 +47,71 @@ void save_reference(const std::filesystem::path& file, const std::vector<control
 }
 
 std::vector<control::Feature> load_reference(const std::filesystem::path& file) {
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(file, ec);
+  if (ec || bytes > (16u << 20)) throw std::runtime_error(file.string() + ": reference file unreadable or over 16 MB");
   std::ifstream in(file);
-  nlohmann::json j;
-  try {
-    in >> j;
-  } catch (const std::exception& e) {
-    throw std::runtime_error(file.string() + ": not a reference file (JSON list of features): " + e.what());
-  }
   std::vector<control::Feature> out;
-  for (const auto& e : j) {
-    control::Feature f{e.at("row").get<int>(), e.at("col").get<int>(), e.at("x").get<double>(), e.at("y").get<double>(),
-                       std::nullopt};
-    if (!e.at("z").is_null()) f.z = e.at("z").get<double>();
-    if (!std::isfinite(f.x) || !std::isfinite(f.y)) throw std::runtime_error(file.string() + ": non-finite feature");
-    out.push_back(f);
+  try {
+    nlohmann::json j;
+    in >> j;
+    if (!j.is_array() || j.size() > 65536) throw std::runtime_error("expected a list of at most 65536 features");
+    for (const auto& e : j) {
+      control::Feature f{e.at("row").get<int>(), e.at("col").get<int>(), e.at("x").get<double>(), e.at("y").get<double>(),
+                         std::nullopt};
+      if (!e.at("z").is_null()) f.z = e.at("z").get<double>();
+      if (!std::isfinite(f.x) || !std::isfinite(f.y) || (f.z && !(std::isfinite(*f.z) && *f.z > 0)))
+        throw std::runtime_error("non-finite feature or non-positive depth");
+      if (f.row < 0 || f.col < 0 || f.row >= pattern::kMaxPatternSide || f.col >= pattern::kMaxPatternSide)
+        throw std::runtime_error("spot id outside the pattern");
+      out.push_back(f);
+    }
+  } catch (const std::exception& e) {
+    throw std::runtime_error(file.string() + ": not a reference file (JSON list of features): " +
+                             config::printable(e.what(), 200));
   }
   return out;
 }
 
+// What the DDS listener threads hand to the service loop; every queue bounded.
 struct Inbox {
+  static constexpr std::size_t kMaxImages = 2, kMaxCommands = 64, kMaxFrameInfo = 16;
   std::mutex m;
   std::condition_variable cv;
-  std::deque<Image_> images;
-  std::deque<PoseStamped_> poses;
+  std::deque<Image_> images;  // realtime: never queue stale frames
   std::deque<SimControl_> commands;
+  std::deque<PoseStamped_> poses;
+  std::deque<SimStatus_> sim_statuses;
   std::optional<CameraInfo_> info;
+  bool info_fresh = false;
+  template <typename T>
+  void push(std::deque<T>& q, T&& v, std::size_t max) {
+    std::lock_guard<std::mutex> l(m);
+    if (q.size() >= max) q.pop_front();
+    q.push_back(std::move(v));
+    cv.notify_all();
+  }
 };
+
+Stamp to_stamp(const builtin_interfaces::msg::dds_::Time_& t) { return {t.sec(), t.nanosec()}; }
+builtin_interfaces::msg::dds_::Time_ to_time(const Stamp& s) {
+  builtin_interfaces::msg::dds_::Time_ t;
+  t.sec(s.sec);
+  t.nanosec(s.nanosec);
+  return t;
+}
 
 class ServoService {
  public:
   explicit ServoService(const ServiceOptions& o) : o_(o) {
-    const pattern::MArray marray = pattern::load_pattern(o.pattern, {3, 3});
-    pipeline_ = std::make_unique<ServoPipeline>(pattern::WindowTable(marray, {3, 3}), o.config);
+    const pattern::MArray marray = load_decodable_pattern(o.pattern);
+    if (o.config.projector) check_projector_against_pattern(*o.config.projector, marray, o.pattern);
+    auto pipeline = std::make_unique<ServoPipeline>(pattern::WindowTable(marray, {3, 3}), o.config);
     if (!o.reference.empty() && std::filesystem::exists(o.reference)) {
-      pipeline_->set_reference(load_reference(o.reference));
-      std::printf("servo: reference loaded from %s (%zu features)\n", o.reference.c_str(), pipeline_->reference().size());
+      pipeline->set_reference(load_reference(o.reference));
+      std::printf("servo: reference loaded from %s (%zu features)\n", o.reference.c_str(), pipeline->reference().size());
     }
+    machine_ = std::make_unique<ServoStateMachine>(std::move(pipeline), ServoTiming{o.lost_ms / 1e3, o.autostart});
     cell_dds::ParticipantOptions po;
     po.domain_id = o.domain_id;
     po.name = "servo";
@@ -96,239 +125,145 @@ class ServoService {
     status_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
         p, cell_dds::kStatusTopic, cell_dds::writer_qos(Stream::kLatched));
     image_in_ = std::make_unique<cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType>>(
-        p, cell_dds::kImageTopic, cell_dds::reader_qos(Stream::kFrame), [this](Image_&& i) {
-          std::lock_guard<std::mutex> l(in_.m);
-          in_.images.push_back(std::move(i));
-          if (in_.images.size() > 2) in_.images.pop_front();  // realtime: never queue stale frames
-          in_.cv.notify_all();
-        });
+        p, cell_dds::kImageTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](Image_&& i) { in_.push(in_.images, std::move(i), Inbox::kMaxImages); });
     info_in_ = std::make_unique<cell_dds::Reader<sensor_msgs::msg::dds_::CameraInfo_PubSubType>>(
         p, cell_dds::kCameraInfoTopic, cell_dds::reader_qos(Stream::kLatched), [this](CameraInfo_&& c) {
           std::lock_guard<std::mutex> l(in_.m);
           in_.info = std::move(c);
+          in_.info_fresh = true;
         });
     pose_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
-        p, cell_dds::kCameraPoseTopic, cell_dds::reader_qos(Stream::kFrame), [this](PoseStamped_&& s) {
-          std::lock_guard<std::mutex> l(in_.m);
-          in_.poses.push_back(std::move(s));
-          if (in_.poses.size() > 8) in_.poses.pop_front();
-          in_.cv.notify_all();
-        });
+        p, cell_dds::kCameraPoseTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](PoseStamped_&& s) { in_.push(in_.poses, std::move(s), Inbox::kMaxFrameInfo); });
+    sim_status_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>>(
+        p, cell_dds::kSimStatusTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](SimStatus_&& s) { in_.push(in_.sim_statuses, std::move(s), Inbox::kMaxFrameInfo); });
     control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-        p, cell_dds::kControlTopic, cell_dds::reader_qos(Stream::kCommand), [this](SimControl_&& c) {
-          std::lock_guard<std::mutex> l(in_.m);
-          in_.commands.push_back(std::move(c));
-          in_.cv.notify_all();
-        });
-    state_ = pipeline_->taught() && o.autostart ? SS::SERVOING : SS::IDLE;
+        p, cell_dds::kControlTopic, cell_dds::reader_qos(Stream::kCommand),
+        [this](SimControl_&& c) { in_.push(in_.commands, std::move(c), Inbox::kMaxCommands); });
   }
 
   int run() {
     std::printf("servo: ready (pattern %s, model %s, domain %d)\n", o_.pattern.filename().c_str(),
                 control::to_string(o_.config.law.model).c_str(), o_.domain_id);
     std::fflush(stdout);
-    publish_status(builtin_interfaces::msg::dds_::Time_(), "ready");
-    auto last_image = Clock::now();
-    bool lost_reported = false;
+    publish(machine_->ready(), false);
+    const Clock::time_point t0 = Clock::now();
+    const auto now = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
     std::unique_lock<std::mutex> lock(in_.m);
     while (!g_stop) {
+      take_frame_info();
       while (!in_.commands.empty()) {
-        const SimControl_ c = std::move(in_.commands.front());
+        machine_->on_command(in_.commands.front().command());
         in_.commands.pop_front();
-        command(c);
+      }
+      if (in_.info_fresh) {
+        in_.info_fresh = false;
+        const std::string why = machine_->on_camera_info(to_info(*in_.info));
+        if (!why.empty()) {
+          std::fprintf(stderr, "servo: %s: %s\n", cell_dds::kCameraInfoTopic, why.c_str());
+        }
       }
       if (in_.images.empty()) {
-        in_.cv.wait_for(lock, std::chrono::milliseconds(20));
-        // no image for lost_ms: stop the robot and say so (once per outage)
-        if (Clock::now() - last_image > std::chrono::duration<double, std::milli>(o_.lost_ms) && !lost_reported &&
-            images_seen_ > 0) {
-          lost_reported = true;
-          previous_state_ = state_;
-          state_ = SS::LOST;
+        in_.cv.wait_for(lock, std::chrono::milliseconds(5));
+        if (auto lost = machine_->tick(now())) {
           lock.unlock();
-          publish_twist(last_stamp_, control::Vector6d::Zero());
-          publish_status(last_stamp_, "no image for " + std::to_string(static_cast<int>(o_.lost_ms)) + " ms");
-          std::fprintf(stderr, "servo: LOST: no image for %.0f ms, zero twist published\n", o_.lost_ms);
+          std::fprintf(stderr, "servo: LOST: %s, zero twist published\n", lost->reason.c_str());
+          publish(*lost, false);
           lock.lock();
         }
         continue;
       }
       Image_ img = std::move(in_.images.front());
       in_.images.pop_front();
-      last_image = Clock::now();
-      if (lost_reported) {
-        lost_reported = false;
-        state_ = previous_state_;
+      // the sim's status and pose for this frame are sent before the image, on other topics:
+      // give them a moment to land (bounded)
+      const Stamp stamp = to_stamp(img.header().stamp());
+      for (int i = 0; i < 20 && !g_stop; ++i) {
+        take_frame_info();
+        if (machine_->frame_info_complete(stamp)) break;
+        in_.cv.wait_for(lock, std::chrono::milliseconds(5));
       }
-      ++images_seen_;
-      // the pose of this frame, when the sim sends one (it is sent before the image)
-      std::optional<Eigen::Isometry3d> pose = pose_for(img.header().stamp(), lock);
-      std::optional<CameraInfo_> info = in_.info;
+      take_frame_info();
       lock.unlock();
-      process(img, info, pose);
+      ImageView view{stamp, img.encoding(), img.width(), img.height(), img.step(), img.is_bigendian(),
+                     img.data().data(), img.data().size()};
+      const ServoReply r = machine_->on_image(view, now());
+      if (r.taught && !o_.reference.empty()) save_reference(o_.reference, machine_->pipeline().reference());
+      publish(r, true);
       lock.lock();
     }
     lock.unlock();
     // a clean exit leaves the robot still
-    publish_twist(last_stamp_, control::Vector6d::Zero());
-    state_ = SS::STOPPED;
-    publish_status(last_stamp_, "servo shut down");
-    std::printf("servo: stopped after %ld images\n", images_seen_);
+    publish(machine_->shutdown(), false);
+    std::printf("servo: stopped after %ld images (%ld rejected)\n", machine_->images(), machine_->rejected());
     return 0;
   }
 
  private:
-  std::optional<Eigen::Isometry3d> pose_for(const builtin_interfaces::msg::dds_::Time_& stamp,
-                                            std::unique_lock<std::mutex>& lock) {
-    for (int attempt = 0; attempt < 20; ++attempt) {
-      for (const auto& p : in_.poses)
-        if (p.header().stamp() == stamp) {
-          Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-          T.translation() = Eigen::Vector3d(p.pose().position().x(), p.pose().position().y(), p.pose().position().z());
-          T.linear() = Eigen::Quaterniond(p.pose().orientation().w(), p.pose().orientation().x(),
-                                          p.pose().orientation().y(), p.pose().orientation().z())
-                           .normalized()
-                           .toRotationMatrix();
-          return T;
-        }
-      if (in_.poses.empty() && attempt > 0) return std::nullopt;  // no pose source at all
-      in_.cv.wait_for(lock, std::chrono::milliseconds(5));
+  // called with the lock held
+  void take_frame_info() {
+    while (!in_.sim_statuses.empty()) {
+      const SimStatus_& s = in_.sim_statuses.front();
+      namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
+      machine_->on_sim_status({to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING});
+      in_.sim_statuses.pop_front();
     }
-    return std::nullopt;
-  }
-
-  void command(const SimControl_& c) {
-    switch (c.command()) {
-      case SC::TEACH: state_ = SS::TEACHING; break;
-      case SC::START:
-        // commands can arrive before the teach image: START then takes effect once taught
-        started_ = true;
-        if (pipeline_->taught() && state_ != SS::TEACHING) state_ = SS::SERVOING;
-        break;
-      case SC::PAUSE:
-        started_ = false;
-        state_ = SS::STOPPED;
-        break;
-      case SC::RESET:
-      case SC::LOAD_SCENARIO:
-        if (state_ != SS::TEACHING) state_ = SS::IDLE;
-        break;
-      default: break;
+    while (!in_.poses.empty()) {
+      const PoseStamped_& p = in_.poses.front();
+      const auto& q = p.pose().orientation();
+      const Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());
+      if (std::isfinite(quat.norm()) && std::abs(quat.norm() - 1.0) < 1e-3) {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        T.translation() = Eigen::Vector3d(p.pose().position().x(), p.pose().position().y(), p.pose().position().z());
+        T.linear() = quat.normalized().toRotationMatrix();
+        machine_->on_pose(to_stamp(p.header().stamp()), T);
+      }
+      in_.poses.pop_front();
     }
   }
 
-  // Checks an image before decoding; returns the reason it is unusable, or empty.
-  static std::string reject_reason(const Image_& img, const std::optional<CameraInfo_>& info) {
-    if (img.encoding() != "rgb8") return "rejected image: encoding '" + img.encoding() + "', expected rgb8";
-    if (img.width() == 0 || img.height() == 0) return "rejected image: empty";
-    if (img.step() != img.width() * 3) return "rejected image: step " + std::to_string(img.step()) + " for width " + std::to_string(img.width());
-    if (img.data().size() != static_cast<std::size_t>(img.step()) * img.height())
-      return "rejected image: " + std::to_string(img.data().size()) + " bytes for " + std::to_string(img.width()) + " x " +
-             std::to_string(img.height());
-    if (!info) return "waiting for camera_info";
-    if (info->width() != img.width() || info->height() != img.height())
-      return "rejected image: " + std::to_string(img.width()) + " x " + std::to_string(img.height()) +
-             ", camera_info says " + std::to_string(info->width()) + " x " + std::to_string(info->height());
-    return "";
+  static CameraInfoMsg to_info(const CameraInfo_& c) {
+    CameraInfoMsg m;
+    m.width = c.width();
+    m.height = c.height();
+    m.k.assign(c.k().begin(), c.k().end());
+    m.d = c.d();
+    return m;
   }
 
-  void process(const Image_& img, const std::optional<CameraInfo_>& info, const std::optional<Eigen::Isometry3d>& pose) {
-    const auto& stamp = img.header().stamp();
-    last_stamp_ = stamp;
-    const std::string bad = reject_reason(img, info);
-    if (!bad.empty()) {
-      ++rejected_;
-      publish_twist(stamp, control::Vector6d::Zero());
-      publish_status(stamp, bad);
-      return;
-    }
-    control::CameraIntrinsics& cam = pipeline_->config().camera;
-    cam.fx = info->k()[0];
-    cam.cx = info->k()[2];
-    cam.fy = info->k()[4];
-    cam.cy = info->k()[5];
-    for (std::size_t i = 0; i < 5; ++i) cam.distortion[i] = i < info->d().size() ? info->d()[i] : 0.0;
-
-    const cv::Mat rgb(static_cast<int>(img.height()), static_cast<int>(img.width()), CV_8UC3,
-                      const_cast<uint8_t*>(img.data().data()), img.step());
-    int detected = 0;
-    std::vector<ImageSpot> spots;
-    try {
-      spots = pipeline_->locate(rgb, &detected);
-    } catch (const std::exception& e) {
-      publish_twist(stamp, control::Vector6d::Zero());
-      publish_status(stamp, std::string("rejected image: ") + e.what());
-      return;
-    }
-    publish_spots(stamp, spots, detected);
-    decoded_ = static_cast<int>(spots.size());
-    if (state_ == SS::TEACHING) {
-      const int n = pipeline_->teach(spots, pose);
-      if (!o_.reference.empty()) save_reference(o_.reference, pipeline_->reference());
-      state_ = o_.autostart || started_ ? SS::SERVOING : SS::IDLE;
-      matched_ = n;
-      publish_twist(stamp, control::Vector6d::Zero());
-      publish_status(stamp, "taught " + std::to_string(n) + " features");
-      return;
-    }
-    if (state_ != SS::SERVOING && state_ != SS::CONVERGED) {
-      publish_twist(stamp, control::Vector6d::Zero());
-      publish_status(stamp, pipeline_->taught() ? "waiting for START" : "no reference: send TEACH");
-      return;
-    }
-    StepResult step;
-    try {
-      step = pipeline_->step(spots, pose);
-    } catch (const std::exception& e) {
-      publish_twist(stamp, control::Vector6d::Zero());
-      publish_status(stamp, e.what());
-      return;
-    }
-    ++iteration_;
-    error_norm_ = step.control.error_norm;
-    matched_ = static_cast<int>(step.matched.size());
-    std::string reason;
-    switch (step.control.status) {
-      case control::ControlStatus::kServoing: state_ = SS::SERVOING; break;
-      case control::ControlStatus::kConverged: state_ = SS::CONVERGED; reason = step.control.reason; break;
-      default: state_ = SS::SERVOING; reason = "safe stop: " + step.control.reason; break;  // zero twist, keep trying
-    }
-    publish_status(stamp, reason);  // before the twist: the sim reads both for this frame
-    publish_twist(stamp, step.control.twist);
-  }
-
-  void publish_twist(const builtin_interfaces::msg::dds_::Time_& stamp, const control::Vector6d& v) {
+  // Publishes a reply: status before the twist (the sim reads both for the frame).
+  void publish(const ServoReply& r, bool with_spots) {
+    if (with_spots && r.spots) publish_spots(r);
+    cell_msgs::msg::dds_::ServoStatus_ s;
+    s.header().stamp(to_time(r.stamp));
+    s.header().frame_id(cell_dds::kCameraFrame);
+    s.state(static_cast<uint8_t>(r.state));
+    s.iteration(r.iteration);
+    s.error_norm(r.error_norm);
+    s.decoded(r.decoded);
+    s.matched(r.matched);
+    s.reason(r.reason);
+    status_->write(s);
     geometry_msgs::msg::dds_::TwistStamped_ t;
-    t.header().stamp(stamp);
+    t.header().stamp(to_time(r.stamp));
     t.header().frame_id(cell_dds::kCameraFrame);
-    t.twist().linear().x(v[0]);
-    t.twist().linear().y(v[1]);
-    t.twist().linear().z(v[2]);
-    t.twist().angular().x(v[3]);
-    t.twist().angular().y(v[4]);
-    t.twist().angular().z(v[5]);
+    t.twist().linear().x(r.twist[0]);
+    t.twist().linear().y(r.twist[1]);
+    t.twist().linear().z(r.twist[2]);
+    t.twist().angular().x(r.twist[3]);
+    t.twist().angular().y(r.twist[4]);
+    t.twist().angular().z(r.twist[5]);
     twist_->write(t);
   }
 
-  void publish_status(const builtin_interfaces::msg::dds_::Time_& stamp, const std::string& reason) {
-    cell_msgs::msg::dds_::ServoStatus_ s;
-    s.header().stamp(stamp);
-    s.header().frame_id(cell_dds::kCameraFrame);
-    s.state(state_);
-    s.iteration(static_cast<uint32_t>(iteration_));
-    s.error_norm(error_norm_);
-    s.decoded(static_cast<uint32_t>(decoded_));
-    s.matched(static_cast<uint32_t>(matched_));
-    s.reason(reason);
-    status_->write(s);
-  }
-
-  void publish_spots(const builtin_interfaces::msg::dds_::Time_& stamp, const std::vector<ImageSpot>& spots, int detected) {
+  void publish_spots(const ServoReply& r) {
     cell_msgs::msg::dds_::DecodedSpots_ m;
-    m.header().stamp(stamp);
+    m.header().stamp(to_time(r.stamp));
     m.header().frame_id(cell_dds::kCameraFrame);
-    m.detected(static_cast<uint32_t>(detected));
-    for (const auto& s : spots) {
+    m.detected(static_cast<uint32_t>(r.detected));
+    for (const auto& s : *r.spots) {
       cell_msgs::msg::dds_::Spot_ x;
       x.row(static_cast<int16_t>(s.row));
       x.col(static_cast<int16_t>(s.col));
@@ -340,15 +275,8 @@ class ServoService {
   }
 
   ServiceOptions o_;
-  std::unique_ptr<ServoPipeline> pipeline_;
+  std::unique_ptr<ServoStateMachine> machine_;
   Inbox in_;
-  uint8_t state_ = SS::IDLE, previous_state_ = SS::IDLE;
-  bool started_ = false;
-  long images_seen_ = 0, rejected_ = 0;
-  long iteration_ = 0;
-  double error_norm_ = 0;
-  int decoded_ = 0, matched_ = 0;
-  builtin_interfaces::msg::dds_::Time_ last_stamp_;
   cell_dds::ParticipantPtr participant_;
   std::unique_ptr<cell_dds::Writer<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::DecodedSpots_PubSubType>> spots_;
@@ -356,98 +284,99 @@ class ServoService {
   std::unique_ptr<cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType>> image_in_;
   std::unique_ptr<cell_dds::Reader<sensor_msgs::msg::dds_::CameraInfo_PubSubType>> info_in_;
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose_in_;
+  std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>> control_in_;
 };
 
 }  // namespace
 
+pattern::MArray load_decodable_pattern(const std::filesystem::path& file) {
+  const pattern::MArray marray = pattern::load_pattern(file, {3, 3});
+  if (marray.colours > kDecodableColours)
+    throw std::runtime_error(file.string() + ": the pattern has " + std::to_string(marray.colours) +
+                             " colours; the decoder tells apart " + std::to_string(kDecodableColours) +
+                             " (the projector's primaries: blue, green, red)");
+  return marray;
+}
+
+void check_projector_against_pattern(const control::ProjectorModel& m, const pattern::MArray& marray,
+                                     const std::filesystem::path& pattern_file) {
+  if (m.rows != marray.rows || m.cols != marray.cols)
+    throw std::runtime_error("projector calibration: " + std::to_string(m.rows) + " x " + std::to_string(m.cols) +
+                             " spots, but the pattern " + pattern_file.string() + " is " + std::to_string(marray.rows) +
+                             " x " + std::to_string(marray.cols));
+}
+
 void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
-  YAML::Node root;
+  using config::Reader;
   try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(file.string() + ": " + e.what());
-  }
-  static const std::set<std::string> keys{"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps",
-                                          "min_points", "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant"};
-  if (!root.IsMap()) throw std::runtime_error(file.string() + ": must be a mapping of settings");
-  for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
-    if (!keys.count(key)) throw std::runtime_error(file.string() + ": " + key + ": unknown key");
-    const auto num = [&](double lo) {
-      double v;
+    const Reader top(file, config::load_yaml_file(file, "servo configuration"));
+    top.only_keys({"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps", "min_points",
+                   "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant"});
+    constexpr double kDeg = 3.14159265358979323846 / 180;
+    if (top.has("model")) {
+      const Reader m = top.at("model");
       try {
-        v = kv.second.as<double>();
-      } catch (const YAML::Exception&) {
-        throw std::runtime_error(file.string() + ": " + key + ": must be a number");
+        c.law.model = control::parse_interaction_model(m.text(64));
+      } catch (const std::exception& e) {
+        m.fail(std::string("must be desired-constant-depth, desired, current or mean, got ") + m.spelling());
       }
-      if (!std::isfinite(v) || v < lo) throw std::runtime_error(file.string() + ": " + key + ": out of range");
-      return v;
-    };
-    if (key == "model") c.law.model = control::parse_interaction_model(kv.second.as<std::string>());
-    else if (key == "z_hat_m") c.law.z_hat_m = num(1e-3);
-    else if (key == "gain") c.law.gain = {num(1e-6), num(1e-6), 0};
-    else if (key == "gain_adaptive") {
-      if (!kv.second.IsSequence() || kv.second.size() != 3) throw std::runtime_error(file.string() + ": gain_adaptive: [l0, linf, slope]");
-      c.law.gain = {kv.second[0].as<double>(), kv.second[1].as<double>(), kv.second[2].as<double>()};
-    } else if (key == "max_linear_mps") c.law.max_linear_mps = num(1e-6);
-    else if (key == "max_angular_dps") c.law.max_angular_radps = num(1e-6) * 3.14159265358979323846 / 180;
-    else if (key == "min_points") c.law.min_points = static_cast<int>(num(3));
-    else if (key == "converge_mm") c.law.convergence_translation_m = num(1e-9) / 1e3;
-    else if (key == "converge_deg") c.law.convergence_rotation_rad = num(1e-9) * 3.14159265358979323846 / 180;
-    else if (key == "min_votes") c.decoder.min_votes = static_cast<int>(num(1));
-    else if (key == "min_island") c.decoder.min_island = static_cast<int>(num(0));
-    else if (key == "tolerant") c.decoder.tolerance.enabled = kv.second.as<bool>();
+    }
+    if (top.has("z_hat_m")) c.law.z_hat_m = top.at("z_hat_m").in_range(1e-3, 100);
+    if (top.has("gain") && top.has("gain_adaptive")) top.fail("give gain or gain_adaptive, not both");
+    if (top.has("gain")) {
+      const double g = top.at("gain").in_range(1e-6, 100);
+      c.law.gain = {g, g, 0};
+    }
+    if (top.has("gain_adaptive")) {
+      const Reader g = top.at("gain_adaptive");
+      if (g.size() != 3) g.fail("must be [l0, linf, slope]: gain at zero error, gain at large error, slope");
+      c.law.gain = {g.at(std::size_t{0}).in_range(1e-6, 100), g.at(std::size_t{1}).in_range(1e-6, 100),
+                    g.at(std::size_t{2}).in_range(0, 1e6)};
+    }
+    if (top.has("max_linear_mps")) c.law.max_linear_mps = top.at("max_linear_mps").in_range(1e-6, 10);
+    if (top.has("max_angular_dps")) c.law.max_angular_radps = top.at("max_angular_dps").in_range(1e-6, 3600) * kDeg;
+    if (top.has("min_points")) c.law.min_points = top.at("min_points").integer_in(3, 4096);
+    if (top.has("converge_mm")) c.law.convergence_translation_m = top.at("converge_mm").in_range(1e-6, 1000) / 1e3;
+    if (top.has("converge_deg")) c.law.convergence_rotation_rad = top.at("converge_deg").in_range(1e-6, 180) * kDeg;
+    if (top.has("min_votes")) c.decoder.min_votes = top.at("min_votes").integer_in(1, 9);
+    if (top.has("min_island")) c.decoder.min_island = top.at("min_island").integer_in(0, 4096);
+    if (top.has("tolerant")) c.decoder.tolerance.enabled = top.at("tolerant").boolean();
+  } catch (const config::ConfigError& e) {
+    throw std::runtime_error(e.what());
   }
 }
 
 control::ProjectorModel load_projector_calibration(const std::filesystem::path& file) {
-  YAML::Node root;
+  using config::Reader;
   try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(file.string() + ": " + e.what());
-  }
-  static const std::set<std::string> keys{"fx", "fy", "cx", "cy", "spot_pitch_px", "rows", "cols", "position_m",
-                                          "orientation_xyzw"};
-  if (!root.IsMap()) throw std::runtime_error(file.string() + ": must be a mapping");
-  for (const auto& kv : root)
-    if (!keys.count(kv.first.as<std::string>()))
-      throw std::runtime_error(file.string() + ": " + kv.first.as<std::string>() + ": unknown key");
-  const auto num = [&](const char* key, double lo) {
-    if (!root[key]) throw std::runtime_error(file.string() + ": " + key + ": missing");
-    double v;
-    try {
-      v = root[key].as<double>();
-    } catch (const YAML::Exception&) {
-      throw std::runtime_error(file.string() + ": " + key + ": must be a number");
+    const Reader top(file, config::load_yaml_file(file, "projector calibration"));
+    top.only_keys({"fx", "fy", "cx", "cy", "spot_pitch_px", "rows", "cols", "position_m", "orientation_xyzw"});
+    control::ProjectorModel m;
+    m.fx = top.at("fx").in_range(1, 1e5);
+    m.fy = top.at("fy").in_range(1, 1e5);
+    m.cx = top.at("cx").in_range(-1e5, 1e5);
+    m.cy = top.at("cy").in_range(-1e5, 1e5);
+    m.spot_pitch_px = top.at("spot_pitch_px").in_range(1e-3, 1e4);
+    m.rows = top.at("rows").integer_in(3, pattern::kMaxPatternSide);
+    m.cols = top.at("cols").integer_in(3, pattern::kMaxPatternSide);
+    const auto p = top.at("position_m").numbers_in<3>(-100, 100);
+    const Reader qr = top.at("orientation_xyzw");
+    const auto q = qr.numbers_in<4>(-1.001, 1.001);
+    const Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
+    // a rotation is a unit quaternion: a zero or scaled one is a broken file, not a rotation
+    if (std::abs(quat.norm() - 1.0) > 1e-3) {
+      char norm[32];
+      std::snprintf(norm, sizeof norm, "%.6g", quat.norm());
+      qr.fail(std::string("must be a unit quaternion [x, y, z, w], its norm is ") + norm);
     }
-    if (!std::isfinite(v) || v < lo) throw std::runtime_error(file.string() + ": " + key + ": out of range");
-    return v;
-  };
-  const auto list = [&](const char* key, std::size_t n) {
-    if (!root[key] || !root[key].IsSequence() || root[key].size() != n)
-      throw std::runtime_error(file.string() + ": " + key + ": must be a list of " + std::to_string(n) + " numbers");
-    std::vector<double> v;
-    for (const auto& x : root[key]) v.push_back(x.as<double>());
-    for (double x : v)
-      if (!std::isfinite(x)) throw std::runtime_error(file.string() + ": " + key + ": not finite");
-    return v;
-  };
-  control::ProjectorModel m;
-  m.fx = num("fx", 1e-6);
-  m.fy = num("fy", 1e-6);
-  m.cx = num("cx", -1e9);
-  m.cy = num("cy", -1e9);
-  m.spot_pitch_px = num("spot_pitch_px", 1e-6);
-  m.rows = static_cast<int>(num("rows", 3));
-  m.cols = static_cast<int>(num("cols", 3));
-  const auto p = list("position_m", 3);
-  const auto q = list("orientation_xyzw", 4);
-  m.world_T_projector = Eigen::Isometry3d::Identity();
-  m.world_T_projector.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
-  m.world_T_projector.linear() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix();
-  return m;
+    m.world_T_projector = Eigen::Isometry3d::Identity();
+    m.world_T_projector.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+    m.world_T_projector.linear() = quat.normalized().toRotationMatrix();
+    return m;
+  } catch (const config::ConfigError& e) {
+    throw std::runtime_error(e.what());
+  }
 }
 
 int run_servo_service(const ServiceOptions& options) {

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <string>
 
+#include "servo/pattern/marray.hpp"
 #include "servo/pipeline/servo_pipeline.hpp"
 
 namespace servo {
@@ -19,6 +20,15 @@ struct ServiceOptions {
 };
 
 int run_servo_service(const ServiceOptions& options);
+
+// The decoder separates the projector's three primaries; a pattern of more colours would
+// decode to nothing, so it is refused at load.
+inline constexpr int kDecodableColours = 3;
+// Reads a pattern file for decoding: the window property and the colour count checked.
+pattern::MArray load_decodable_pattern(const std::filesystem::path& file);
+// A projector calibration is for one pattern: its rows and columns must match.
+void check_projector_against_pattern(const control::ProjectorModel& m, const pattern::MArray& marray,
+                                     const std::filesystem::path& pattern_file);
 
 // Reads a servo configuration (YAML: model, z_hat_m, gain, gain_adaptive [l0, linf, slope],
 // max_linear_mps, max_angular_dps, min_points, converge_mm, converge_deg, min_votes,

@@ -15,7 +15,7 @@ out=$("$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "1 -2 3 4 -5 6" -
 
 # bad input: one line on stderr naming the problem, non-zero exit, no image
 sed 's/focal_px: \[800, 800\]/focal_px: [0, 800]/' "$src/sim/scenarios/plane.yaml" | sed "s#\.\./\.\./#$src/#" > "$tmp/bad.yaml"
-one_line_error "zero focal" "camera.focal_px\[0\]: must be positive" "$cellsim" render "$tmp/bad.yaml" -o "$tmp/x.png"
+one_line_error "zero focal" "camera.focal_px\[0\]: must be in \[1, 100000\], got .0." "$cellsim" render "$tmp/bad.yaml" -o "$tmp/x.png"
 one_line_error "bad pose" "expected desired, initial or six numbers" "$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "1 2" -o "$tmp/x.png"
 one_line_error "missing scenario" "scenario file not found" "$cellsim" render "$tmp/none.yaml" -o "$tmp/x.png"
 printf 'v 0 0 0\nv 1 0 0\nf 1 2 7\n' > "$tmp/broken.obj"

@@ -1,0 +1,243 @@
+#include "servo/node/servo_state_machine.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "servo/config/strict_yaml.hpp"
+
+namespace servo {
+namespace {
+
+std::string size_text(std::uint64_t w, std::uint64_t h) { return std::to_string(w) + " x " + std::to_string(h); }
+
+}  // namespace
+
+ServoStateMachine::ServoStateMachine(std::unique_ptr<ServoPipeline> pipeline, ServoTiming timing)
+    : pipeline_(std::move(pipeline)), timing_(timing) {
+  if (!pipeline_) throw std::invalid_argument("ServoStateMachine: no pipeline");
+  if (!(timing_.lost_s > 0)) throw std::invalid_argument("ServoStateMachine: lost_s must be positive");
+  state_ = pipeline_->taught() && timing_.autostart ? ServoState::kServoing : ServoState::kIdle;
+}
+
+void ServoStateMachine::on_command(int command) {
+  switch (command) {
+    case static_cast<int>(Command::kTeach): state_ = ServoState::kTeaching; break;
+    case static_cast<int>(Command::kStart):
+      // commands can arrive before the teach frame: START then takes effect once taught
+      started_ = true;
+      if (pipeline_->taught() && state_ != ServoState::kTeaching) state_ = ServoState::kServoing;
+      break;
+    case static_cast<int>(Command::kStep):
+      if (pipeline_->taught() && state_ != ServoState::kTeaching) state_ = ServoState::kServoing;
+      break;
+    case static_cast<int>(Command::kPause):
+      started_ = false;
+      state_ = ServoState::kStopped;
+      break;
+    case static_cast<int>(Command::kReset):
+    case static_cast<int>(Command::kLoadScenario):
+      // the robot jumps: what was servoing must be started again
+      started_ = false;
+      if (state_ != ServoState::kTeaching) state_ = ServoState::kIdle;
+      break;
+    default: break;  // the simulator refuses it; nothing changes here
+  }
+}
+
+std::string ServoStateMachine::camera_info_problem(const CameraInfoMsg& c) {
+  if (c.width == 0 || c.height == 0) return "rejected camera_info: size " + size_text(c.width, c.height);
+  if (c.width > kMaxImageSide || c.height > kMaxImageSide ||
+      static_cast<std::uint64_t>(c.width) * c.height > kMaxImagePixels)
+    return "rejected camera_info: " + size_text(c.width, c.height) + " is beyond the limit of " +
+           std::to_string(kMaxImageSide) + " per side and " + std::to_string(kMaxImagePixels) + " pixels";
+  if (c.k.size() != 9) return "rejected camera_info: k has " + std::to_string(c.k.size()) + " values, expected 9";
+  for (double v : c.k)
+    if (!std::isfinite(v)) return "rejected camera_info: k is not finite";
+  const double fx = c.k[0], fy = c.k[4], cx = c.k[2], cy = c.k[5];
+  if (!(fx >= 1 && fx <= 1e5 && fy >= 1 && fy <= 1e5)) return "rejected camera_info: focal length outside [1, 1e5] px";
+  if (!(cx >= -double(c.width) && cx <= 2.0 * c.width && cy >= -double(c.height) && cy <= 2.0 * c.height))
+    return "rejected camera_info: principal point far outside the image";
+  if (c.d.size() > kMaxDistortionCoefficients)
+    return "rejected camera_info: " + std::to_string(c.d.size()) + " distortion coefficients (at most " +
+           std::to_string(kMaxDistortionCoefficients) + ")";
+  for (double v : c.d)
+    if (!std::isfinite(v) || std::abs(v) > 10) return "rejected camera_info: distortion coefficient outside [-10, 10]";
+  return "";
+}
+
+std::string ServoStateMachine::on_camera_info(const CameraInfoMsg& info) {
+  std::string why = camera_info_problem(info);
+  if (why.empty()) info_ = info;
+  return why;
+}
+
+void ServoStateMachine::on_sim_status(const SimFrameStatus& s) {
+  sim_status_seen_ = true;
+  sim_statuses_.push_back(s);
+  while (sim_statuses_.size() > kKeptFrameInfo) sim_statuses_.pop_front();
+}
+
+void ServoStateMachine::on_pose(const Stamp& stamp, const Eigen::Isometry3d& world_T_camera) {
+  if (!world_T_camera.matrix().allFinite()) return;
+  poses_seen_ = true;
+  poses_.emplace_back(stamp, world_T_camera);
+  while (poses_.size() > kKeptFrameInfo) poses_.pop_front();
+}
+
+const SimFrameStatus* ServoStateMachine::sim_status_for(const Stamp& s) const {
+  for (auto it = sim_statuses_.rbegin(); it != sim_statuses_.rend(); ++it)
+    if (it->stamp == s) return &*it;
+  return nullptr;
+}
+
+std::optional<Eigen::Isometry3d> ServoStateMachine::pose_for(const Stamp& s) const {
+  for (auto it = poses_.rbegin(); it != poses_.rend(); ++it)
+    if (it->first == s) return it->second;
+  return std::nullopt;
+}
+
+bool ServoStateMachine::frame_info_complete(const Stamp& s) const {
+  return (!sim_status_seen_ || sim_status_for(s)) && (!poses_seen_ || pose_for(s));
+}
+
+std::string ServoStateMachine::reject_reason(const ImageView& img, const std::optional<CameraInfoMsg>& info) {
+  // every size in 64 bits: width * 3 of a 32-bit width wraps (issue 9, item 1)
+  if (img.encoding != "rgb8")
+    return "rejected image: encoding '" + config::printable(img.encoding, 32) + "', expected rgb8";
+  if (img.width == 0 || img.height == 0) return "rejected image: empty (" + size_text(img.width, img.height) + ")";
+  if (img.width > kMaxImageSide || img.height > kMaxImageSide ||
+      static_cast<std::uint64_t>(img.width) * img.height > kMaxImagePixels)
+    return "rejected image: " + size_text(img.width, img.height) + " is beyond the limit of " +
+           std::to_string(kMaxImageSide) + " per side";
+  if (static_cast<std::uint64_t>(img.step) != static_cast<std::uint64_t>(img.width) * 3)
+    return "rejected image: step " + std::to_string(img.step) + " for width " + std::to_string(img.width) + " (rgb8: " +
+           std::to_string(static_cast<std::uint64_t>(img.width) * 3) + ")";
+  if (static_cast<std::uint64_t>(img.size) != static_cast<std::uint64_t>(img.step) * img.height || img.data == nullptr)
+    return "rejected image: " + std::to_string(img.size) + " bytes for " + size_text(img.width, img.height);
+  if (!info) return "waiting for camera_info";
+  if (info->width != img.width || info->height != img.height)
+    return "rejected image: " + size_text(img.width, img.height) + ", camera_info says " +
+           size_text(info->width, info->height);
+  return "";
+}
+
+ServoReply ServoStateMachine::reply(const Stamp& stamp, std::string reason) const {
+  ServoReply r;
+  r.stamp = stamp;
+  r.state = state();
+  r.reason = std::move(reason);
+  r.iteration = iteration_;
+  r.error_norm = error_norm_;
+  r.decoded = decoded_;
+  r.matched = matched_;
+  return r;
+}
+
+ServoReply ServoStateMachine::ready() { return reply(Stamp{}, "ready"); }
+
+ServoReply ServoStateMachine::shutdown() {
+  state_ = ServoState::kStopped;
+  lost_ = false;
+  return reply(last_stamp_, "servo shut down");
+}
+
+std::optional<ServoReply> ServoStateMachine::tick(double now_s) {
+  const bool active = state_ == ServoState::kServoing || state_ == ServoState::kConverged || state_ == ServoState::kTeaching;
+  if (!last_image_s_ || lost_ || !active || now_s - *last_image_s_ <= timing_.lost_s) return std::nullopt;
+  // LOST is a condition on top of the state, not a state that replaces it: when the images
+  // come back the servo goes on as it was (a START that came meanwhile stays in force)
+  lost_ = true;
+  return reply(last_stamp_, "no image for " + std::to_string(static_cast<int>(timing_.lost_s * 1e3)) + " ms");
+}
+
+ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
+  last_image_s_ = now_s;
+  lost_ = false;
+  ++images_;
+  last_stamp_ = img.stamp;
+  const std::string bad = reject_reason(img, info_);
+  if (!bad.empty()) {
+    ++rejected_;
+    return reply(img.stamp, bad);
+  }
+  control::CameraIntrinsics& cam = pipeline_->config().camera;
+  cam.fx = info_->k[0];
+  cam.cx = info_->k[2];
+  cam.fy = info_->k[4];
+  cam.cy = info_->k[5];
+  for (std::size_t i = 0; i < cam.distortion.size(); ++i) cam.distortion[i] = i < info_->d.size() ? info_->d[i] : 0.0;
+
+  const cv::Mat rgb(static_cast<int>(img.height), static_cast<int>(img.width), CV_8UC3,
+                    const_cast<std::uint8_t*>(img.data), img.step);
+  int detected = 0;
+  std::vector<ImageSpot> spots;
+  try {
+    spots = pipeline_->locate(rgb, &detected);
+  } catch (const std::exception& e) {
+    ++rejected_;
+    return reply(img.stamp, "rejected image: " + config::printable(e.what(), 200));
+  }
+  decoded_ = static_cast<std::uint32_t>(spots.size());
+  const SimFrameStatus* sim = sim_status_for(img.stamp);
+  const std::optional<Eigen::Isometry3d> pose = pose_for(img.stamp);
+  const auto with_spots = [&](ServoReply r) {
+    r.spots = spots;
+    r.detected = detected;
+    return r;
+  };
+
+  // teach from the simulator's teach frame (camera at the desired pose); a simulator that
+  // sends no status: from the first image after TEACH
+  const bool teach_frame = sim ? sim->teach : (!sim_status_seen_ && state_ == ServoState::kTeaching);
+  if (teach_frame) {
+    const int n = pipeline_->teach(spots, pose);
+    matched_ = static_cast<std::uint32_t>(n);
+    iteration_ = 0;
+    if (!pipeline_->taught()) {
+      state_ = ServoState::kTeaching;
+      return with_spots(reply(img.stamp, "teach frame has no decodable spots: send TEACH again"));
+    }
+    state_ = timing_.autostart || started_ ? ServoState::kServoing : ServoState::kIdle;
+    ServoReply r = with_spots(reply(img.stamp, "taught " + std::to_string(n) + " features"));
+    r.taught = true;
+    return r;
+  }
+  if (state_ == ServoState::kTeaching) return with_spots(reply(img.stamp, "waiting for the teach frame"));
+  if (state_ != ServoState::kServoing && state_ != ServoState::kConverged)
+    return with_spots(reply(img.stamp, pipeline_->taught() ? "waiting for START" : "no reference: send TEACH"));
+  // a frame whose twist the simulator will not apply (paused, or rendered before START took
+  // effect) can neither move the robot nor prove convergence (issue 9, item 8)
+  if (sim && !sim->applies_twist) return with_spots(reply(img.stamp, "waiting: the simulator is not applying twists"));
+
+  StepResult step;
+  try {
+    step = pipeline_->step(spots, pose);
+  } catch (const std::exception& e) {
+    return with_spots(reply(img.stamp, config::printable(e.what(), 200)));
+  }
+  ++iteration_;
+  error_norm_ = step.control.error_norm;
+  matched_ = static_cast<std::uint32_t>(step.matched.size());
+  std::string reason;
+  switch (step.control.status) {
+    case control::ControlStatus::kServoing: state_ = ServoState::kServoing; break;
+    case control::ControlStatus::kConverged:
+      state_ = ServoState::kConverged;
+      reason = step.control.reason;
+      break;
+    default:
+      state_ = ServoState::kServoing;  // zero twist, keep trying
+      reason = "safe stop: " + step.control.reason;
+      break;
+  }
+  ServoReply r = with_spots(reply(img.stamp, reason));
+  r.twist = step.control.twist;
+  if (!r.twist.allFinite()) {
+    r.twist.setZero();
+    r.reason = "control law gave a non-finite twist: zero sent";
+  }
+  return r;
+}
+
+}  // namespace servo

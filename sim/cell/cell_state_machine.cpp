@@ -1,0 +1,481 @@
+#include "sim/cell/cell_state_machine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "sim/geometry/se3.hpp"
+
+namespace sim {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+// Untrusted text made safe for a one-line message.
+std::string shown(const std::string& s, std::size_t max = 60) {
+  std::string out;
+  for (const char ch : s) {
+    if (out.size() >= max) return out + "...";
+    const auto b = static_cast<unsigned char>(ch);
+    if (b >= 0x20 && b < 0x7f) {
+      out.push_back(ch);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", b);
+      out += hex;
+    }
+  }
+  return out;
+}
+
+// The first few rejections of a kind are worth a line each; a flood is summarised.
+bool worth_logging(long count) { return count <= 5 || count % 1000 == 0; }
+
+const char* command_name(int c) {
+  switch (c) {
+    case 0: return "LOAD_SCENARIO";
+    case 1: return "RESET";
+    case 2: return "TEACH";
+    case 3: return "START";
+    case 4: return "PAUSE";
+    case 5: return "STEP";
+    default: return "?";
+  }
+}
+
+}  // namespace
+
+CellStateMachine::CellStateMachine(const Scenario& scenario, CellParams params)
+    : scenario_(scenario), p_(params) {
+  if (!(p_.watchdog_s > 0) || !(p_.physics_period_s > 0) || !(p_.republish_s > 0) || !(p_.teach_timeout_s > 0))
+    throw std::invalid_argument("CellStateMachine: watchdog, physics period, republish and teach timeout must be positive");
+  robot_ = std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
+                                              scenario_.robot.max_angular_radps);
+}
+
+void CellStateMachine::loaded(const Scenario& scenario) {
+  scenario_ = scenario;
+  robot_ = std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
+                                              scenario_.robot.max_angular_radps);
+  loading_ = false;
+  running_ = false;
+  steps_ = 0;
+  teach_requested_ = false;
+  current_.setZero();
+  statuses_.clear();
+  last_applied_frame_.reset();
+  newest_sent_frame_.reset();
+  log("cellsim: loaded " + shown(scenario.file.string(), 200));
+}
+
+void CellStateMachine::load_failed(const std::string& reason) {
+  loading_ = false;
+  ++counters_.commands_refused;
+  log("cellsim: LOAD_SCENARIO refused: " + reason);
+}
+
+bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
+  ++counters_.commands;
+  // lockstep: the teach frame is answered before anything else happens (the servo takes s*
+  // from it); what comes meanwhile waits, in a bounded queue
+  if ((awaited_ && awaited_->frame.teach) || loading_) {
+    if (deferred_.size() >= kMaxQueuedCommands) {
+      ++counters_.commands_refused;
+      ++counters_.dropped_inputs;
+      log(std::string("cellsim: ") + command_name(c.command) + " refused: " + std::to_string(kMaxQueuedCommands) +
+          " commands already wait for the teach frame or a load");
+      return false;
+    }
+    deferred_.push_back(c);
+    return true;
+  }
+  const long refused = counters_.commands_refused;
+  apply_command(c, now_s);
+  return counters_.commands_refused == refused;
+}
+
+void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
+  const auto refuse = [&](const std::string& why) {
+    ++counters_.commands_refused;
+    log(std::string("cellsim: ") + command_name(c.command) + " refused: " + why);
+  };
+  switch (c.command) {
+    case static_cast<int>(CellCommand::kLoadScenario): {
+      if (c.argument.empty() || c.argument.size() > 4096) return refuse("argument must be a scenario file path");
+      for (const char ch : c.argument)
+        if (static_cast<unsigned char>(ch) < 0x20) return refuse("path '" + shown(c.argument) + "' has control characters");
+      abandon_awaited();
+      running_ = false;
+      steps_ = 0;
+      current_.setZero();
+      loading_ = true;
+      out_.load = std::filesystem::path(c.argument);
+      return;
+    }
+    case static_cast<int>(CellCommand::kReset): {
+      Eigen::Isometry3d pose;
+      try {
+        pose = resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument);
+      } catch (const std::exception& e) {
+        return refuse(e.what());
+      }
+      abandon_awaited();
+      robot_->reset(pose);
+      running_ = false;
+      steps_ = 0;
+      current_.setZero();
+      return;
+    }
+    case static_cast<int>(CellCommand::kTeach):
+      abandon_awaited();
+      robot_->reset(scenario_.world_T_desired);
+      running_ = false;
+      steps_ = 0;
+      current_.setZero();
+      teach_requested_ = true;
+      return;
+    case static_cast<int>(CellCommand::kStart): running_ = true; return;
+    case static_cast<int>(CellCommand::kPause):
+      abandon_awaited();
+      running_ = false;
+      steps_ = 0;
+      current_.setZero();
+      return;
+    case static_cast<int>(CellCommand::kStep): {
+      const std::uint64_t n = std::clamp<std::uint64_t>(c.steps, 1, kMaxSteps);
+      if (c.steps > kMaxSteps)
+        log("cellsim: STEP " + std::to_string(c.steps) + " capped at " + std::to_string(kMaxSteps) + " frames");
+      steps_ = std::min(kMaxSteps, steps_ + n);
+      return;
+    }
+    default: return refuse("unknown command " + std::to_string(c.command));
+  }
+}
+
+void CellStateMachine::abandon_awaited() {
+  // the frame's index stays used: an answer to it arriving later is stale, never applied to
+  // a robot that has been moved or stopped since
+  awaited_.reset();
+  answer_.reset();
+}
+
+std::optional<std::uint64_t> CellStateMachine::frame_of(const TwistMsg& t, std::string& why) const {
+  if (t.stamp_sec < 0 || t.stamp_nanosec >= 1000000000u || t.stamp_sec > (std::int64_t{1} << 40)) {
+    why = "invalid stamp " + std::to_string(t.stamp_sec) + " s " + std::to_string(t.stamp_nanosec) + " ns";
+    return std::nullopt;
+  }
+  const auto ns = static_cast<std::uint64_t>(t.stamp_sec) * 1000000000ull + t.stamp_nanosec;
+  // dt >= 1e-4 s is checked at load, so the divisor is at least 100000 ns
+  const auto dt_ns = static_cast<std::uint64_t>(std::llround(scenario_.dt_s * 1e9));
+  return ns / dt_ns;
+}
+
+bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
+  if (!t.twist.allFinite()) {
+    if (worth_logging(++counters_.rejected_nan))
+      log("cellsim: rt/servo/cmd_twist: rejected a twist with NaN/Inf (" + std::to_string(counters_.rejected_nan) +
+          " so far)");
+    return false;
+  }
+  if (t.frame_id != "camera_optical") {
+    if (worth_logging(++counters_.rejected_frame))
+      log("cellsim: rt/servo/cmd_twist: rejected a twist in frame '" + shown(t.frame_id) + "' (expected camera_optical)");
+    return false;
+  }
+  std::string why;
+  const std::optional<std::uint64_t> k = frame_of(t, why);
+  if (k) {
+    if (p_.timing == Timing::kLockstep) {
+      if (!awaited_) why = "no frame is waiting for a twist";
+      else if (*k != awaited_->frame.index)
+        why = "answers frame " + std::to_string(*k) + ", frame " + std::to_string(awaited_->frame.index) + " is awaited";
+    } else {
+      const std::uint64_t newest = newest_sent_frame_.value_or(0);
+      if (!newest_sent_frame_ || *k > newest) why = "answers frame " + std::to_string(*k) + ", not sent yet";
+      else if (last_applied_frame_ && *k < *last_applied_frame_)
+        why = "older than the twist in force (frame " + std::to_string(*last_applied_frame_) + ")";
+      else if (static_cast<double>(newest - *k) * scenario_.dt_s > p_.watchdog_s + 1e-9)
+        why = "stamped " + std::to_string(static_cast<double>(*k) * scenario_.dt_s) + " s, " +
+              std::to_string(static_cast<long long>(1e3 * (newest - *k) * scenario_.dt_s)) +
+              " ms behind the newest frame (watchdog " + std::to_string(static_cast<long long>(1e3 * p_.watchdog_s)) +
+              " ms)";
+    }
+  }
+  if (!why.empty()) {
+    if (worth_logging(++counters_.rejected_stale)) log("cellsim: rt/servo/cmd_twist: rejected a twist: " + why);
+    return false;
+  }
+  if (p_.timing == Timing::kLockstep) {
+    if (!answer_) answer_ = t.twist;
+  } else {
+    current_ = t.twist;
+    last_applied_frame_ = *k;
+    valid_until_s_ = now_s + p_.watchdog_s;
+    watchdog_tripped_ = false;
+  }
+  return true;
+}
+
+void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
+  TwistMsg stamp;
+  stamp.stamp_sec = s.stamp_sec;
+  stamp.stamp_nanosec = s.stamp_nanosec;
+  std::string why;
+  const std::optional<std::uint64_t> k = frame_of(stamp, why);
+  if (!k) return;
+  statuses_[*k] = s;
+  while (statuses_.size() > kMaxKeptStatuses) statuses_.erase(statuses_.begin());
+  if (p_.exit_on_converged && s.state == kServoConverged) check_convergence(s);
+}
+
+void CellStateMachine::check_convergence(const ServoReport& s) {
+  // the servo's word is checked against the truth: a CONVERGED for a stale frame, another run
+  // or a rogue publisher must not end a session with the robot away from the goal
+  const Eigen::Isometry3d wTc = robot_->world_T_camera();
+  const double t = translation_error(wTc, scenario_.world_T_desired);
+  const double r = rotation_error(wTc, scenario_.world_T_desired) * kRadToDeg;
+  if (t <= p_.accept_translation_m && r <= p_.accept_rotation_deg) {
+    done_ = true;
+    return;
+  }
+  if (converged_refusals_logged_++ < 5) {
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "cellsim: rt/servo/status: CONVERGED (stamp %lld.%09u) not accepted: the camera is %.1f mm, %.2f deg "
+                  "from the desired pose",
+                  static_cast<long long>(s.stamp_sec), s.stamp_nanosec, 1e3 * t, r);
+    log(line);
+  }
+}
+
+bool CellStateMachine::move(const Vector6d& twist, double duration_s, Vector6d* applied) {
+  FreeFlyingCamera trial = *robot_;
+  const Vector6d a = trial.apply_twist(twist, duration_s);
+  if (!scenario_.workspace.contains(trial.world_T_camera().translation())) {
+    if (worth_logging(++counters_.rejected_workspace))
+      log("cellsim: a twist would take the camera out of the workspace: robot stopped");
+    if (applied) applied->setZero();
+    return false;
+  }
+  *robot_ = trial;
+  if (applied) *applied = a;
+  return true;
+}
+
+FrameOrder CellStateMachine::order(bool teach, bool repeat) const {
+  FrameOrder f;
+  f.index = frame_;
+  f.time_s = static_cast<double>(frame_) * scenario_.dt_s;
+  f.world_T_camera = robot_->world_T_camera();
+  f.teach = teach;
+  f.applies_twist = !teach && (running_ || steps_ > 0);
+  f.repeat = repeat;
+  return f;
+}
+
+std::optional<ServoReport> CellStateMachine::status_for(std::uint64_t frame) const {
+  const auto it = statuses_.find(frame);
+  if (it == statuses_.end()) return std::nullopt;
+  return it->second;
+}
+
+TraceRow CellStateMachine::row(const FrameOrder& f, const Vector6d& twist, const std::optional<ServoReport>& st) const {
+  TraceRow r;
+  r.time_s = static_cast<double>(f.index - run_first_frame_) * scenario_.dt_s;
+  r.twist = twist;
+  r.status = st;
+  const Eigen::Isometry3d& wTc = f.world_T_camera;
+  r.translation_error_m = translation_error(wTc, scenario_.world_T_desired);
+  r.rotation_error_deg = rotation_error(wTc, scenario_.world_T_desired) * kRadToDeg;
+  return r;
+}
+
+// A lockstep row waits for its frame's status (it travels on another topic and may land
+// after the twist), at most two frames.
+void CellStateMachine::flush_trace(bool all) {
+  while (!trace_pending_.empty()) {
+    auto& [frame, r] = trace_pending_.front();
+    if (!r.status) r.status = status_for(frame);
+    if (!r.status && !all && frame + 2 >= frame_) break;
+    out_.trace.push_back(r);
+    trace_pending_.pop_front();
+  }
+}
+
+void CellStateMachine::drain_deferred(double now_s) {
+  while (!deferred_.empty() && !(awaited_ && awaited_->frame.teach) && !loading_) {
+    const CommandMsg c = deferred_.front();
+    deferred_.pop_front();
+    apply_command(c, now_s);
+  }
+}
+
+void CellStateMachine::lockstep(double now_s) {
+  drain_deferred(now_s);
+  if (loading_) return;
+  if (awaited_) {
+    if (answer_) {
+      if (awaited_->frame.applies_twist) {
+        trace_pending_.emplace_back(awaited_->frame.index, row(awaited_->frame, *answer_, std::nullopt));
+        move(*answer_, scenario_.dt_s, nullptr);
+        ++counters_.applied;
+      }
+      abandon_awaited();
+      drain_deferred(now_s);  // the commands that waited for the teach frame
+    } else if (awaited_->frame.teach && now_s - awaited_->first_sent_at_s > p_.teach_timeout_s) {
+      log("cellsim: no answer to the teach frame within " + std::to_string(static_cast<int>(p_.teach_timeout_s)) +
+          " s (is a servo running?): going on");
+      abandon_awaited();
+      drain_deferred(now_s);
+    } else if (done_ && now_s - awaited_->first_sent_at_s > 0.5) {
+      abandon_awaited();
+    } else if (now_s - awaited_->sent_at_s > p_.republish_s) {
+      // the same frame again: a restarted servo picks the run up
+      out_.frames.push_back(awaited_->frame);
+      out_.frames.back().repeat = true;
+      awaited_->sent_at_s = now_s;
+    }
+  }
+  if (!awaited_ && !done_ && (teach_requested_ || running_ || steps_ > 0)) {
+    if (p_.max_frames > 0 && counters_.frames >= p_.max_frames) {
+      done_ = true;
+    } else {
+      const bool teach = teach_requested_;
+      teach_requested_ = false;
+      const FrameOrder f = order(teach, false);
+      if (!teach && !running_ && steps_ > 0) --steps_;
+      if (running_ && !run_started_at_) {
+        run_started_at_ = now_s;
+        run_first_frame_ = f.index;
+      }
+      ++frame_;
+      ++counters_.frames;
+      out_.frames.push_back(f);
+      awaited_ = Awaited{f, now_s, now_s};
+    }
+  }
+  flush_trace(false);
+}
+
+void CellStateMachine::realtime(double now_s) {
+  if (physics_at_s_ < 0) {
+    physics_at_s_ = now_s;
+    next_frame_at_s_ = now_s;
+  }
+  if (loading_) {
+    physics_at_s_ = now_s;
+    return;
+  }
+  // motion: the twist in force acts until the watchdog's instant, integrated in physics steps
+  const bool moving = running_ || steps_ > 0;
+  while (physics_at_s_ < now_s) {
+    const double t1 = std::min(now_s, physics_at_s_ + p_.physics_period_s);
+    if (moving && !current_.isZero(0)) {
+      const double end = std::min(t1, valid_until_s_);
+      if (end > physics_at_s_ && !move(current_, end - physics_at_s_, nullptr)) current_.setZero();
+      if (valid_until_s_ <= t1 && !current_.isZero(0)) {
+        ++counters_.watchdog_stops;
+        log("cellsim: watchdog: no valid twist for " + std::to_string(static_cast<long long>(1e3 * p_.watchdog_s)) +
+            " ms, robot stopped");
+        current_.setZero();
+        watchdog_tripped_ = true;
+      }
+    }
+    physics_at_s_ = t1;
+  }
+  // frames at the camera's period; a service that fell far behind skips ahead
+  if (now_s - next_frame_at_s_ > 5 * scenario_.dt_s) next_frame_at_s_ = now_s;
+  while (now_s >= next_frame_at_s_ && !done_) {
+    if (p_.max_frames > 0 && counters_.frames >= p_.max_frames) {
+      done_ = true;
+      break;
+    }
+    const bool teach = teach_requested_;
+    teach_requested_ = false;
+    const FrameOrder f = order(teach, false);
+    if (f.applies_twist) {
+      if (!run_started_at_) {
+        run_started_at_ = now_s;
+        run_first_frame_ = f.index;
+      }
+      ++counters_.applied;
+      out_.trace.push_back(row(f, current_, statuses_.empty() ? std::nullopt
+                                                                    : std::optional<ServoReport>(statuses_.rbegin()->second)));
+      if (!running_ && steps_ > 0) --steps_;
+    }
+    newest_sent_frame_ = f.index;
+    ++frame_;
+    ++counters_.frames;
+    out_.frames.push_back(f);
+    next_frame_at_s_ += scenario_.dt_s;
+  }
+}
+
+CellOutput CellStateMachine::poll(double now_s) {
+  if (p_.timing == Timing::kLockstep) lockstep(now_s);
+  else realtime(now_s);
+  if (done_ && !awaited_) {
+    flush_trace(true);
+    out_.done = true;
+  }
+  CellOutput out = std::move(out_);
+  out_ = CellOutput{};
+  return out;
+}
+
+double CellStateMachine::next_deadline(double now_s) const {
+  if (p_.timing == Timing::kLockstep) {
+    if (awaited_) return std::min(awaited_->sent_at_s + p_.republish_s, awaited_->first_sent_at_s + p_.teach_timeout_s);
+    return now_s + 0.05;
+  }
+  const bool moving = (running_ || steps_ > 0) && !current_.isZero(0);
+  const double frame = next_frame_at_s_ < 0 ? now_s : next_frame_at_s_;
+  return moving ? std::min(frame, now_s + p_.physics_period_s) : frame;
+}
+
+}  // namespace sim
+
+namespace sim {
+
+AutorunSequence::Step AutorunSequence::poll(double now_s, bool servo_seen, bool taught) {
+  Step step;
+  if (!started_s_) started_s_ = now_s;
+  const auto teach = [&] {
+    step.send.push_back({static_cast<int>(CellCommand::kTeach), "", 0});
+    teach_sent_s_ = now_s;
+    ++sent_;
+  };
+  switch (stage_) {
+    case Stage::kWaitServo:
+      if (servo_seen || now_s - *started_s_ > wait_s_) {
+        if (!servo_seen)
+          step.log.push_back("cellsim: autorun: no servo status after " + std::to_string(static_cast<int>(wait_s_)) +
+                             " s, sending TEACH anyway");
+        teach();
+        stage_ = Stage::kTeach;
+      }
+      break;
+    case Stage::kTeach:
+      if (taught) {
+        step.send.push_back({static_cast<int>(CellCommand::kReset), "initial", 0});
+        step.send.push_back({static_cast<int>(CellCommand::kStart), "", 0});
+        stage_ = Stage::kDone;
+      } else if (now_s - *teach_sent_s_ > retry_s_) {
+        if (sent_ >= attempts_) {
+          step.log.push_back("cellsim: autorun: the servo did not report being taught after " + std::to_string(sent_) +
+                             " TEACH commands; giving up (send TEACH, RESET and START by hand)");
+          stage_ = Stage::kDone;
+        } else {
+          step.log.push_back("cellsim: autorun: no \"taught\" status yet, sending TEACH again");
+          teach();
+        }
+      }
+      break;
+    case Stage::kDone: break;
+  }
+  step.finished = stage_ == Stage::kDone;
+  return step;
+}
+
+}  // namespace sim

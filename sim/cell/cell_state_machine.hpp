@@ -1,0 +1,222 @@
+// The simulated cell's logic, as `cellsim serve` runs it: commands (teach, start, pause,
+// step, reset, load), lockstep and realtime stepping, the watchdog, and the checks every
+// twist passes before it moves the robot. A pure state machine over plain messages and a
+// time argument: it never waits, never touches DDS, files or clocks. The service feeds it
+// what arrives, calls poll(now) and carries out what the returned CellOutput says (render
+// and publish frames, write trace rows, load a scenario, print lines).
+//
+// Safety rules it enforces (docs/topics.md, Safety):
+// - a twist moves the robot only when finite, in the camera frame, and answering the frame
+//   it must answer: lockstep, exactly the frame awaited; realtime, a frame already sent, not
+//   older than the last one applied nor than the watchdog period;
+// - realtime: no valid twist for watchdog_s and the robot stops, integrated exactly up to
+//   that instant (physics substeps between frames, not frame ticks);
+// - a motion that would take the camera out of the scenario's workspace is not made;
+// - every queue and count it keeps is bounded.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sim/robot/robot.hpp"
+#include "sim/scenario/scenario.hpp"
+
+namespace sim {
+
+enum class Timing { kLockstep, kRealtime };
+
+// rt/sim/control commands (cell_msgs/SimControl constants).
+enum class CellCommand : std::uint8_t { kLoadScenario = 0, kReset = 1, kTeach = 2, kStart = 3, kPause = 4, kStep = 5 };
+
+struct CommandMsg {
+  int command = 0;       // a CellCommand value; anything else is refused
+  std::string argument;  // LOAD_SCENARIO: path; RESET: desired | initial | "x y z rx ry rz"
+  std::uint64_t steps = 0;
+};
+
+struct TwistMsg {
+  std::int64_t stamp_sec = 0;     // header stamp, as sent (untrusted)
+  std::uint32_t stamp_nanosec = 0;
+  std::string frame_id;
+  Vector6d twist = Vector6d::Zero();  // (v, w) in the camera frame
+};
+
+// What the servo said about one frame (rt/servo/status), for the trace and convergence.
+struct ServoReport {
+  std::int64_t stamp_sec = 0;
+  std::uint32_t stamp_nanosec = 0;
+  std::uint8_t state = 0;  // cell_msgs/ServoStatus constants
+  double error_norm = 0;
+  std::uint32_t decoded = 0, matched = 0;
+  std::string reason;
+};
+inline constexpr std::uint8_t kServoConverged = 3;
+
+struct CellParams {
+  Timing timing = Timing::kLockstep;
+  double watchdog_s = 0.1;        // realtime: no valid twist for this long, the robot stops
+  double physics_period_s = 0.001;  // realtime: motion and watchdog are integrated at this step
+  double republish_s = 1.0;       // lockstep: frame k sent again when unanswered this long
+  double teach_timeout_s = 2.0;   // lockstep: the teach frame is given up after this long
+  long max_frames = 0;            // done after this many new frames (0: no limit)
+  bool exit_on_converged = false;
+  // a CONVERGED status ends the run only when the camera really is this close to the goal
+  double accept_translation_m = 0.01;
+  double accept_rotation_deg = 1.0;
+};
+
+// One frame to render and publish (image, camera pose, sim status, truth, clock).
+struct FrameOrder {
+  std::uint64_t index = 0;
+  double time_s = 0;              // simulated time, index * dt
+  Eigen::Isometry3d world_T_camera = Eigen::Isometry3d::Identity();
+  bool applies_twist = false;     // a twist answering it will move the robot
+  bool teach = false;             // rendered at the desired pose for TEACH
+  bool repeat = false;            // lockstep: the same frame again (unanswered)
+};
+
+// One applied step of the robot.
+struct TraceRow {
+  double time_s = 0;              // simulated time since the run started
+  Vector6d twist = Vector6d::Zero();  // as commanded
+  // pose error when the frame was rendered (before the twist moved the robot)
+  std::optional<ServoReport> status;
+  double translation_error_m = 0, rotation_error_deg = 0;
+};
+
+struct CellCounters {
+  long frames = 0, applied = 0, rejected_nan = 0, rejected_frame = 0, rejected_stale = 0, rejected_workspace = 0,
+       watchdog_stops = 0, commands = 0, commands_refused = 0, dropped_inputs = 0;
+};
+
+struct CellOutput {
+  std::vector<FrameOrder> frames;
+  std::vector<TraceRow> trace;
+  std::vector<std::string> log;  // one line each, for stderr
+  std::optional<std::filesystem::path> load;  // load this scenario, then loaded() or load_failed()
+  bool done = false;              // max_frames reached or an accepted convergence
+};
+
+class CellStateMachine {
+ public:
+  CellStateMachine(const Scenario& scenario, CellParams params);
+
+  // Inputs, as they arrive. Each returns false when the input was refused (and says why in
+  // the next output's log).
+  bool on_command(const CommandMsg& c, double now_s);
+  bool on_twist(const TwistMsg& t, double now_s);
+  void on_servo_status(const ServoReport& s, double now_s);
+
+  // Advances to `now_s`: steps, frames, watchdog. Returns what the service must do.
+  CellOutput poll(double now_s);
+  // Latest time the service may sleep to before calling poll again.
+  double next_deadline(double now_s) const;
+
+  // After a CellOutput::load: the scenario was loaded (robot at its desired pose, idle) or not.
+  void loaded(const Scenario& scenario);
+  void load_failed(const std::string& reason);
+
+  Eigen::Isometry3d world_T_camera() const { return robot_->world_T_camera(); }
+  const Scenario& scenario() const { return scenario_; }
+  const CellCounters& counters() const { return counters_; }
+  bool running() const { return running_; }
+  std::uint64_t next_frame() const { return frame_; }
+  std::uint64_t pending_steps() const { return steps_; }
+  double dt() const { return scenario_.dt_s; }
+  // wall time of the first step of the run, and steps since (for the loop rate)
+  std::optional<double> run_started_at() const { return run_started_at_; }
+
+  // Limits on what is kept between polls.
+  static constexpr std::size_t kMaxQueuedCommands = 16;
+  static constexpr std::size_t kMaxKeptStatuses = 64;
+  static constexpr std::uint64_t kMaxSteps = 1'000'000;
+
+ private:
+  void apply_command(const CommandMsg& c, double now_s);
+  std::optional<std::uint64_t> frame_of(const TwistMsg& t, std::string& why) const;
+  bool move(const Vector6d& twist, double duration_s, Vector6d* applied);
+  void abandon_awaited();
+  FrameOrder order(bool teach, bool repeat) const;
+  TraceRow row(const FrameOrder& frame, const Vector6d& twist, const std::optional<ServoReport>& st) const;
+  std::optional<ServoReport> status_for(std::uint64_t frame) const;
+  void flush_trace(bool all);
+  void check_convergence(const ServoReport& s);
+  void drain_deferred(double now_s);
+  void lockstep(double now_s);
+  void realtime(double now_s);
+  void log(std::string line) { out_.log.push_back(std::move(line)); }
+
+  Scenario scenario_;
+  CellParams p_;
+  std::unique_ptr<FreeFlyingCamera> robot_;
+  CellOutput out_;
+  CellCounters counters_;
+  std::uint64_t frame_ = 0;          // index of the next new frame
+  std::uint64_t run_first_frame_ = 0;
+  std::uint64_t steps_ = 0;          // STEP frames still to make
+  bool running_ = false;
+  bool teach_requested_ = false;
+  bool loading_ = false;
+  bool done_ = false;
+  std::optional<double> run_started_at_;
+
+  // lockstep: the frame sent and not yet answered
+  struct Awaited {
+    FrameOrder frame;
+    double sent_at_s = 0, first_sent_at_s = 0;
+  };
+  std::optional<Awaited> awaited_;
+  std::optional<Vector6d> answer_;            // the valid twist for the awaited frame
+  std::deque<CommandMsg> deferred_;           // lockstep: commands behind the teach frame
+
+  // realtime: the twist in force and until when the watchdog lets it act
+  Vector6d current_ = Vector6d::Zero();
+  double valid_until_s_ = 0;
+  double physics_at_s_ = -1;
+  double next_frame_at_s_ = -1;
+  std::optional<std::uint64_t> last_applied_frame_;
+  std::optional<std::uint64_t> newest_sent_frame_;
+  bool watchdog_tripped_ = false;
+
+  std::map<std::uint64_t, ServoReport> statuses_;  // by frame, newest kept
+  std::deque<std::pair<std::uint64_t, TraceRow>> trace_pending_;  // waiting for their status
+  int converged_refusals_logged_ = 0;
+};
+
+}  // namespace sim
+
+namespace sim {
+
+// `cellsim serve --autorun`: the commands an operator would send (TEACH, then RESET initial
+// and START), sent once the servo is there and resent until it says it was taught.
+class AutorunSequence {
+ public:
+  struct Step {
+    std::vector<CommandMsg> send;
+    std::vector<std::string> log;
+    bool finished = false;
+  };
+  explicit AutorunSequence(double wait_for_servo_s = 60, double teach_retry_s = 5, int teach_attempts = 5)
+      : wait_s_(wait_for_servo_s), retry_s_(teach_retry_s), attempts_(teach_attempts) {}
+  // servo_seen: a status from the servo itself has arrived (not merely a matched reader);
+  // taught: a status saying "taught" has arrived since the last TEACH was sent.
+  Step poll(double now_s, bool servo_seen, bool taught);
+  bool finished() const { return stage_ == Stage::kDone; }
+
+ private:
+  enum class Stage { kWaitServo, kTeach, kDone };
+  double wait_s_, retry_s_;
+  int attempts_;
+  Stage stage_ = Stage::kWaitServo;
+  std::optional<double> started_s_, teach_sent_s_;
+  int sent_ = 0;
+};
+
+}  // namespace sim

@@ -1,0 +1,334 @@
+// The simulator's state machine on a fake clock: every command in every state, the
+// lockstep and realtime stepping, the watchdog's timing, and the twist checks (issue 9).
+#include "sim/cell/cell_state_machine.hpp"
+
+#include <gtest/gtest.h>
+
+#include "sim/geometry/se3.hpp"
+
+namespace sim {
+namespace {
+
+const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
+
+CommandMsg cmd(CellCommand c, std::string arg = "", std::uint64_t steps = 0) {
+  return {static_cast<int>(c), std::move(arg), steps};
+}
+
+TwistMsg twist_for(std::uint64_t frame, double dt, Vector6d v) {
+  TwistMsg t;
+  const auto ns = static_cast<std::uint64_t>(frame * std::llround(dt * 1e9));
+  t.stamp_sec = static_cast<std::int64_t>(ns / 1000000000ull);
+  t.stamp_nanosec = static_cast<std::uint32_t>(ns % 1000000000ull);
+  t.frame_id = "camera_optical";
+  t.twist = v;
+  return t;
+}
+
+ServoReport status_for(std::uint64_t frame, double dt, std::uint8_t state) {
+  const TwistMsg t = twist_for(frame, dt, Vector6d::Zero());
+  ServoReport r;
+  r.stamp_sec = t.stamp_sec;
+  r.stamp_nanosec = t.stamp_nanosec;
+  r.state = state;
+  return r;
+}
+
+Vector6d vx(double v) {
+  Vector6d t = Vector6d::Zero();
+  t[0] = v;
+  return t;
+}
+
+struct Fixture : ::testing::Test {
+  Scenario scenario = load_scenario(kScenarios + "plane.yaml");
+  double dt = scenario.dt_s;
+  std::unique_ptr<CellStateMachine> make(Timing timing, CellParams p = {}) {
+    p.timing = timing;
+    return std::make_unique<CellStateMachine>(scenario, p);
+  }
+  double moved(const CellStateMachine& m) const {
+    return translation_error(m.world_T_camera(), scenario.world_T_desired);
+  }
+};
+
+using Lockstep = Fixture;
+using Realtime = Fixture;
+
+TEST_F(Lockstep, IdleMakesNoFramesAndAppliesNoTwist) {
+  auto m = make(Timing::kLockstep);
+  EXPECT_TRUE(m->poll(0).frames.empty());
+  EXPECT_FALSE(m->on_twist(twist_for(0, dt, vx(0.1)), 0));
+  EXPECT_TRUE(m->poll(0.1).frames.empty());
+  EXPECT_EQ(moved(*m), 0);
+}
+
+TEST_F(Lockstep, TeachFrameThenStartAppliesEachAnsweredFrame) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kTeach), 0);
+  CellOutput o = m->poll(0);
+  ASSERT_EQ(o.frames.size(), 1u);
+  EXPECT_TRUE(o.frames[0].teach);
+  EXPECT_FALSE(o.frames[0].applies_twist);
+  // RESET and START wait behind the teach frame
+  m->on_command(cmd(CellCommand::kReset, "initial"), 0.01);
+  m->on_command(cmd(CellCommand::kStart), 0.01);
+  EXPECT_TRUE(m->poll(0.02).frames.empty());
+  EXPECT_TRUE(m->on_twist(twist_for(0, dt, Vector6d::Zero()), 0.03));
+  o = m->poll(0.03);
+  ASSERT_EQ(o.frames.size(), 1u);
+  EXPECT_EQ(o.frames[0].index, 1u);
+  EXPECT_TRUE(o.frames[0].applies_twist);
+  const double before = moved(*m);
+  EXPECT_GT(before, 0.01);  // at the initial pose
+  EXPECT_TRUE(m->on_twist(twist_for(1, dt, vx(0.1)), 0.04));
+  o = m->poll(0.04);
+  EXPECT_EQ(m->counters().applied, 1);
+  ASSERT_EQ(o.frames.size(), 1u);
+  EXPECT_EQ(o.frames[0].index, 2u);
+}
+
+// item 11: TEACH with no servo used to stop command processing for good
+TEST_F(Lockstep, TeachWithNoServoGivesUpAndKeepsObeyingCommands) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kTeach), 0);
+  m->poll(0);
+  m->on_command(cmd(CellCommand::kReset, "initial"), 0.1);
+  m->on_command(cmd(CellCommand::kStart), 0.1);
+  CellOutput o = m->poll(2.5);  // past the teach timeout
+  bool said = false;
+  for (const auto& l : o.log) said |= l.find("teach frame") != std::string::npos;
+  EXPECT_TRUE(said);
+  EXPECT_TRUE(m->running());
+  ASSERT_EQ(o.frames.size(), 1u);
+  EXPECT_TRUE(o.frames[0].applies_twist);
+}
+
+// item 11: PAUSE after STEP 4294967295 was ignored; twists answering STEP frames never applied
+TEST_F(Lockstep, StepFramesApplyTheirTwistsAndPauseCancelsSteps) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kStep, "", 3), 0);
+  CellOutput o = m->poll(0);
+  ASSERT_EQ(o.frames.size(), 1u);
+  EXPECT_TRUE(o.frames[0].applies_twist);
+  EXPECT_TRUE(m->on_twist(twist_for(0, dt, vx(0.1)), 0));
+  o = m->poll(0.001);
+  EXPECT_EQ(m->counters().applied, 1);
+  EXPECT_NEAR(moved(*m), 0.1 * dt, 1e-12);
+  ASSERT_EQ(o.frames.size(), 1u);
+
+  m->on_command(cmd(CellCommand::kStep, "", 4294967295ull), 0.002);
+  EXPECT_LE(m->pending_steps(), CellStateMachine::kMaxSteps);
+  m->on_command(cmd(CellCommand::kPause), 0.003);
+  EXPECT_EQ(m->pending_steps(), 0u);
+  // the frame that was awaited is given up: its answer no longer moves the robot
+  EXPECT_FALSE(m->on_twist(twist_for(1, dt, vx(0.1)), 0.004));
+  EXPECT_TRUE(m->poll(0.005).frames.empty());
+  EXPECT_EQ(m->counters().applied, 1);
+}
+
+TEST_F(Lockstep, EveryAppliedStepHasATraceRow) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kStep, "", 100), 0);
+  std::size_t rows = 0;
+  double t = 0;
+  for (std::uint64_t k = 0; k < 100; ++k) {
+    CellOutput o = m->poll(t);
+    ASSERT_EQ(o.frames.size(), 1u) << k;
+    m->on_servo_status(status_for(k, dt, 2), t);
+    ASSERT_TRUE(m->on_twist(twist_for(k, dt, vx(0.01)), t));
+    rows += o.trace.size();
+    t += 0.001;
+  }
+  CellOutput o = m->poll(t);
+  rows += o.trace.size();
+  EXPECT_GE(rows, 98u);  // the last rows wait at most two frames for their status
+  EXPECT_EQ(m->counters().applied, 100);
+}
+
+TEST_F(Lockstep, UnansweredFrameIsSentAgain) {
+  CellParams p;
+  p.republish_s = 1.0;
+  auto m = make(Timing::kLockstep, p);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  EXPECT_EQ(m->poll(0).frames.size(), 1u);
+  EXPECT_TRUE(m->poll(0.5).frames.empty());
+  CellOutput o = m->poll(1.1);
+  ASSERT_EQ(o.frames.size(), 1u);
+  EXPECT_TRUE(o.frames[0].repeat);
+  EXPECT_EQ(o.frames[0].index, 0u);
+}
+
+TEST_F(Lockstep, TwistChecks) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  m->poll(0);
+  Vector6d nan = vx(std::nan(""));
+  EXPECT_FALSE(m->on_twist(twist_for(0, dt, nan), 0));
+  TwistMsg wrong = twist_for(0, dt, vx(0.1));
+  wrong.frame_id = "world\x01\xff";
+  EXPECT_FALSE(m->on_twist(wrong, 0));
+  EXPECT_FALSE(m->on_twist(twist_for(5, dt, vx(0.1)), 0));  // not the awaited frame
+  TwistMsg bad_stamp = twist_for(0, dt, vx(0.1));
+  bad_stamp.stamp_sec = -1;
+  EXPECT_FALSE(m->on_twist(bad_stamp, 0));
+  bad_stamp.stamp_sec = 0;
+  bad_stamp.stamp_nanosec = 2000000000u;
+  EXPECT_FALSE(m->on_twist(bad_stamp, 0));
+  CellOutput o = m->poll(0.01);
+  for (const auto& l : o.log) EXPECT_EQ(l.find('\x01'), std::string::npos) << l;
+  EXPECT_EQ(m->counters().rejected_nan, 1);
+  EXPECT_EQ(m->counters().rejected_frame, 1);
+  EXPECT_EQ(m->counters().rejected_stale, 3);
+  EXPECT_EQ(moved(*m), 0);
+}
+
+// item 11: RESET "1e300 0 0 0 0 0" put the camera 1e298 m away
+TEST_F(Lockstep, ResetOutsideTheWorkspaceIsRefusedAndTheRobotStays) {
+  auto m = make(Timing::kLockstep);
+  EXPECT_FALSE(m->on_command(cmd(CellCommand::kReset, "1e300 0 0 0 0 0"), 0));
+  EXPECT_FALSE(m->on_command(cmd(CellCommand::kReset, "garbage\xff"), 0));
+  EXPECT_FALSE(m->on_command(cmd(CellCommand::kReset, "900 0 0 0 0 0"), 0));
+  EXPECT_FALSE(m->on_command({99, "", 0}, 0));
+  EXPECT_EQ(moved(*m), 0);
+  EXPECT_EQ(m->counters().commands_refused, 4);
+  EXPECT_TRUE(m->on_command(cmd(CellCommand::kReset, "initial"), 0));
+  EXPECT_GT(moved(*m), 0.01);
+}
+
+TEST_F(Lockstep, MotionOutOfTheWorkspaceIsNotMade) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  double t = 0;
+  for (std::uint64_t k = 0; k < 400; ++k) {
+    m->poll(t);
+    m->on_twist(twist_for(k, dt, vx(10.0)), t);  // clamped to the robot's 0.5 m/s
+    t += 0.001;
+  }
+  m->poll(t);
+  EXPECT_GT(m->counters().rejected_workspace, 0);
+  EXPECT_TRUE(m->scenario().workspace.contains(m->world_T_camera().translation()));
+}
+
+// item 12: a CONVERGED status ends the session only when the camera is at the goal
+TEST_F(Lockstep, ConvergedIsCheckedAgainstTheTruePose) {
+  CellParams p;
+  p.exit_on_converged = true;
+  auto m = make(Timing::kLockstep, p);
+  m->on_command(cmd(CellCommand::kReset, "initial"), 0);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  m->poll(0);
+  m->on_servo_status(status_for(0, dt, kServoConverged), 0);
+  CellOutput o = m->poll(0.01);
+  EXPECT_FALSE(o.done);
+  bool said = false;
+  for (const auto& l : o.log) said |= l.find("not accepted") != std::string::npos;
+  EXPECT_TRUE(said);
+
+  auto at_goal = make(Timing::kLockstep, p);
+  at_goal->on_command(cmd(CellCommand::kStart), 0);
+  at_goal->poll(0);
+  at_goal->on_servo_status(status_for(0, dt, kServoConverged), 0);
+  at_goal->on_twist(twist_for(0, dt, Vector6d::Zero()), 0);
+  EXPECT_TRUE(at_goal->poll(0.01).done);
+}
+
+TEST_F(Lockstep, CommandFloodIsBoundedBehindTheTeachFrame) {
+  auto m = make(Timing::kLockstep);
+  m->on_command(cmd(CellCommand::kTeach), 0);
+  m->poll(0);
+  int refused = 0;
+  for (int i = 0; i < 1000; ++i) refused += !m->on_command(cmd(CellCommand::kStep, "", 1), 0);
+  EXPECT_EQ(refused, 1000 - static_cast<int>(CellStateMachine::kMaxQueuedCommands));
+}
+
+TEST_F(Realtime, FramesAtTheCameraRateAndNoMotionWhenIdle) {
+  auto m = make(Timing::kRealtime);
+  std::size_t frames = 0;
+  for (int i = 0; i <= 1000; ++i) frames += m->poll(i * 1e-3).frames.size();
+  EXPECT_NEAR(static_cast<double>(frames), 1.0 / dt + 1, 1.0);
+  EXPECT_EQ(moved(*m), 0);
+}
+
+// item 17: the watchdog stops the robot at its deadline, not at the next frame tick
+TEST_F(Realtime, WatchdogStopsTheRobotAtItsDeadline) {
+  CellParams p;
+  p.watchdog_s = 0.1;
+  auto m = make(Timing::kRealtime, p);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  m->poll(0);
+  ASSERT_TRUE(m->on_twist(twist_for(0, dt, vx(0.2)), 0.0));
+  bool tripped_log = false;
+  double t = 0;
+  for (int i = 1; i <= 400; ++i) {
+    t = i * 1e-3;
+    for (const auto& l : m->poll(t).log) tripped_log |= l.find("watchdog") != std::string::npos;
+  }
+  EXPECT_TRUE(tripped_log);
+  EXPECT_EQ(m->counters().watchdog_stops, 1);
+  // exactly 100 ms of motion at 0.2 m/s
+  EXPECT_NEAR(moved(*m), 0.2 * 0.1, 1e-9);
+}
+
+// item 12: a twist stamped 0 s was applied while the sim was at 3.8 s
+TEST_F(Realtime, TwistOlderThanTheWatchdogIsRejected) {
+  auto m = make(Timing::kRealtime);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  for (int i = 0; i <= 3800; ++i) m->poll(i * 1e-3);
+  EXPECT_FALSE(m->on_twist(twist_for(0, dt, vx(0.1)), 3.8));
+  EXPECT_FALSE(m->on_twist(twist_for(100000, dt, vx(0.1)), 3.8));  // from the future
+  EXPECT_TRUE(m->on_twist(twist_for(m->next_frame() - 1, dt, vx(0.1)), 3.8));
+  EXPECT_FALSE(m->on_twist(twist_for(m->next_frame() - 2, dt, vx(0.1)), 3.8));  // older than the one in force
+}
+
+TEST_F(Realtime, TeachFrameIsMarkedAndFramesBeforeStartApplyNothing) {
+  auto m = make(Timing::kRealtime);
+  m->poll(0);
+  m->on_command(cmd(CellCommand::kTeach), 0.001);
+  CellOutput o = m->poll(0.05);
+  ASSERT_FALSE(o.frames.empty());
+  EXPECT_TRUE(o.frames[0].teach);
+  for (const auto& f : o.frames) EXPECT_FALSE(f.applies_twist);
+  m->on_command(cmd(CellCommand::kReset, "initial"), 0.06);
+  m->on_command(cmd(CellCommand::kStart), 0.06);
+  o = m->poll(0.1);
+  ASSERT_FALSE(o.frames.empty());
+  for (const auto& f : o.frames) {
+    EXPECT_TRUE(f.applies_twist);
+    EXPECT_GT(translation_error(f.world_T_camera, scenario.world_T_desired), 0.01);
+  }
+}
+
+// item 14: realtime --trace wrote only its header
+TEST_F(Realtime, EveryMovingFrameHasATraceRow) {
+  auto m = make(Timing::kRealtime);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  std::size_t rows = 0, frames = 0;
+  for (int i = 0; i <= 1000; ++i) {
+    CellOutput o = m->poll(i * 1e-3);
+    rows += o.trace.size();
+    frames += o.frames.size();
+  }
+  EXPECT_EQ(rows, frames);
+  EXPECT_GT(rows, 20u);
+}
+
+TEST(Autorun, WaitsForTheServoAndResendsTeachUntilTaught) {
+  AutorunSequence a(60, 5, 3);
+  EXPECT_TRUE(a.poll(0, false, false).send.empty());
+  EXPECT_TRUE(a.poll(10, false, false).send.empty());
+  auto s = a.poll(11, true, false);
+  ASSERT_EQ(s.send.size(), 1u);
+  EXPECT_EQ(s.send[0].command, static_cast<int>(CellCommand::kTeach));
+  EXPECT_TRUE(a.poll(12, true, false).send.empty());
+  s = a.poll(17, true, false);
+  ASSERT_EQ(s.send.size(), 1u);  // TEACH again
+  s = a.poll(18, true, true);
+  ASSERT_EQ(s.send.size(), 2u);
+  EXPECT_EQ(s.send[0].command, static_cast<int>(CellCommand::kReset));
+  EXPECT_EQ(s.send[1].command, static_cast<int>(CellCommand::kStart));
+  EXPECT_TRUE(s.finished);
+}
+
+}  // namespace
+}  // namespace sim

@@ -1,0 +1,155 @@
+// The servo's state machine on real rendered images and a fake clock: image and camera_info
+// checks, teaching from the teach frame, convergence only on applied frames, LOST (issue 9).
+#include "servo/node/servo_state_machine.hpp"
+
+#include <gtest/gtest.h>
+
+#include "sim/render/renderer.hpp"
+
+namespace servo {
+namespace {
+
+const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
+
+struct Frames : ::testing::Test {
+  std::unique_ptr<sim::Cell> cell = sim::build_cell(sim::load_scenario(kScenarios + "plane.yaml"));
+  cv::Mat desired = sim::render_image(*cell, cell->scenario.world_T_desired, 1);
+  cv::Mat initial = sim::render_image(*cell, cell->scenario.world_T_initial(), 2);
+
+  std::unique_ptr<ServoStateMachine> make(bool autostart = false) {
+    ServoConfig c;
+    c.law.z_hat_m = 0.9;
+    auto p = std::make_unique<ServoPipeline>(pattern::WindowTable(cell->projector->pattern(), {3, 3}), c);
+    auto m = std::make_unique<ServoStateMachine>(std::move(p), ServoTiming{0.5, autostart});
+    EXPECT_EQ(m->on_camera_info(info()), "");
+    return m;
+  }
+  CameraInfoMsg info() const {
+    const auto& k = cell->scenario.camera.intrinsics;
+    const auto& d = cell->scenario.camera.distortion;
+    return {static_cast<std::uint32_t>(k.width), static_cast<std::uint32_t>(k.height),
+            {k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1}, std::vector<double>(d.begin(), d.end())};
+  }
+  static ImageView view(const cv::Mat& rgb, Stamp s) {
+    return {s, "rgb8", static_cast<std::uint32_t>(rgb.cols), static_cast<std::uint32_t>(rgb.rows),
+            static_cast<std::uint32_t>(rgb.cols * 3), 0, rgb.data, rgb.total() * 3};
+  }
+  static Stamp at(int frame) { return {0, static_cast<std::uint32_t>(frame * 40000000)}; }
+};
+
+// item 1: width 1431655766 (x 3 wraps to 2 in 32 bits) with a 2-byte image killed the servo
+TEST_F(Frames, OverflowingImageHeaderIsRejectedWithAZeroTwist) {
+  auto m = make();
+  const std::uint8_t two[2] = {1, 2};
+  ImageView v{at(0), "rgb8", 1431655766u, 1, 1431655766u * 3u, 0, two, 2};
+  const ServoReply r = m->on_image(v, 0);
+  EXPECT_TRUE(r.twist.isZero());
+  EXPECT_NE(r.reason.find("rejected image"), std::string::npos) << r.reason;
+  ImageView w{at(1), "rgb8", 640, 480, 1920, 0, two, 2};
+  EXPECT_NE(m->on_image(w, 0).reason.find("2 bytes for 640 x 480"), std::string::npos);
+  ImageView e{at(2), "bgr8\x01\xff", 640, 480, 1920, 0, desired.data, desired.total() * 3};
+  const std::string reason = m->on_image(e, 0).reason;
+  EXPECT_EQ(reason.find('\x01'), std::string::npos) << reason;
+  EXPECT_EQ(m->rejected(), 3);
+}
+
+TEST_F(Frames, CameraInfoIsCheckedBeforeItIsUsed) {
+  auto m = make();
+  CameraInfoMsg bad = info();
+  bad.k[0] = std::nan("");
+  EXPECT_NE(m->on_camera_info(bad), "");
+  bad = info();
+  bad.width = 16384;
+  bad.height = 16384;
+  EXPECT_NE(m->on_camera_info(bad).find("limit"), std::string::npos);
+  bad = info();
+  bad.d.assign(1000, 0.0);
+  EXPECT_NE(m->on_camera_info(bad), "");
+  bad = info();
+  bad.k[2] = 1e300;
+  EXPECT_NE(m->on_camera_info(bad), "");
+  // the good one stays in force
+  m->on_command(static_cast<int>(Command::kTeach));
+  EXPECT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
+}
+
+TEST_F(Frames, WithoutCameraInfoTheServoWaits) {
+  ServoConfig c;
+  auto p = std::make_unique<ServoPipeline>(pattern::WindowTable(cell->projector->pattern(), {3, 3}), c);
+  ServoStateMachine m(std::move(p), ServoTiming{});
+  EXPECT_EQ(m.on_image(view(desired, at(0)), 0).reason, "waiting for camera_info");
+}
+
+// item 8: a false CONVERGED at iteration 1, from frames rendered before the RESET took effect
+TEST_F(Frames, ConvergenceCountsOnlyOnFramesWhoseTwistIsApplied) {
+  auto m = make();
+  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_command(static_cast<int>(Command::kReset));
+  m->on_command(static_cast<int>(Command::kStart));
+  // a frame from before the teach frame is not taught from
+  m->on_sim_status({at(0), false, false});
+  EXPECT_FALSE(m->on_image(view(initial, at(0)), 0.00).taught);
+  EXPECT_EQ(m->state(), ServoState::kTeaching);
+  m->on_sim_status({at(1), false, true});
+  const ServoReply taught = m->on_image(view(desired, at(1)), 0.04);
+  EXPECT_TRUE(taught.taught);
+  EXPECT_EQ(m->state(), ServoState::kServoing);
+  // still at the desired pose, but the sim has not applied START yet: no convergence
+  m->on_sim_status({at(2), false, false});
+  const ServoReply early = m->on_image(view(desired, at(2)), 0.08);
+  EXPECT_NE(early.state, ServoState::kConverged);
+  EXPECT_TRUE(early.twist.isZero());
+  EXPECT_EQ(early.iteration, 0u);
+  // the first applied frame is at the initial pose: servoing, with a twist
+  m->on_sim_status({at(3), true, false});
+  const ServoReply step = m->on_image(view(initial, at(3)), 0.12);
+  EXPECT_EQ(step.state, ServoState::kServoing);
+  EXPECT_FALSE(step.twist.isZero());
+  EXPECT_EQ(step.iteration, 1u);
+}
+
+// item 9: START more than lost_ms after TEACH was undone by the LOST recovery
+TEST_F(Frames, LostDoesNotUndoAStartThatCameMeanwhile) {
+  auto m = make();
+  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_sim_status({at(0), false, true});
+  EXPECT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
+  EXPECT_EQ(m->state(), ServoState::kIdle);
+  EXPECT_FALSE(m->tick(2.0));  // idle: no images expected, nothing lost
+  m->on_command(static_cast<int>(Command::kStart));
+  EXPECT_EQ(m->state(), ServoState::kServoing);
+  m->on_sim_status({at(1), true, false});
+  m->on_image(view(initial, at(1)), 2.1);
+  EXPECT_EQ(m->state(), ServoState::kServoing);
+  // images stop while servoing: LOST once, zero twist; then they come back
+  const auto lost = m->tick(2.7);
+  ASSERT_TRUE(lost);
+  EXPECT_EQ(lost->state, ServoState::kLost);
+  EXPECT_TRUE(lost->twist.isZero());
+  EXPECT_FALSE(m->tick(3.0));
+  m->on_sim_status({at(2), true, false});
+  m->on_image(view(initial, at(2)), 3.1);
+  EXPECT_EQ(m->state(), ServoState::kServoing);
+}
+
+TEST_F(Frames, PauseStopsAndResetNeedsANewStart) {
+  auto m = make(true);
+  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_sim_status({at(0), false, true});
+  m->on_image(view(desired, at(0)), 0);
+  EXPECT_EQ(m->state(), ServoState::kServoing);  // autostart
+  m->on_command(static_cast<int>(Command::kPause));
+  m->on_sim_status({at(1), true, false});
+  const ServoReply r = m->on_image(view(initial, at(1)), 0.04);
+  EXPECT_TRUE(r.twist.isZero());
+  EXPECT_EQ(r.state, ServoState::kStopped);
+  m->on_command(static_cast<int>(Command::kStart));
+  EXPECT_EQ(m->state(), ServoState::kServoing);
+  m->on_command(static_cast<int>(Command::kReset));
+  EXPECT_EQ(m->state(), ServoState::kIdle);
+  m->on_command(250);  // unknown: nothing changes
+  EXPECT_EQ(m->state(), ServoState::kIdle);
+}
+
+}  // namespace
+}  // namespace servo

@@ -28,4 +28,35 @@ one_line_error "config typo" "gian: unknown key" "$servo" run --pattern "$patter
 printf 'fx: 1500\n' > "$tmp/proj.yaml"
 one_line_error "calibration" "fy: missing" "$servo" run --pattern "$pattern" --projector "$tmp/proj.yaml"
 one_line_error "model name" "expected desired-constant-depth" "$servo" run --pattern "$pattern" --model Current
+# issue 9, items 5, 15, 16: accepted-but-invalid settings, bombs and unreadable values
+cfg() { printf '%b' "$1" > "$tmp/c.yaml"; one_line_error "config: $1" "$2" "$servo" run --pattern "$pattern" --config "$tmp/c.yaml"; }
+cfg 'gain_adaptive: [-1, 0.5, 10]\n' "gain_adaptive\[0\]: must be in"
+cfg 'gain_adaptive: [.nan, 0.5, 10]\n' "gain_adaptive\[0\]: must be a finite number"
+cfg 'min_points: 1e300\n' "min_points: must be an integer in 3..4096, got '1e300'"
+cfg 'min_votes: 10\n' "min_votes: must be an integer in 1..9"
+cfg 'min_island: 1e300\n' "min_island: must be an integer"
+cfg 'gain: [1, 2]\n' "gain: must be a number, got a list"
+cfg 'tolerant: maybe\n' "tolerant: must be true or false"
+cfg 'gain: 0.5\ngain: 0.6\n' "gain: key given twice"
+cfg 'gain: "\\x01\\xff"\n' "gain: must be a number"
+cfg 'gain: [\n' "YAML syntax error"
+cal() { printf '%b' "$1" > "$tmp/p.yaml"; one_line_error "calibration: $1" "$2" "$servo" run --pattern "$pattern" --projector "$tmp/p.yaml"; }
+good='fx: 1500\nfy: 1500\ncx: 511.5\ncy: 383.5\nspot_pitch_px: 15\nposition_m: [0, 0, 0]\n'
+cal "${good}rows: 20\ncols: 20\norientation_xyzw: [0, 0, 0, 0]\n" "orientation_xyzw: must be a unit quaternion"
+cal "${good}rows: 20\ncols: 20\norientation_xyzw: [0, 0, 0, 2]\n" "orientation_xyzw"
+cal "${good}rows: 7\ncols: 20\norientation_xyzw: [0, 0, 0, 1]\n" "7 x 20 spots, but the pattern"
+# a pattern of more colours than the decoder separates
+"$(dirname "$servo")/pattern" generate --rows 12 --cols 12 --colours 5 --seed 1 -o "$tmp/k5.txt" >/dev/null || fail "k5 pattern"
+one_line_error "5 colours" "the decoder tells apart 3" "$servo" decode "$tmp/plane.png" --pattern "$tmp/k5.txt"
+# an image header claiming 20000 x 20000: refused before decoding
+/usr/bin/python3 - "$tmp/bomb.png" <<'PY'
+import struct, sys, zlib
+def chunk(t, d): return struct.pack('>I', len(d)) + t + d + struct.pack('>I', zlib.crc32(t + d) & 0xffffffff)
+raw = zlib.compress(b'\0' * 4000, 9)
+open(sys.argv[1], 'wb').write(b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', 20000, 20000, 8, 2, 0, 0, 0)) + chunk(b'IDAT', raw) + chunk(b'IEND', b''))
+PY
+one_line_error "png bomb" "20000 x 20000 px, beyond the limit" "$servo" decode "$tmp/bomb.png" --pattern "$pattern"
+# a corrupt PNG: our line only, no 'libpng error:' line before it
+head -c 100 "$tmp/plane.png" > "$tmp/cut.png"
+one_line_error "cut png" "cannot read image" "$servo" decode "$tmp/cut.png" --pattern "$pattern"
 echo "servo CLI: all checks passed"

@@ -10,11 +10,13 @@
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
+#include <algorithm>
 #include <functional>
 #include <stdexcept>
 #include <string>
 
 #include "dds/participant.hpp"
+#include "dds/type_hash.hpp"
 
 namespace cell_dds {
 
@@ -43,7 +45,9 @@ class Writer {
       : participant_(p), name_(topic) {
     publisher_ = p.create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
     if (!publisher_) throw std::runtime_error("cannot create a DDS publisher for " + topic);
-    writer_ = publisher_->create_datawriter(topic_for<PubSubType>(p, topic), qos);
+    eprosima::fastdds::dds::DataWriterQos q = qos;
+    q.user_data().data_vec(type_hash_user_data(PubSubType().getName()));  // REP-2011: typehash=...;
+    writer_ = publisher_->create_datawriter(topic_for<PubSubType>(p, topic), q);
     if (!writer_) throw std::runtime_error("cannot create a DDS writer for " + topic);
   }
   ~Writer() {
@@ -60,6 +64,7 @@ class Writer {
     return s.current_count;
   }
   const std::string& topic() const { return name_; }
+  eprosima::fastrtps::rtps::GUID_t guid() const { return writer_->guid(); }
 
  private:
   eprosima::fastdds::dds::DomainParticipant& participant_;
@@ -79,7 +84,13 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
       : participant_(p), on_sample_(std::move(on_sample)) {
     subscriber_ = p.create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
     if (!subscriber_) throw std::runtime_error("cannot create a DDS subscriber for " + topic);
-    reader_ = subscriber_->create_datareader(topic_for<PubSubType>(p, topic), qos, this);
+    eprosima::fastdds::dds::DataReaderQos q = qos;
+    q.user_data().data_vec(type_hash_user_data(PubSubType().getName()));
+    // a flood of samples from a rogue writer is bounded by the reader's own resource limits
+    q.resource_limits().max_samples = std::max(q.history().depth, 1);
+    q.resource_limits().max_instances = 1;
+    q.resource_limits().max_samples_per_instance = std::max(q.history().depth, 1);
+    reader_ = subscriber_->create_datareader(topic_for<PubSubType>(p, topic), q, this);
     if (!reader_) throw std::runtime_error("cannot create a DDS reader for " + topic);
   }
   ~Reader() {
@@ -90,6 +101,7 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
   Reader(const Reader&) = delete;
   Reader& operator=(const Reader&) = delete;
 
+  eprosima::fastrtps::rtps::GUID_t guid() const { return reader_->guid(); }
   int matched() const {
     eprosima::fastdds::dds::SubscriptionMatchedStatus s;
     reader_->get_subscription_matched_status(s);

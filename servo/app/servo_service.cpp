@@ -16,6 +16,7 @@
 
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"
+#include "dds/ros_graph.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
@@ -142,6 +143,11 @@ class ServoService {
     control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
         p, cell_dds::kControlTopic, cell_dds::reader_qos(Stream::kCommand),
         [this](SimControl_&& c) { in_.push(in_.commands, std::move(c), Inbox::kMaxCommands); });
+    node_ = std::make_unique<cell_dds::NodeAnnouncement>(
+        p, "servo",
+        std::vector<eprosima::fastrtps::rtps::GUID_t>{image_in_->guid(), info_in_->guid(), pose_in_->guid(),
+                                                      sim_status_in_->guid(), control_in_->guid()},
+        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_->guid(), spots_->guid(), status_->guid()});
   }
 
   int run() {
@@ -286,6 +292,7 @@ class ServoService {
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>> control_in_;
+  std::unique_ptr<cell_dds::NodeAnnouncement> node_;
 };
 
 }  // namespace

@@ -15,6 +15,7 @@
 
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"
+#include "dds/ros_graph.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
@@ -125,6 +126,11 @@ class SimService {
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
           p, cell_dds::kControlTopic, cell_dds::writer_qos(Stream::kCommand));
+    node_ = std::make_unique<cell_dds::NodeAnnouncement>(
+        p, "cellsim",
+        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
+        std::vector<eprosima::fastrtps::rtps::GUID_t>{image_->guid(), info_->guid(), pose_->guid(), sim_status_->guid(),
+                                                      truth_->guid(), clock_->guid()});
     publish_camera_info();
     if (!o.trace_dir.empty()) {
       std::filesystem::create_directories(o.trace_dir);
@@ -345,6 +351,7 @@ class SimService {
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>> control_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status_in_;
+  std::unique_ptr<cell_dds::NodeAnnouncement> node_;
 };
 
 }  // namespace

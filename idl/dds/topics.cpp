@@ -43,8 +43,11 @@ builtin_interfaces::msg::dds_::Time_ stamp_of(std::uint64_t frame, double dt_s) 
 }
 
 std::uint64_t frame_of(const builtin_interfaces::msg::dds_::Time_& t, double dt_s) {
+  // a period below 1 ns (or a negative stamp) names no frame: never divide by zero
+  const long long dt_ns = std::isfinite(dt_s) && dt_s >= 1e-9 && dt_s < 1e6 ? std::llround(dt_s * 1e9) : 0;
+  if (dt_ns <= 0 || t.sec() < 0) return 0;
   const std::uint64_t ns = static_cast<std::uint64_t>(t.sec()) * 1000000000ull + t.nanosec();
-  return ns / static_cast<std::uint64_t>(std::llround(dt_s * 1e9));
+  return ns / static_cast<std::uint64_t>(dt_ns);
 }
 
 double seconds(const builtin_interfaces::msg::dds_::Time_& t) { return t.sec() + 1e-9 * t.nanosec(); }

@@ -37,7 +37,11 @@ struct DepthBuffer {
   // above -kShift, where std::floor and std::lround are libm calls on baseline x86-64.
   // (Camera pixels look their cell up in Cell::pixel_to_zbuffer, computed once with it.)
   static constexpr double kShift = 1 << 20;
-  static int nearest(double x) { return static_cast<int>(x + 0.5 + kShift) - static_cast<int>(kShift); }
+  static int nearest(double x) {
+    // beyond +-1e9 (or NaN) no pixel is meant; the cast of such a value is undefined behaviour
+    if (!(x > -1e9 && x < 1e9)) return -(1 << 30);
+    return static_cast<int>(x + 0.5 + kShift) - static_cast<int>(kShift);
+  }
   float depth_at(double u, double v) const {
     const int i = nearest(u) + margin;
     const int j = nearest(v) + margin;

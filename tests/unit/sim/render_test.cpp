@@ -150,3 +150,24 @@ TEST(Render, CylinderHidesSomeOfItsOwnSpots) {
 
 }  // namespace
 }  // namespace sim
+
+namespace sim {
+namespace {
+
+// Issue 9, item 4: a principal point of 1e300 or a focal length of 1e-300 made the nearest-
+// pixel cast overflow (undefined behaviour); such values are refused at load, and the cast
+// itself maps anything beyond any image to "no pixel".
+TEST(DepthBuffer, NearestPixelOfAbsurdCoordinatesIsOutside) {
+  EXPECT_EQ(DepthBuffer::nearest(3.4), 3);
+  EXPECT_EQ(DepthBuffer::nearest(-0.6), -1);
+  EXPECT_LT(DepthBuffer::nearest(1e300), -1000000);
+  EXPECT_LT(DepthBuffer::nearest(-1e300), -1000000);
+  EXPECT_LT(DepthBuffer::nearest(std::nan("")), -1000000);
+  DepthBuffer b;
+  b.width = b.height = 4;
+  b.inv_depth.assign(16, 1.0f);
+  EXPECT_TRUE(std::isinf(b.depth_at(1e300, 0)));
+}
+
+}  // namespace
+}  // namespace sim

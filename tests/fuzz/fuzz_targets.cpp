@@ -1,0 +1,303 @@
+// Seeded mutation fuzzing of every reader of untrusted input: the decoder, the pattern reader,
+// the scenario reader, the mesh check, and each DDS message handler (the two state machines
+// the services feed). A refusal (an exception, a rejected message) is the expected outcome;
+// a crash, a sanitizer report or a hang is a defect. ctest runs each target for a bounded
+// number of inputs; bin/fuzz runs them for long under AddressSanitizer and UBSan.
+//
+//   fuzz_targets --target decoder|pattern|scenario|mesh|cell|servo --iterations N [--seconds S] [--seed K]
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <unistd.h>
+
+#include "servo/node/servo_state_machine.hpp"
+#include "servo/pattern/pattern_file.hpp"
+#include "sim/cell/cell_state_machine.hpp"
+#include "sim/render/renderer.hpp"
+#include "sim/scene/mesh_check.hpp"
+#include "sim/scene/triangle_mesh.hpp"
+
+namespace {
+
+const std::string kSrc = CELL_SOURCE_DIR;
+
+std::string read(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+// One mutation step on bytes: flip, insert, delete, duplicate a run, or splice an
+// interesting value (boundaries, huge numbers, NaN) in.
+void mutate(std::string& s, std::mt19937_64& rng) {
+  static const char* tokens[] = {"1e300", "-1e300", "nan", ".nan", "inf", "0", "-1", "4294967295", "2147483648",
+                                 "1e-300", "&a", "*a", "[", "]", "{", "}", ":", "\n", "\x00", "\xff", "99999999999"};
+  std::uniform_int_distribution<int> op(0, 5);
+  const auto at = [&](std::size_t n) { return n == 0 ? std::size_t{0} : std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
+  switch (op(rng)) {
+    case 0:
+      if (!s.empty()) s[at(s.size())] ^= static_cast<char>(1 << (rng() % 8));
+      break;
+    case 1: s.insert(at(s.size() + 1), 1, static_cast<char>(rng() % 256)); break;
+    case 2:
+      if (!s.empty()) s.erase(at(s.size()), 1 + at(16));
+      break;
+    case 3:
+      if (!s.empty() && s.size() < (1u << 20)) {
+        const std::size_t a = at(s.size());
+        s.insert(at(s.size() + 1), s.substr(a, 1 + at(64)));
+      }
+      break;
+    case 4: {
+      const std::string t = tokens[at(sizeof tokens / sizeof *tokens)];
+      s.insert(at(s.size() + 1), t.empty() ? std::string(1, '\0') : t);
+      break;
+    }
+    default:
+      if (!s.empty()) {
+        // replace a number-looking run with an interesting value
+        const std::size_t a = at(s.size());
+        std::size_t b = a;
+        while (b < s.size() && (std::isdigit(static_cast<unsigned char>(s[b])) || s[b] == '.')) ++b;
+        s.replace(a, b - a, tokens[at(9)]);
+      }
+  }
+}
+
+std::string mutated(const std::string& seed, std::mt19937_64& rng) {
+  std::string s = seed;
+  const int n = 1 + static_cast<int>(rng() % 8);
+  for (int i = 0; i < n; ++i) mutate(s, rng);
+  return s;
+}
+
+double uniform_extreme(std::mt19937_64& rng) {
+  static const double v[] = {0, -0.0, 1, -1, 1e300, -1e300, 1e-300, std::nan(""), INFINITY, -INFINITY, 0.04, 0.5};
+  if (rng() % 3 == 0) return v[rng() % (sizeof v / sizeof *v)];
+  return std::uniform_real_distribution<double>(-2, 2)(rng);
+}
+
+struct Target {
+  virtual ~Target() = default;
+  virtual void one(std::mt19937_64& rng) = 0;
+};
+
+struct PatternTarget : Target {
+  std::string seed = read(kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt");
+  void one(std::mt19937_64& rng) override {
+    try {
+      const pattern::MArray a = pattern::parse_marray(mutated(seed, rng), "fuzz");
+      pattern::check_window_property(a, {3, 3});
+      if (a.rows >= 3 && a.cols >= 3) pattern::WindowTable t(a, {3, 3});
+    } catch (const std::exception&) {
+    }
+  }
+};
+
+struct ScenarioTarget : Target {
+  std::string seed = read(kSrc + "/sim/scenarios/cylinder.yaml");
+  std::filesystem::path file = std::filesystem::temp_directory_path() / ("fuzz_scenario_" + std::to_string(getpid()) + ".yaml");
+  ScenarioTarget() {
+    for (std::size_t p; (p = seed.find("../../")) != std::string::npos;) seed.replace(p, 6, kSrc + "/");
+  }
+  ~ScenarioTarget() override { std::filesystem::remove(file); }
+  void one(std::mt19937_64& rng) override {
+    std::ofstream(file, std::ios::binary) << mutated(seed, rng);
+    try {
+      const sim::Scenario s = sim::load_scenario(file);
+      sim::resolve_pose(s, "initial");
+    } catch (const std::exception&) {
+    }
+  }
+};
+
+struct MeshTarget : Target {
+  std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
+  std::string ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  std::filesystem::path dir = std::filesystem::temp_directory_path();
+  void one(std::mt19937_64& rng) override {
+    const bool use_ply = rng() % 2;
+    const auto file = dir / ("fuzz_mesh_" + std::to_string(getpid()) + (use_ply ? ".ply" : ".obj"));
+    std::ofstream(file, std::ios::binary) << mutated(use_ply ? ply : obj, rng);
+    try {
+      sim::load_mesh(file);  // walked by check_mesh_file first, then assimp
+    } catch (const std::exception&) {
+    }
+    std::filesystem::remove(file);
+  }
+};
+
+struct DecoderTarget : Target {
+  std::unique_ptr<sim::Cell> cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml"));
+  cv::Mat image = sim::render_image(*cell, cell->scenario.world_T_initial(), 1);
+  vision::SpotDecoder decoder{pattern::WindowTable(cell->projector->pattern(), {3, 3})};
+  void one(std::mt19937_64& rng) override {
+    cv::Mat img = image.clone();
+    // smear, blank, saturate and noise random patches: spots merge, vanish, change colour
+    const int patches = 1 + static_cast<int>(rng() % 20);
+    for (int i = 0; i < patches; ++i) {
+      const int x = static_cast<int>(rng() % img.cols), y = static_cast<int>(rng() % img.rows);
+      const int w = 1 + static_cast<int>(rng() % 120), h = 1 + static_cast<int>(rng() % 120);
+      const cv::Rect r = cv::Rect(x, y, w, h) & cv::Rect(0, 0, img.cols, img.rows);
+      cv::Mat roi = img(r);
+      switch (rng() % 4) {
+        case 0: roi.setTo(cv::Scalar(rng() % 256, rng() % 256, rng() % 256)); break;
+        case 1: cv::randu(roi, 0, 256); break;
+        case 2: roi += cv::Scalar(rng() % 128, rng() % 128, rng() % 128); break;
+        default: cv::flip(roi.clone(), roi, 1);
+      }
+    }
+    // and sometimes an odd size
+    if (rng() % 8 == 0) img = img(cv::Rect(0, 0, 1 + static_cast<int>(rng() % img.cols), 1 + static_cast<int>(rng() % img.rows))).clone();
+    try {
+      decoder.decode(img);
+    } catch (const std::exception&) {
+    }
+  }
+};
+
+// The servo service's handlers with what a rogue DDS participant can send.
+struct ServoTarget : Target {
+  std::unique_ptr<sim::Cell> cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml"));
+  cv::Mat image = sim::render_image(*cell, cell->scenario.world_T_desired, 1);
+  servo::ServoStateMachine machine{
+      std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell->projector->pattern(), {3, 3}), servo::ServoConfig{}),
+      servo::ServoTiming{}};
+  double now = 0;
+  void one(std::mt19937_64& rng) override {
+    now += 0.01;
+    const servo::Stamp stamp{static_cast<std::int32_t>(rng() % 4), static_cast<std::uint32_t>(rng() % 3 * 40000000)};
+    switch (rng() % 6) {
+      case 0: machine.on_command(static_cast<int>(rng() % 8)); break;
+      case 1: {
+        servo::CameraInfoMsg c;
+        c.width = rng() % 2 ? 640 : static_cast<std::uint32_t>(rng());
+        c.height = rng() % 2 ? 480 : static_cast<std::uint32_t>(rng());
+        c.k = {800, 0, 319.5, 0, 800, 239.5, 0, 0, 1};
+        for (auto& v : c.k)
+          if (rng() % 4 == 0) v = uniform_extreme(rng);
+        if (rng() % 3 == 0) c.k.resize(rng() % 12);
+        c.d.resize(rng() % 20);
+        for (auto& v : c.d) v = uniform_extreme(rng);
+        machine.on_camera_info(c);
+        break;
+      }
+      case 2: machine.on_sim_status({stamp, rng() % 2 == 0, rng() % 4 == 0}); break;
+      case 3: {
+        Eigen::Isometry3d T = cell->scenario.world_T_desired;
+        if (rng() % 3 == 0) T.translation().x() = uniform_extreme(rng);
+        machine.on_pose(stamp, T);
+        break;
+      }
+      case 4: machine.tick(now); break;
+      default: {
+        std::string enc = rng() % 4 ? "rgb8" : mutated("rgb8", rng);
+        servo::ImageView v{stamp, enc, static_cast<std::uint32_t>(image.cols), static_cast<std::uint32_t>(image.rows),
+                           static_cast<std::uint32_t>(image.cols * 3), 0, image.data, image.total() * 3};
+        if (rng() % 3 == 0) v.width = static_cast<std::uint32_t>(rng());
+        if (rng() % 3 == 0) v.height = static_cast<std::uint32_t>(rng() % 5000);
+        if (rng() % 3 == 0) v.step = v.width * 3;  // wraps for huge widths
+        if (rng() % 3 == 0) v.size = rng() % (v.size + 1);
+        machine.on_image(v, now);
+      }
+    }
+  }
+};
+
+// The sim service's handlers with what a rogue DDS participant can send.
+struct CellTarget : Target {
+  sim::Scenario scenario = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
+  sim::CellStateMachine lockstep{scenario, {}};
+  sim::CellStateMachine realtime{scenario, [] {
+                                   sim::CellParams p;
+                                   p.timing = sim::Timing::kRealtime;
+                                   return p;
+                                 }()};
+  double now = 0;
+  void one(std::mt19937_64& rng) override {
+    now += 0.002;
+    for (sim::CellStateMachine* m : {&lockstep, &realtime}) {
+      switch (rng() % 4) {
+        case 0: {
+          static const char* args[] = {"", "initial", "desired", "1e300 0 0 0 0 0", "1 2 3 4 5 6", "nan 0 0 0 0 0",
+                                       "/nonexistent.yaml", "\xff\x01"};
+          const int c = static_cast<int>(rng() % 8);
+          const std::string arg = c == 0 ? "/nonexistent.yaml" : args[rng() % 8];
+          m->on_command({c, arg, rng() % 2 ? rng() : rng() % 10}, now);
+          break;
+        }
+        case 1: {
+          sim::TwistMsg t;
+          t.stamp_sec = rng() % 4 ? static_cast<std::int64_t>(now) : static_cast<std::int64_t>(rng());
+          t.stamp_nanosec = static_cast<std::uint32_t>(rng() % 2 ? rng() : rng() % 1000000000);
+          t.frame_id = rng() % 4 ? "camera_optical" : mutated("camera_optical", rng);
+          for (int i = 0; i < 6; ++i) t.twist[i] = uniform_extreme(rng);
+          m->on_twist(t, now);
+          break;
+        }
+        case 2: {
+          sim::ServoReport r;
+          r.stamp_sec = static_cast<std::int64_t>(rng() % 3);
+          r.stamp_nanosec = static_cast<std::uint32_t>(rng());
+          r.state = static_cast<std::uint8_t>(rng() % 8);
+          m->on_servo_status(r, now);
+          break;
+        }
+        default: {
+          sim::CellOutput o = m->poll(now);
+          if (o.load) m->load_failed("fuzz: not loaded");
+        }
+      }
+    }
+    if (!scenario.workspace.contains(lockstep.world_T_camera().translation()) ||
+        !scenario.workspace.contains(realtime.world_T_camera().translation())) {
+      std::fprintf(stderr, "fuzz cell: the camera left the workspace\n");
+      std::abort();
+    }
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string target;
+  long iterations = 1000;
+  double seconds = 0;
+  std::uint64_t seed = 1;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string k = argv[i], v = argv[i + 1];
+    if (k == "--target") target = v;
+    else if (k == "--iterations") iterations = std::stol(v);
+    else if (k == "--seconds") seconds = std::stod(v);
+    else if (k == "--seed") seed = std::stoull(v);
+    else {
+      std::fprintf(stderr, "fuzz_targets: unknown option %s\n", k.c_str());
+      return 2;
+    }
+  }
+  std::unique_ptr<Target> t;
+  if (target == "pattern") t = std::make_unique<PatternTarget>();
+  else if (target == "scenario") t = std::make_unique<ScenarioTarget>();
+  else if (target == "mesh") t = std::make_unique<MeshTarget>();
+  else if (target == "decoder") t = std::make_unique<DecoderTarget>();
+  else if (target == "servo") t = std::make_unique<ServoTarget>();
+  else if (target == "cell") t = std::make_unique<CellTarget>();
+  else {
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|cell|servo\n");
+    return 2;
+  }
+  std::mt19937_64 rng(seed);
+  const auto t0 = std::chrono::steady_clock::now();
+  long n = 0;
+  for (; seconds > 0 ? std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < seconds : n < iterations;
+       ++n)
+    t->one(rng);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("fuzz %s: %ld inputs in %.1f s (seed %llu), no crash\n", target.c_str(), n, took,
+              static_cast<unsigned long long>(seed));
+  return 0;
+}

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "servo/config/strict_yaml.hpp"
 #include "sim/geometry/se3.hpp"
 
 namespace sim {
@@ -13,21 +14,7 @@ namespace {
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 // Untrusted text made safe for a one-line message.
-std::string shown(const std::string& s, std::size_t max = 60) {
-  std::string out;
-  for (const char ch : s) {
-    if (out.size() >= max) return out + "...";
-    const auto b = static_cast<unsigned char>(ch);
-    if (b >= 0x20 && b < 0x7f) {
-      out.push_back(ch);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02x", b);
-      out += hex;
-    }
-  }
-  return out;
-}
+std::string shown(const std::string& s, std::size_t max = 60) { return config::printable(s, max); }
 
 // The first few rejections of a kind are worth a line each; a flood is summarised.
 bool worth_logging(long count) { return count <= 5 || count % 1000 == 0; }

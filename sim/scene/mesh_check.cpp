@@ -120,8 +120,9 @@ MeshFileCounts check_obj(const std::filesystem::path& p, const std::string& data
           fail(p, at + "face corner '" + shown(t) + "' refers to no vertex (" + std::to_string(nv) + " vertices)");
       }
       add_triangles(p, c, toks.size());
-    } else if (key == "o" || key == "g" || key == "s" || key == "usemtl" || key == "mtllib" || key == "l" || key == "p") {
-      // names, smoothing groups, materials, lines and points: no surface, nothing to check
+    } else if (key == "o" || key == "g" || key == "s" || key == "usemtl" || key == "mtllib") {
+      // names, smoothing groups, materials: nothing to check (lines and points, 'l' and 'p',
+      // are refused: assimp 5.2's triangulation asserts on them and aborts the process)
     } else {
       fail(p, at + "unknown OBJ statement '" + shown(key) + "'");
     }
@@ -154,13 +155,18 @@ int ply_type_size(const std::string& t, bool& is_float) {
 }
 
 MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data) {
-  const std::size_t end_header = data.find("end_header");
   if (data.rfind("ply", 0) != 0) fail(p, "not a PLY file (no 'ply' magic)");
+  // end_header alone on its line: assimp reads "end_headerX" as no end and loops for ever
+  std::size_t end_header = std::string::npos, body = 0;
+  for (const char* marker : {"\nend_header\n", "\nend_header\r\n"}) {
+    const std::size_t at = data.find(marker);
+    if (at != std::string::npos && at < end_header) {
+      end_header = at + 1;
+      body = at + std::strlen(marker);
+    }
+  }
   if (end_header == std::string::npos || end_header > 64 * 1024)
-    fail(p, "PLY header has no end_header in its first 64 kB (truncated or corrupt file)");
-  std::size_t body = data.find('\n', end_header);
-  if (body == std::string::npos) fail(p, "PLY header ends without a newline");
-  ++body;
+    fail(p, "PLY header has no end_header line in its first 64 kB (truncated or corrupt file)");
   std::istringstream in(data.substr(0, end_header));
   std::string line, format;
   std::vector<PlyElement> elements;
@@ -217,19 +223,25 @@ MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data
     if (e.name == "vertex") c.vertices = e.count;
 
   if (format == "ascii") {
-    std::istringstream b(data.substr(body));
+    // one element per line, exactly its values: assimp reads ASCII PLY line by line and
+    // asserts (aborting the process) on an element split over two lines
+    std::istringstream lines(data.substr(body));
     for (const auto& e : elements)
-      for (std::size_t i = 0; i < e.count; ++i)
+      for (std::size_t i = 0; i < e.count; ++i) {
+        std::string text;
+        if (!std::getline(lines, text))
+          fail(p, "PLY body ends early: element '" + shown(e.name) + "' " + std::to_string(i) + " of " +
+                      std::to_string(e.count) + " is missing");
+        std::istringstream b(text);
+        std::string tok;
+        const auto next = [&]() {
+          if (!(b >> tok))
+            fail(p, "PLY element '" + shown(e.name) + "' " + std::to_string(i) + " has too few values on its line");
+          double v;
+          if (!parse_double(tok, v)) fail(p, "PLY value '" + shown(tok) + "' is not a finite number");
+          return v;
+        };
         for (const auto& prop : e.props) {
-          std::string tok;
-          const auto next = [&]() {
-            if (!(b >> tok))
-              fail(p, "PLY body ends early: element '" + shown(e.name) + "' " + std::to_string(i) + " of " +
-                          std::to_string(e.count) + " is missing");
-            double v;
-            if (!parse_double(tok, v)) fail(p, "PLY value '" + shown(tok) + "' is not a finite number");
-            return v;
-          };
           if (!prop.list) {
             next();
             continue;
@@ -246,6 +258,8 @@ MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data
             add_triangles(p, c, static_cast<std::size_t>(n));
           }
         }
+        if (b >> tok) fail(p, "PLY element '" + shown(e.name) + "' " + std::to_string(i) + " has extra values on its line");
+      }
   } else {
     const bool swap = format == "binary_big_endian";
     std::size_t at = body;

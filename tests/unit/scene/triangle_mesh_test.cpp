@@ -56,6 +56,10 @@ TEST(Meshes, MalformedFilesAreRefusedBeforeImport) {
   expect_refused("_badindex.ply", binary_ply_header(3, 1) + std::string(36, '\0') + face, "refers to vertex 7");
   expect_refused("_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                  "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n", "ends early");
+  // found by the fuzzer: assimp loops for ever on a header line "end_headernan"
+  expect_refused("_endhdr.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_headernan\n0 0 0\n1 0 0\n"
+                 "0 1 0\n3 0 1 2\n", "no end_header line");
   expect_refused("_bomb.ply", binary_ply_header(2000000000, 1), "limit");
   expect_refused("_bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "refers to no vertex");
   expect_refused("_nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "not a finite number");

@@ -147,12 +147,12 @@ void CellStateMachine::abandon_awaited() {
   answer_.reset();
 }
 
-std::optional<std::uint64_t> CellStateMachine::frame_of(const TwistMsg& t, std::string& why) const {
-  if (t.stamp_sec < 0 || t.stamp_nanosec >= 1000000000u || t.stamp_sec > (std::int64_t{1} << 40)) {
-    why = "invalid stamp " + std::to_string(t.stamp_sec) + " s " + std::to_string(t.stamp_nanosec) + " ns";
+std::optional<std::uint64_t> CellStateMachine::frame_of(std::int64_t sec, std::uint32_t nanosec, std::string& why) const {
+  if (sec < 0 || nanosec >= 1000000000u || sec > (std::int64_t{1} << 40)) {
+    why = "invalid stamp " + std::to_string(sec) + " s " + std::to_string(nanosec) + " ns";
     return std::nullopt;
   }
-  const auto ns = static_cast<std::uint64_t>(t.stamp_sec) * 1000000000ull + t.stamp_nanosec;
+  const auto ns = static_cast<std::uint64_t>(sec) * 1000000000ull + nanosec;
   // dt >= 1e-4 s is checked at load, so the divisor is at least 100000 ns
   const auto dt_ns = static_cast<std::uint64_t>(std::llround(scenario_.dt_s * 1e9));
   return ns / dt_ns;
@@ -171,7 +171,7 @@ bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
     return false;
   }
   std::string why;
-  const std::optional<std::uint64_t> k = frame_of(t, why);
+  const std::optional<std::uint64_t> k = frame_of(t.stamp_sec, t.stamp_nanosec, why);
   if (k) {
     if (p_.timing == Timing::kLockstep) {
       if (!awaited_) why = "no frame is waiting for a twist";
@@ -205,11 +205,8 @@ bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
 }
 
 void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
-  TwistMsg stamp;
-  stamp.stamp_sec = s.stamp_sec;
-  stamp.stamp_nanosec = s.stamp_nanosec;
   std::string why;
-  const std::optional<std::uint64_t> k = frame_of(stamp, why);
+  const std::optional<std::uint64_t> k = frame_of(s.stamp_sec, s.stamp_nanosec, why);
   if (!k) return;
   statuses_[*k] = s;
   while (statuses_.size() > kMaxKeptStatuses) statuses_.erase(statuses_.begin());

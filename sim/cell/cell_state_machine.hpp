@@ -140,7 +140,7 @@ class CellStateMachine {
 
  private:
   void apply_command(const CommandMsg& c, double now_s);
-  std::optional<std::uint64_t> frame_of(const TwistMsg& t, std::string& why) const;
+  std::optional<std::uint64_t> frame_of(std::int64_t sec, std::uint32_t nanosec, std::string& why) const;
   bool move(const Vector6d& twist, double duration_s, Vector6d* applied);
   void abandon_awaited();
   FrameOrder order(bool teach, bool repeat) const;

@@ -12,17 +12,17 @@ namespace sim {
 std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   auto cell = std::make_unique<Cell>();
   cell->scenario = scenario;
-  // every file is checked (and counted) before any is imported: a scenario of many large
-  // meshes is refused before it costs gigabytes
+  // load_mesh walks each file (bounded counts) before assimp imports it; the scene's total is
+  // checked as the meshes come, so at most one mesh beyond the limit is ever held
   std::size_t total = 0;
   for (const ObjectSpec& o : scenario.objects) {
-    total += check_mesh_file(o.mesh).triangles;
+    TriangleMesh mesh = load_mesh(o.mesh);
+    total += mesh.triangles.size();
     if (total > kMaxSceneTriangles)
       throw MeshError(scenario.file.string() + ": objects: more than " + std::to_string(kMaxSceneTriangles) +
                       " triangles in the scene (the limit), reached at mesh " + o.mesh.string());
+    cell->world.add_object(std::move(mesh), o.world_T_object, o.albedo);
   }
-  for (const ObjectSpec& o : scenario.objects)
-    cell->world.add_object(load_mesh(o.mesh), o.world_T_object, o.albedo);
   cell->triangles = collect_triangles(cell->world);
 
   pattern::MArray marray = pattern::load_pattern(scenario.projector.pattern, {3, 3});

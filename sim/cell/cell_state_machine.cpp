@@ -64,9 +64,9 @@ void CellStateMachine::load_failed(const std::string& reason) {
 
 bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
   ++counters_.commands;
-  // lockstep: the teach frame is answered before anything else happens (the servo takes s*
-  // from it); what comes meanwhile waits, in a bounded queue
-  if ((awaited_ && awaited_->frame.teach) || loading_) {
+  // the teach frame is rendered at the desired pose and (lockstep) answered before anything
+  // else happens (the servo takes s* from it); what comes meanwhile waits, in a bounded queue
+  if (teach_requested_ || (awaited_ && awaited_->frame.teach) || loading_ || !deferred_.empty()) {
     if (deferred_.size() >= kMaxQueuedCommands) {
       ++counters_.commands_refused;
       ++counters_.dropped_inputs;
@@ -288,7 +288,7 @@ void CellStateMachine::flush_trace(bool all) {
 }
 
 void CellStateMachine::drain_deferred(double now_s) {
-  while (!deferred_.empty() && !(awaited_ && awaited_->frame.teach) && !loading_) {
+  while (!deferred_.empty() && !teach_requested_ && !(awaited_ && awaited_->frame.teach) && !loading_) {
     const CommandMsg c = deferred_.front();
     deferred_.pop_front();
     apply_command(c, now_s);
@@ -351,6 +351,7 @@ void CellStateMachine::realtime(double now_s) {
     physics_at_s_ = now_s;
     return;
   }
+  drain_deferred(now_s);  // what waited for a load or for the teach frame to go out
   // motion: the twist in force acts until the watchdog's instant, integrated in physics steps
   const bool moving = running_ || steps_ > 0;
   while (physics_at_s_ < now_s) {

@@ -313,6 +313,27 @@ TEST_F(Realtime, EveryMovingFrameHasATraceRow) {
   EXPECT_GT(rows, 20u);
 }
 
+// TEACH, RESET and START in one burst (as autorun and clients send them): the teach frame is
+// still rendered at the desired pose, and the RESET applies after it
+TEST_F(Fixture, TeachFrameIsAtTheDesiredPoseWhateverFollowsItInTheSameBurst) {
+  for (Timing timing : {Timing::kLockstep, Timing::kRealtime}) {
+    auto m = make(timing);
+    m->on_command(cmd(CellCommand::kTeach), 0);
+    m->on_command(cmd(CellCommand::kReset, "initial"), 0);
+    m->on_command(cmd(CellCommand::kStart), 0);
+    CellOutput o = m->poll(0);
+    ASSERT_EQ(o.frames.size(), 1u);
+    EXPECT_TRUE(o.frames[0].teach);
+    EXPECT_LT(translation_error(o.frames[0].world_T_camera, scenario.world_T_desired), 1e-12);
+    if (timing == Timing::kLockstep) m->on_twist(twist_for(0, dt, Vector6d::Zero()), 0.01);
+    o = m->poll(0.05);
+    ASSERT_FALSE(o.frames.empty());
+    EXPECT_FALSE(o.frames.back().teach);
+    EXPECT_TRUE(o.frames.back().applies_twist);
+    EXPECT_GT(translation_error(o.frames.back().world_T_camera, scenario.world_T_desired), 0.01);
+  }
+}
+
 TEST(Autorun, WaitsForTheServoAndResendsTeachUntilTaught) {
   AutorunSequence a(60, 5, 3);
   EXPECT_TRUE(a.poll(0, false, false).send.empty());

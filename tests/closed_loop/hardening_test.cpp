@@ -1,0 +1,167 @@
+// Issue 9 against the real processes: what an adversarial DDS participant found, replayed
+// over the wire. Checks are made on the topics (and the exit summary), with hard timeouts.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "closed_loop/watcher.hpp"
+#include "sim/scenario/scenario.hpp"
+
+namespace {
+
+using namespace closed_loop;
+
+// A client that writes commands and twists.
+struct Rogue {
+  explicit Rogue(Watcher& w)
+      : control(*w.participant, cell_dds::kControlTopic, cell_dds::writer_qos(cell_dds::Stream::kCommand)),
+        twist(*w.participant, cell_dds::kTwistTopic, cell_dds::writer_qos(cell_dds::Stream::kFrame)) {}
+  void send(std::uint8_t command, const std::string& argument = "", std::uint32_t steps = 0) {
+    cell_msgs::msg::dds_::SimControl_ c;
+    c.command(command);
+    c.argument(argument);
+    c.steps(steps);
+    control.write(c);
+  }
+  cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType> control;
+  cell_dds::Writer<geometry_msgs::msg::dds_::TwistStamped_PubSubType> twist;
+};
+
+std::string read_file(const std::string& path) {
+  std::ifstream f(path);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+long rss_kb(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+const std::string kPlane = kSrc + "/sim/scenarios/plane.yaml";
+
+// items 2 and 11: a scenario with a short PLY, an absurd RESET, and TEACH with no servo: cellsim
+// refuses each in one line, stays up and keeps obeying commands
+TEST(Hardening, CellsimSurvivesBadCommandsAndKeepsObeying) {
+  const int domain = unique_domain(21);
+  const std::string dir = tmp_dir("bad_commands");
+  // a scenario whose mesh is a PLY shorter than its header says
+  std::string text = read_file(kPlane);
+  for (std::size_t p; (p = text.find("../../")) != std::string::npos;) text.replace(p, 6, kSrc + "/");
+  const std::string obj = kSrc + "/meshes/plane.obj";
+  text.replace(text.find(obj), obj.size(), dir + "/short.ply");
+  std::ofstream(dir + "/short.ply", std::ios::binary)
+      << "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      << std::string(20, '\0');
+  std::ofstream(dir + "/short.yaml") << text;
+
+  Watcher w(domain);
+  Rogue rogue(w);
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() > 0; }, 60s));
+  rogue.send(SC::LOAD_SCENARIO, dir + "/short.yaml");
+  rogue.send(SC::RESET, "1e300 0 0 0 0 0");
+  rogue.send(SC::TEACH);  // no servo answers the teach frame
+  rogue.send(SC::STEP, "", 4294967295u);
+  rogue.send(SC::PAUSE);
+  rogue.send(SC::RESET, "initial");
+  rogue.send(SC::STEP, "", 3);
+  // the teach frame, then after the teach timeout the commands behind it: RESET initial's
+  // frames arrive (3 steps, each sent again while unanswered)
+  const sim::Scenario s = sim::load_scenario(kPlane);
+  EXPECT_TRUE(w.wait_for([&] { return w.poses >= 2; }, 30s)) << "no frames after the commands";
+  EXPECT_TRUE(w.wait_for(
+      [&] {
+        return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_initial()) < 1e-9;
+      },
+      30s))
+      << "RESET initial after the refused commands was not obeyed";
+  EXPECT_TRUE(sim.running());
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(10s), 0);
+  const std::string log = read_file(dir + "/sim.log");
+  EXPECT_NE(log.find("LOAD_SCENARIO refused: " + dir + "/short.ply: PLY body ends early"), std::string::npos) << log;
+  EXPECT_NE(log.find("RESET refused: pose '1e300 0 0 0 0 0'"), std::string::npos) << log;
+  EXPECT_NE(log.find("no answer to the teach frame"), std::string::npos) << log;
+}
+
+// item 7: a flood of twists at an idle sim no longer grows its memory
+TEST(Hardening, TwistFloodAtAnIdleSimIsBounded) {
+  const int domain = unique_domain(22);
+  const std::string dir = tmp_dir("flood");
+  Watcher w(domain);
+  Rogue rogue(w);
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return rogue.twist.matched() > 0; }, 60s));
+  std::this_thread::sleep_for(500ms);
+  geometry_msgs::msg::dds_::TwistStamped_ t;
+  t.header().frame_id(cell_dds::kCameraFrame);
+  t.twist().linear().x(0.1);
+  const long before = rss_kb(sim.pid());
+  for (int i = 0; i < 20000; ++i) rogue.twist.write(t);
+  std::this_thread::sleep_for(1s);
+  const long after = rss_kb(sim.pid());
+  EXPECT_GT(before, 0);
+  EXPECT_LT(after - before, 50 * 1024) << "RSS " << before << " kB -> " << after << " kB";
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(10s), 0);
+  EXPECT_NE(read_file(dir + "/sim.log").find("0 twists applied"), std::string::npos);
+}
+
+// item 12: in realtime, a twist stamped long ago is not applied
+TEST(Hardening, RealtimeRejectsATwistOlderThanTheWatchdog) {
+  const int domain = unique_domain(23);
+  const std::string dir = tmp_dir("old_twist");
+  Watcher w(domain);
+  Rogue rogue(w);
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "realtime"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 30 && rogue.control.matched() > 0 && rogue.twist.matched() > 0; }, 60s));
+  rogue.send(SC::START);
+  std::this_thread::sleep_for(300ms);
+  const Eigen::Isometry3d before = w.pose_now();
+  geometry_msgs::msg::dds_::TwistStamped_ t;  // stamped 0 s
+  t.header().frame_id(cell_dds::kCameraFrame);
+  t.twist().linear().x(0.2);
+  for (int i = 0; i < 10; ++i) {
+    rogue.twist.write(t);
+    std::this_thread::sleep_for(40ms);
+  }
+  std::this_thread::sleep_for(200ms);
+  EXPECT_LT(sim::translation_error(before, w.pose_now()), 1e-12);
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(10s), 0);
+  const std::string log = read_file(dir + "/sim.log");
+  EXPECT_NE(log.find("ms behind the newest frame"), std::string::npos) << log;
+}
+
+// items 8, 10, 12, 14: realtime with autorun to convergence: the servo is taught from the teach
+// frame, never reports CONVERGED on a frame from before START, the session ends only with the
+// camera at the goal, and the trace has a row for every moving frame
+TEST(Hardening, RealtimeRunConvergesOnlyAtTheGoalWithAFullTrace) {
+  const int domain = unique_domain(24);
+  const std::string dir = tmp_dir("realtime_converge");
+  Watcher w(domain);
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "realtime", "--autorun", "--exit-on-converged", "--trace",
+               dir},
+              domain, dir + "/sim.log");
+  ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
+  {
+    std::lock_guard<std::mutex> l(w.m);
+    EXPECT_GT(w.converged_at_iteration, 50) << "CONVERGED came at iteration " << w.converged_at_iteration;
+  }
+  const sim::Scenario s = sim::load_scenario(kPlane);
+  EXPECT_LT(sim::translation_error(w.pose_now(), s.world_T_desired), 0.01);
+  std::ifstream trace(dir + "/trace.csv");
+  std::string line;
+  long rows = 0;
+  while (std::getline(trace, line))
+    if (!line.empty() && line[0] != '#' && line[0] != 't') ++rows;
+  EXPECT_GT(rows, 50);
+}
+
+}  // namespace

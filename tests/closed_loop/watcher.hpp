@@ -1,0 +1,126 @@
+// What the closed-loop tests share: a test participant that listens on the cell's topics like
+// any outside client, domains and folders of the test's own, and the servo's command line.
+#pragma once
+
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cell_msgsPubSubTypes.h"
+#include "closed_loop/process.hpp"
+#include "dds/endpoint.hpp"
+#include "dds/topics.hpp"
+#include "geometry_msgsPubSubTypes.h"
+#include "sim/geometry/se3.hpp"
+
+namespace closed_loop {
+
+using namespace std::chrono_literals;
+namespace SS = cell_msgs::msg::dds_::ServoStatus_Constants;
+namespace SC = cell_msgs::msg::dds_::SimControl_Constants;
+
+
+inline const std::string kBin = std::string(CELL_BINARY_DIR) + "/bin/";
+inline const std::string kSrc = std::string(CELL_SOURCE_DIR);
+inline const std::string kPattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt";
+
+inline int unique_domain(int salt) { return 1 + static_cast<int>((getpid() * 7 + salt * 13) % 200); }
+
+inline std::string tmp_dir(const std::string& name) {
+  const auto d = std::filesystem::temp_directory_path() / ("dds_loop_" + std::to_string(getpid()) + "_" + name);
+  std::filesystem::create_directories(d);
+  return d.string();
+}
+
+// What the test hears on the cell's topics.
+struct Watcher {
+  explicit Watcher(int domain) {
+    cell_dds::ParticipantOptions o;
+    o.domain_id = domain;
+    o.name = "test_watcher";
+    participant = cell_dds::make_participant(o);
+    using cell_dds::Stream;
+    pose = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
+        *participant, cell_dds::kCameraPoseTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](geometry_msgs::msg::dds_::PoseStamped_&& p) {
+          std::lock_guard<std::mutex> l(m);
+          last_pose = p;
+          ++poses;
+          last_pose_time = std::chrono::steady_clock::now();
+        });
+    status = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
+        *participant, cell_dds::kStatusTopic, cell_dds::reader_qos(Stream::kLatched),
+        [this](cell_msgs::msg::dds_::ServoStatus_&& s) {
+          std::lock_guard<std::mutex> l(m);
+          last_status = s;
+          if (s.state() == SS::CONVERGED && !converged) converged_at_iteration = s.iteration();
+          if (s.state() == SS::CONVERGED) converged = true;
+          if (s.state() == SS::LOST) lost = true;
+        });
+    twist = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
+        *participant, cell_dds::kTwistTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](geometry_msgs::msg::dds_::TwistStamped_&& t) {
+          std::lock_guard<std::mutex> l(m);
+          last_twist = t;
+          ++twists;
+        });
+  }
+  Eigen::Isometry3d pose_now() {
+    std::lock_guard<std::mutex> l(m);
+    return pose_now_unlocked();
+  }
+  // for predicates of wait_for, which hold the lock
+  Eigen::Isometry3d pose_now_unlocked() const {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    if (!last_pose) return T;
+    const auto& p = last_pose->pose();
+    T.translation() = Eigen::Vector3d(p.position().x(), p.position().y(), p.position().z());
+    T.linear() = Eigen::Quaterniond(p.orientation().w(), p.orientation().x(), p.orientation().y(), p.orientation().z())
+                     .toRotationMatrix();
+    return T;
+  }
+  long pose_count() {
+    std::lock_guard<std::mutex> l(m);
+    return poses;
+  }
+  template <typename Pred>
+  bool wait_for(Pred pred, std::chrono::milliseconds timeout) {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < until) {
+      {
+        std::lock_guard<std::mutex> l(m);
+        if (pred()) return true;
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    std::lock_guard<std::mutex> l(m);
+    return pred();
+  }
+
+  std::mutex m;
+  std::optional<geometry_msgs::msg::dds_::PoseStamped_> last_pose;
+  std::optional<cell_msgs::msg::dds_::ServoStatus_> last_status;
+  std::optional<geometry_msgs::msg::dds_::TwistStamped_> last_twist;
+  std::chrono::steady_clock::time_point last_pose_time;
+  long poses = 0, twists = 0;
+  bool converged = false, lost = false;
+  long converged_at_iteration = -1;  // the iteration of the first CONVERGED heard
+  cell_dds::ParticipantPtr participant;
+  std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose;
+  std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status;
+  std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist;
+};
+
+inline std::vector<std::string> servo_args(const std::string& z_hat, const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> a{kBin + "servo", "run", "--pattern", kPattern, "--z-hat", z_hat};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+}  // namespace closed_loop

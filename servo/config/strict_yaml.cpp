@@ -52,7 +52,8 @@ void check_tree(const std::filesystem::path& file, const YAML::Node& root) {
     if (++visited > kMaxYamlNodes)
       throw ConfigError(file.string() + ": more than " + std::to_string(kMaxYamlNodes) +
                         " YAML nodes (aliases expanding without bound?)");
-    if (it.depth > 64) throw ConfigError(file.string() + ": " + it.path + ": nested more than 64 levels deep");
+    if (it.depth > 64)
+      throw ConfigError(file.string() + ": " + printable(it.path, 60) + ": nested more than 64 levels deep");
     const auto child = [&](const std::string& key) { return it.path.empty() ? key : it.path + "." + key; };
     if (it.node.IsMap()) {
       std::set<std::string> seen;

@@ -192,10 +192,23 @@ int main(int argc, char** argv) {
     }
     if (*run) {
       svc.pattern = pattern_file;
+      // flags are untrusted input like any file: NaN and absurd values are refused here
+      const auto within = [](const char* flag, double v, double lo, double hi) {
+        if (!(v >= lo && v <= hi))
+          throw std::invalid_argument(std::string(flag) + " must be in [" + std::to_string(lo) + ", " +
+                                      std::to_string(hi) + "], got " + std::to_string(v));
+      };
+      within("--lost-ms", svc.lost_ms, 1, 60000);
       if (!config_file.empty()) servo::load_servo_config(config_file, svc.config);
       if (!model.empty()) svc.config.law.model = control::parse_interaction_model(model);
-      if (z_hat > 0) svc.config.law.z_hat_m = z_hat;
-      if (gain > 0) svc.config.law.gain = {gain, gain, 0};
+      if (z_hat != 0) {
+        within("--z-hat", z_hat, 1e-3, 100);
+        svc.config.law.z_hat_m = z_hat;
+      }
+      if (gain != 0) {
+        within("--gain", gain, 1e-6, 100);
+        svc.config.law.gain = {gain, gain, 0};
+      }
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);

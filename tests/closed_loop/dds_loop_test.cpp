@@ -248,6 +248,13 @@ TEST(DdsLoop, ServoRejectsBadImagesWithAReasonAndExitsCleanly) {
   EXPECT_TRUE(rejected_with(640, 480, "mono8", 640 * 480 * 3, "encoding 'mono8'"));
   EXPECT_TRUE(rejected_with(320, 240, "rgb8", 320 * 240 * 3, "camera_info says 640 x 480"));
   EXPECT_TRUE(rejected_with(640, 480, "rgb8", 1000, "1000 bytes"));
+  // issue 9, item 1: camera_info and image with width 1431655766 (x 3 wraps to 2 in 32 bits)
+  // and 2 bytes of data: refused, the servo stays up and answers with a zero twist
+  ci.width(1431655766);
+  ci.height(1);
+  info.write(ci);
+  EXPECT_TRUE(rejected_with(1431655766, 1, "rgb8", 2, "beyond the limit"));
+  EXPECT_TRUE(servo.running());
   {
     std::lock_guard<std::mutex> l(w.m);
     ASSERT_TRUE(w.last_twist.has_value());

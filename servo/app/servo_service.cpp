@@ -197,7 +197,7 @@ class ServoService {
                      img.data().data(), img.data().size()};
       const ServoReply r = machine_->on_image(view, now());
       if (r.taught && !o_.reference.empty()) save_reference(o_.reference, machine_->pipeline().reference());
-      publish(r, true);
+      if (r.answer) publish(r, true);
       lock.lock();
     }
     lock.unlock();

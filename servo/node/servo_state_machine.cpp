@@ -181,6 +181,11 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
   decoded_ = static_cast<std::uint32_t>(spots.size());
   const SimFrameStatus* sim = sim_status_for(img.stamp);
   const std::optional<Eigen::Isometry3d> pose = pose_for(img.stamp);
+  if (sim_status_seen_ && !sim) {
+    ServoReply r = reply(img.stamp, "no simulator status for this frame: not answered");
+    r.answer = false;
+    return r;
+  }
   const auto with_spots = [&](ServoReply r) {
     r.spots = spots;
     r.detected = detected;

@@ -70,6 +70,9 @@ struct ServoReply {
   std::optional<std::vector<ImageSpot>> spots;  // when the image was decoded
   int detected = 0;
   bool taught = false;                          // this image taught s*
+  // false: publish nothing for this image. Its simulator status never came, so what the frame
+  // is (teach frame? applied?) is unknown; in lockstep the simulator sends it again.
+  bool answer = true;
 };
 
 struct ServoTiming {

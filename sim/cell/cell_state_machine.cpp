@@ -411,7 +411,10 @@ CellOutput CellStateMachine::poll(double now_s) {
 
 double CellStateMachine::next_deadline(double now_s) const {
   if (p_.timing == Timing::kLockstep) {
-    if (awaited_) return std::min(awaited_->sent_at_s + p_.republish_s, awaited_->first_sent_at_s + p_.teach_timeout_s);
+    if (awaited_) {
+      const double republish = awaited_->sent_at_s + p_.republish_s;
+      return awaited_->frame.teach ? std::min(republish, awaited_->first_sent_at_s + p_.teach_timeout_s) : republish;
+    }
     return now_s + 0.05;
   }
   const bool moving = (running_ || steps_ > 0) && !current_.isZero(0);

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -56,6 +57,22 @@ std::string read_all(const std::filesystem::path& path) {
   return data;
 }
 
+// Text formats hold printable ASCII, spaces, tabs and line ends only: assimp splits on fewer
+// whitespace characters than C++ streams do (a form feed inside a line made it abort).
+void check_text(const std::filesystem::path& p, const std::string& data, std::size_t from, std::size_t to) {
+  std::size_t line = 1;
+  for (std::size_t i = 0; i < std::min(to, data.size()); ++i) {
+    const auto b = static_cast<unsigned char>(data[i]);
+    if (b == '\n') ++line;
+    if (i < from) continue;
+    if ((b < 0x20 && b != '\t' && b != '\r' && b != '\n') || b >= 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", b);
+      fail(p, "line " + std::to_string(line) + ": byte " + hex + " in a text mesh file");
+    }
+  }
+}
+
 void add_triangles(const std::filesystem::path& p, MeshFileCounts& c, std::size_t corners) {
   c.triangles += corners - 2;
   if (c.triangles > kMaxMeshTriangles)
@@ -64,6 +81,7 @@ void add_triangles(const std::filesystem::path& p, MeshFileCounts& c, std::size_
 
 // ---------------------------------------------------------------- OBJ
 MeshFileCounts check_obj(const std::filesystem::path& p, const std::string& data) {
+  check_text(p, data, 0, data.size());
   // first pass: how many of each kind of vertex the indices may refer to
   std::size_t nv = 0, nt = 0, nn = 0;
   {
@@ -167,6 +185,7 @@ MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data
   }
   if (end_header == std::string::npos || end_header > 64 * 1024)
     fail(p, "PLY header has no end_header line in its first 64 kB (truncated or corrupt file)");
+  check_text(p, data, 0, body);
   std::istringstream in(data.substr(0, end_header));
   std::string line, format;
   std::vector<PlyElement> elements;
@@ -223,6 +242,7 @@ MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data
     if (e.name == "vertex") c.vertices = e.count;
 
   if (format == "ascii") {
+    check_text(p, data, body, data.size());
     // one element per line, exactly its values: assimp reads ASCII PLY line by line and
     // asserts (aborting the process) on an element split over two lines
     std::istringstream lines(data.substr(body));
@@ -332,6 +352,7 @@ MeshFileCounts check_stl(const std::filesystem::path& p, const std::string& data
     c.triangles = n;
     c.vertices = 3ull * n;
   } else {
+    check_text(p, data, 0, data.size());
     std::istringstream in(data);
     std::string tok;
     std::size_t vertices = 0;

@@ -114,7 +114,13 @@ TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {
   // a new servo with the saved reference picks the run up where it stopped
   ASSERT_TRUE(std::filesystem::exists(reference)) << "no reference saved at teach time";
   Process again(servo_args("0.9", {"--reference", reference, "--autostart"}), domain, dir + "/servo2.log");
-  ASSERT_EQ(sim.wait_exit(120s), 0) << "the run did not finish after the restart; see " << dir;
+  ASSERT_EQ(sim.wait_exit(120s), 0) << "the run did not finish after the restart; see " << dir << "; last status: " << [&] {
+    std::lock_guard<std::mutex> l(w.m);
+    return w.last_status ? std::to_string(w.last_status->state()) + " '" + w.last_status->reason() + "' stamp " +
+                               std::to_string(w.last_status->header().stamp().nanosec()) + ", poses " +
+                               std::to_string(w.poses) + ", twists " + std::to_string(w.twists)
+                         : std::string("none");
+  }();
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
   expect_converged_pose("plane", w);
 }

@@ -108,6 +108,20 @@ TEST_F(Frames, ConvergenceCountsOnlyOnFramesWhoseTwistIsApplied) {
   EXPECT_EQ(step.iteration, 1u);
 }
 
+// once a simulator sends statuses, a frame whose status never came is not answered (it may be
+// the teach frame); in lockstep the simulator sends it again with its status
+TEST_F(Frames, FrameWithoutItsSimStatusIsNotAnswered) {
+  auto m = make();
+  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_sim_status({at(0), false, false});
+  EXPECT_TRUE(m->on_image(view(desired, at(0)), 0).answer);
+  const ServoReply r = m->on_image(view(desired, at(1)), 0.04);
+  EXPECT_FALSE(r.answer);
+  EXPECT_FALSE(r.taught);
+  m->on_sim_status({at(1), false, true});
+  EXPECT_TRUE(m->on_image(view(desired, at(1)), 1.04).taught);
+}
+
 // item 9: START more than lost_ms after TEACH was undone by the LOST recovery
 TEST_F(Frames, LostDoesNotUndoAStartThatCameMeanwhile) {
   auto m = make();

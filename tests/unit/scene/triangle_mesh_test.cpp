@@ -60,10 +60,15 @@ TEST(Meshes, MalformedFilesAreRefusedBeforeImport) {
   expect_refused("_endhdr.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                  "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_headernan\n0 0 0\n1 0 0\n"
                  "0 1 0\n3 0 1 2\n", "no end_header line");
+  // found by the fuzzer: a form feed inside an ASCII PLY line made assimp abort
+  expect_refused("_ff.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0\f 0\n"
+                 "0 1 0\n3 0 1 2\n", "byte \\x0c");
   expect_refused("_bomb.ply", binary_ply_header(2000000000, 1), "limit");
   expect_refused("_bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "refers to no vertex");
   expect_refused("_nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "not a finite number");
-  expect_refused("_odd.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nxyz\xff 1\nf 1 2 3\n", "unknown OBJ statement");
+  expect_refused("_odd.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nxyz 1\nf 1 2 3\n", "unknown OBJ statement");
+  expect_refused("_bin.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nxyz\xff 1\nf 1 2 3\n", "line 4: byte \\xff");
   std::string stl(80, ' ');
   const std::uint32_t n = 5;
   stl.append(reinterpret_cast<const char*>(&n), 4);

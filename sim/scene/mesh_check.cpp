@@ -33,7 +33,8 @@ std::string shown(const std::string& s) {
 }
 
 bool parse_double(const std::string& tok, double& v) {
-  if (tok.empty() || tok.size() > 64) return false;
+  // plain decimal only: strtod also reads hex floats and "infinity", which assimp does not
+  if (tok.empty() || tok.size() > 64 || tok.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
   char* end = nullptr;
   v = std::strtod(tok.c_str(), &end);
   return end == tok.c_str() + tok.size() && std::isfinite(v);
@@ -65,7 +66,8 @@ void check_text(const std::filesystem::path& p, const std::string& data, std::si
     const auto b = static_cast<unsigned char>(data[i]);
     if (b == '\n') ++line;
     if (i < from) continue;
-    if ((b < 0x20 && b != '\t' && b != '\r' && b != '\n') || b >= 0x7f) {
+    const bool line_end = b == '\n' || (b == '\r' && i + 1 < data.size() && data[i + 1] == '\n');
+    if ((b < 0x20 && b != '\t' && !line_end) || b >= 0x7f) {
       char hex[8];
       std::snprintf(hex, sizeof hex, "\\x%02x", b);
       fail(p, "line " + std::to_string(line) + ": byte " + hex + " in a text mesh file");

@@ -64,6 +64,9 @@ TEST(Meshes, MalformedFilesAreRefusedBeforeImport) {
   expect_refused("_ff.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                  "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0\f 0\n"
                  "0 1 0\n3 0 1 2\n", "byte \\x0c");
+  expect_refused("_cr.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 \r0\n1 0 0\n"
+                 "0 1 0\n3 0 1 2\n", "byte \\x0d");
   expect_refused("_bomb.ply", binary_ply_header(2000000000, 1), "limit");
   expect_refused("_bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "refers to no vertex");
   expect_refused("_nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "not a finite number");

@@ -17,6 +17,7 @@
 #include "dds/endpoint.hpp"
 #include "dds/topics.hpp"
 #include "sensor_msgsPubSubTypes.h"
+#include "servo/node/servo_state_machine.hpp"
 
 namespace servo {
 namespace {
@@ -24,8 +25,8 @@ namespace {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
-using Stamp = std::pair<int32_t, uint32_t>;
-Stamp key(const builtin_interfaces::msg::dds_::Time_& t) { return {t.sec(), t.nanosec()}; }
+using StampKey = std::pair<int32_t, uint32_t>;
+StampKey key(const builtin_interfaces::msg::dds_::Time_& t) { return {t.sec(), t.nanosec()}; }
 
 }  // namespace
 
@@ -39,7 +40,7 @@ int run_viewer(const ViewOptions& o) {
   std::mutex m;
   std::condition_variable cv;
   std::optional<sensor_msgs::msg::dds_::Image_> image;
-  std::map<Stamp, cell_msgs::msg::dds_::DecodedSpots_> spots;  // by stamp, a few kept
+  std::map<StampKey, cell_msgs::msg::dds_::DecodedSpots_> spots;  // by stamp, a few kept
   cell_dds::ParticipantOptions po;
   po.domain_id = o.domain_id;
   po.name = "servo_view";
@@ -61,7 +62,7 @@ int run_viewer(const ViewOptions& o) {
   std::printf("servo view: ready (%s, domain %d)\n", window ? "window" : o.output.c_str(), o.domain_id);
   std::fflush(stdout);
 
-  long shown = 0, seen = 0;
+  long shown = 0, seen = 0, rejected = 0;
   std::unique_lock<std::mutex> lock(m);
   while (!g_stop && (o.frames == 0 || shown < o.frames)) {
     // an image and its decoded spots (the servo answers each image), or the image alone after 100 ms
@@ -76,13 +77,24 @@ int run_viewer(const ViewOptions& o) {
     std::optional<cell_msgs::msg::dds_::DecodedSpots_> ids;
     if (auto it = spots.find(stamp); it != spots.end()) ids = it->second;
     lock.unlock();
-    if (img.encoding() == "rgb8" && img.data().size() == static_cast<std::size_t>(img.step()) * img.height() &&
-        ++seen % o.every == 0) {
+    // the same checks as the servo's (64-bit sizes, limits); camera_info is not needed to draw
+    const ImageView view{{img.header().stamp().sec(), img.header().stamp().nanosec()}, img.encoding(), img.width(),
+                         img.height(), img.step(), img.is_bigendian(), img.data().data(), img.data().size()};
+    const std::string bad = ServoStateMachine::reject_reason(
+        view, CameraInfoMsg{img.width(), img.height(), {}, {}});
+    if (!bad.empty()) {
+      if (++rejected <= 5) std::fprintf(stderr, "servo view: %s: %s\n", cell_dds::kImageTopic, bad.c_str());
+      lock.lock();
+      continue;
+    }
+    if (++seen % o.every == 0) {
       cv::Mat rgb(static_cast<int>(img.height()), static_cast<int>(img.width()), CV_8UC3, img.data().data(), img.step());
       cv::Mat bgr;
       cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
       if (ids)
         for (const auto& s : ids->spots()) {
+          // untrusted positions: only those on the image are drawn (a cast of 1e300 is undefined)
+          if (!(s.u() >= 0 && s.u() < bgr.cols && s.v() >= 0 && s.v() < bgr.rows)) continue;
           cv::circle(bgr, {static_cast<int>(s.u() + 0.5), static_cast<int>(s.v() + 0.5)}, 5, cv::Scalar(255, 255, 255), 1,
                      cv::LINE_AA);
           cv::putText(bgr, std::to_string(s.row()) + "," + std::to_string(s.col()),

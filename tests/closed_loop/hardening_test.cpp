@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "closed_loop/watcher.hpp"
+#include "sensor_msgsPubSubTypes.h"
 #include "sim/scenario/scenario.hpp"
 
 namespace {
@@ -162,6 +163,47 @@ TEST(Hardening, RealtimeRunConvergesOnlyAtTheGoalWithAFullTrace) {
   while (std::getline(trace, line))
     if (!line.empty() && line[0] != '#' && line[0] != 't') ++rows;
   EXPECT_GT(rows, 50);
+}
+
+// the viewer reads the same untrusted images: an overflowing header and spots at 1e300 are
+// skipped, the next good image is drawn
+TEST(Hardening, ViewerSurvivesOverflowingImagesAndAbsurdSpots) {
+  const int domain = unique_domain(25);
+  const std::string dir = tmp_dir("viewer");
+  Watcher w(domain);
+  cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType> image(*w.participant, cell_dds::kImageTopic,
+                                                                   cell_dds::writer_qos(cell_dds::Stream::kFrame));
+  cell_dds::Writer<cell_msgs::msg::dds_::DecodedSpots_PubSubType> spots(*w.participant, cell_dds::kSpotsTopic,
+                                                                        cell_dds::writer_qos(cell_dds::Stream::kFrame));
+  Process view({kBin + "servo", "view", "-o", dir + "/frames", "--frames", "1"}, domain, dir + "/view.log");
+  ASSERT_TRUE(w.wait_for([&] { return image.matched() > 0 && spots.matched() > 0; }, 60s));
+  sensor_msgs::msg::dds_::Image_ bad;
+  bad.encoding("rgb8");
+  bad.width(1431655766);
+  bad.height(1);
+  bad.step(1431655766u * 3u);  // wraps to 2
+  bad.data().assign(2, 0);
+  image.write(bad);
+  std::this_thread::sleep_for(300ms);
+  EXPECT_TRUE(view.running());
+  sensor_msgs::msg::dds_::Image_ good;
+  good.header().stamp(cell_dds::stamp_of(1, 0.04));
+  good.encoding("rgb8");
+  good.width(64);
+  good.height(48);
+  good.step(64 * 3);
+  good.data().assign(64 * 48 * 3, 90);
+  cell_msgs::msg::dds_::DecodedSpots_ ids;
+  ids.header().stamp(good.header().stamp());
+  cell_msgs::msg::dds_::Spot_ far;
+  far.u(1e300);
+  far.v(-1e300);
+  ids.spots().push_back(far);
+  spots.write(ids);
+  image.write(good);
+  EXPECT_EQ(view.wait_exit(30s), 0) << read_file(dir + "/view.log");
+  EXPECT_TRUE(std::filesystem::exists(dir + "/frames/frame_000000.png"));
+  EXPECT_NE(read_file(dir + "/view.log").find("beyond the limit"), std::string::npos);
 }
 
 }  // namespace

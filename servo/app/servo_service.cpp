@@ -1,6 +1,5 @@
 #include "servo/app/servo_service.hpp"
 
-
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -12,7 +11,6 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <set>
 
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"

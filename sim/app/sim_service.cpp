@@ -11,7 +11,6 @@
 #include <iomanip>
 #include <mutex>
 #include <optional>
-#include <thread>
 
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"

@@ -1,10 +1,10 @@
 // Seeded mutation fuzzing of every reader of untrusted input: the decoder, the pattern reader,
-// the scenario reader, the mesh check, and each DDS message handler (the two state machines
-// the services feed). A refusal (an exception, a rejected message) is the expected outcome;
+// the scenario reader, the mesh check, the generated CDR deserialisers of every topic type,
+// and each DDS message handler (the two state machines the services feed). A refusal (an exception, a rejected message) is the expected outcome;
 // a crash, a sanitizer report or a hang is a defect. ctest runs each target for a bounded
 // number of inputs; bin/fuzz runs them for long under AddressSanitizer and UBSan.
 //
-//   fuzz_targets --target decoder|pattern|scenario|mesh|cell|servo --iterations N [--seconds S] [--seed K]
+//   fuzz_targets --target decoder|pattern|scenario|mesh|cell|servo|cdr --iterations N [--seconds S] [--seed K]
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -14,6 +14,9 @@
 #include <string>
 #include <unistd.h>
 
+#include "cell_msgsPubSubTypes.h"
+#include "geometry_msgsPubSubTypes.h"
+#include "sensor_msgsPubSubTypes.h"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/cell/cell_state_machine.hpp"
@@ -261,6 +264,111 @@ struct CellTarget : Target {
   }
 };
 
+// The bytes a rogue participant puts on the wire: every topic type's CDR, mutated, through the
+// generated deserialisers the readers use (lengths beyond the payload must be refused, not
+// allocated), then the checks the services apply to what decodes.
+struct CdrTarget : Target {
+  template <typename PubSubType>
+  struct Type {
+    typename PubSubType::type sample;
+    std::string bytes;
+  };
+  template <typename PubSubType>
+  static std::string serialized(typename PubSubType::type& sample) {
+    PubSubType t;
+    eprosima::fastrtps::rtps::SerializedPayload_t p(t.getSerializedSizeProvider(&sample)());
+    t.serialize(&sample, &p);
+    return std::string(reinterpret_cast<const char*>(p.data), p.length);
+  }
+  template <typename PubSubType>
+  static bool decode(const std::string& bytes, typename PubSubType::type& out) {
+    PubSubType t;
+    eprosima::fastrtps::rtps::SerializedPayload_t p(static_cast<std::uint32_t>(bytes.size()) + 4);
+    std::memcpy(p.data, bytes.data(), bytes.size());
+    p.length = static_cast<std::uint32_t>(bytes.size());
+    try {
+      return t.deserialize(&p, &out);
+    } catch (const std::exception&) {
+      return false;
+    }
+  }
+  std::vector<std::string> seeds;
+  CdrTarget() {
+    sensor_msgs::msg::dds_::Image_ img;
+    img.encoding("rgb8");
+    img.width(4);
+    img.height(2);
+    img.step(12);
+    img.data().assign(24, 7);
+    seeds.push_back(serialized<sensor_msgs::msg::dds_::Image_PubSubType>(img));
+    sensor_msgs::msg::dds_::CameraInfo_ ci;
+    ci.width(640);
+    ci.height(480);
+    ci.d({0.1, 0.2, 0, 0, 0});
+    seeds.push_back(serialized<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(ci));
+    geometry_msgs::msg::dds_::TwistStamped_ tw;
+    tw.header().frame_id("camera_optical");
+    seeds.push_back(serialized<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(tw));
+    cell_msgs::msg::dds_::SimControl_ c;
+    c.argument("initial");
+    seeds.push_back(serialized<cell_msgs::msg::dds_::SimControl_PubSubType>(c));
+    cell_msgs::msg::dds_::DecodedSpots_ ds;
+    ds.spots().resize(3);
+    seeds.push_back(serialized<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(ds));
+    cell_msgs::msg::dds_::SpotTruthArray_ st;
+    st.spots().resize(3);
+    seeds.push_back(serialized<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>(st));
+    cell_msgs::msg::dds_::ServoStatus_ ss;
+    ss.reason("taught 388 features");
+    seeds.push_back(serialized<cell_msgs::msg::dds_::ServoStatus_PubSubType>(ss));
+  }
+  void one(std::mt19937_64& rng) override {
+    const std::size_t which = rng() % seeds.size();
+    const std::string bytes = mutated(seeds[which], rng);
+    switch (which) {
+      case 0: {
+        sensor_msgs::msg::dds_::Image_ m;
+        if (decode<sensor_msgs::msg::dds_::Image_PubSubType>(bytes, m))
+          servo::ServoStateMachine::reject_reason({{m.header().stamp().sec(), m.header().stamp().nanosec()}, m.encoding(),
+                                                   m.width(), m.height(), m.step(), m.is_bigendian(), m.data().data(),
+                                                   m.data().size()},
+                                                  servo::CameraInfoMsg{m.width(), m.height(), {}, {}});
+        break;
+      }
+      case 1: {
+        sensor_msgs::msg::dds_::CameraInfo_ m;
+        if (decode<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(bytes, m))
+          servo::ServoStateMachine::camera_info_problem({m.width(), m.height(), {m.k().begin(), m.k().end()}, m.d()});
+        break;
+      }
+      case 2: {
+        geometry_msgs::msg::dds_::TwistStamped_ m;
+        decode<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(bytes, m);
+        break;
+      }
+      case 3: {
+        cell_msgs::msg::dds_::SimControl_ m;
+        decode<cell_msgs::msg::dds_::SimControl_PubSubType>(bytes, m);
+        break;
+      }
+      case 4: {
+        cell_msgs::msg::dds_::DecodedSpots_ m;
+        decode<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(bytes, m);
+        break;
+      }
+      case 5: {
+        cell_msgs::msg::dds_::SpotTruthArray_ m;
+        decode<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>(bytes, m);
+        break;
+      }
+      default: {
+        cell_msgs::msg::dds_::ServoStatus_ m;
+        decode<cell_msgs::msg::dds_::ServoStatus_PubSubType>(bytes, m);
+      }
+    }
+  }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -286,8 +394,9 @@ int main(int argc, char** argv) {
   else if (target == "decoder") t = std::make_unique<DecoderTarget>();
   else if (target == "servo") t = std::make_unique<ServoTarget>();
   else if (target == "cell") t = std::make_unique<CellTarget>();
+  else if (target == "cdr") t = std::make_unique<CdrTarget>();
   else {
-    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|cell|servo\n");
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|cell|servo|cdr\n");
     return 2;
   }
   std::mt19937_64 rng(seed);

@@ -86,10 +86,9 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
     if (!subscriber_) throw std::runtime_error("cannot create a DDS subscriber for " + topic);
     eprosima::fastdds::dds::DataReaderQos q = qos;
     q.user_data().data_vec(type_hash_user_data(PubSubType().getName()));
-    // a flood of samples from a rogue writer is bounded by the reader's own resource limits
-    q.resource_limits().max_samples = std::max(q.history().depth, 1);
-    q.resource_limits().max_instances = 1;
-    q.resource_limits().max_samples_per_instance = std::max(q.history().depth, 1);
+    // no resource_limits below the history: KEEP_LAST already bounds what a flood can queue,
+    // and a reliable reader whose max_samples equals its depth stalls (it refused samples and
+    // a writer's KEEP_LAST 1 history no longer had them to repair: statuses stopped arriving)
     reader_ = subscriber_->create_datareader(topic_for<PubSubType>(p, topic), q, this);
     if (!reader_) throw std::runtime_error("cannot create a DDS reader for " + topic);
   }

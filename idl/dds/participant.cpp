@@ -1,6 +1,16 @@
 #include "dds/participant.hpp"
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <set>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
@@ -27,6 +37,86 @@ void ParticipantDeleter::operator()(DomainParticipant* p) const {
   DomainParticipantFactory::get_instance()->delete_participant(p);
 }
 
+namespace {
+
+// Fast DDS 2.9's shared-memory transport and processes that die by SIGKILL: the dead
+// listener's port (/dev/shm/fastrtps_port<N>) stays mapped by the live senders that cached it,
+// and a new participant that takes the same participant id (the lowest free one, so exactly
+// the dead one's) opens that port and receives nothing, ever (eProsima/Fast-DDS#2811, #4728;
+// seen as a restarted servo that never answered). So the participant id is chosen here: the
+// lowest whose UDP ports are free and whose shared-memory ports do not exist. Port files no
+// process maps any more are removed first, so ids come back once nobody can hold them.
+constexpr const char* kShmDir = "/dev/shm/";
+constexpr int kMaxParticipantId = 120;
+
+int unicast_port(int domain, int id, int offset) { return 7400 + 250 * domain + offset + 2 * id; }
+
+bool udp_port_free(int port) {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  if (fd < 0) return false;
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  const bool ok = bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+  close(fd);
+  return ok;
+}
+
+bool shm_port_exists(int port) {
+  std::error_code ec;
+  return std::filesystem::exists(kShmDir + std::string("fastrtps_port") + std::to_string(port), ec);
+}
+
+// Once per process, before its first participant: port files that no process maps and whose
+// listener lock nobody holds belong to processes that are gone.
+void remove_orphaned_shm_ports() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    std::set<std::string> mapped;
+    std::error_code ec;
+    for (const auto& proc : std::filesystem::directory_iterator("/proc", ec)) {
+      std::ifstream maps(proc.path() / "maps");
+      std::string line;
+      while (std::getline(maps, line)) {
+        const auto at = line.find("/dev/shm/fastrtps_port");
+        if (at != std::string::npos) mapped.insert(line.substr(at + 9));
+      }
+    }
+    for (const auto& f : std::filesystem::directory_iterator(kShmDir, ec)) {
+      const std::string name = f.path().filename().string();
+      if (name.rfind("fastrtps_port", 0) != 0 || name.find('_', 13) != std::string::npos || mapped.count(name)) continue;
+      // the listener holds a lock on <port>_el while it lives
+      const std::string el = std::string(kShmDir) + name + "_el";
+      const int fd = open(el.c_str(), O_RDWR);
+      if (fd >= 0) {
+        struct flock l {};
+        l.l_type = F_WRLCK;
+        l.l_whence = SEEK_SET;
+        const bool held = fcntl(fd, F_GETLK, &l) == 0 && l.l_type != F_UNLCK;
+        close(fd);
+        if (held) continue;
+      }
+      std::filesystem::remove(f.path(), ec);
+      std::filesystem::remove(el, ec);
+      std::filesystem::remove(std::string(kShmDir) + "sem." + name + "_mutex", ec);
+    }
+  });
+}
+
+// The lowest participant id at or after `from` that is free on UDP and in shared memory.
+int free_participant_id(int domain, int from) {
+  for (int id = from; id < kMaxParticipantId; ++id) {
+    const int meta = unicast_port(domain, id, 10), user = unicast_port(domain, id, 11);
+    if (user > 65535) break;
+    if (shm_port_exists(meta) || shm_port_exists(user)) continue;
+    if (udp_port_free(meta) && udp_port_free(user)) return id;
+  }
+  return -1;
+}
+
+}  // namespace
+
 ParticipantPtr make_participant(const ParticipantOptions& o) {
   if (!o.intraprocess) {
     // library-wide: must be set before the first participant is created
@@ -40,7 +130,9 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     qos.transport().use_builtin_transports = false;
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
     udp->interfaceWhiteList.emplace_back("127.0.0.1");
-    udp->maxInitialPeersRange = 32;  // up to 32 participants per host answer the initial peer
+    // the initial peer is tried at this many participant ids: ids skipped for dead processes'
+    // ports (below) must stay within reach
+    udp->maxInitialPeersRange = 64;
     qos.transport().user_transports.push_back(udp);
     // large frames between processes of one host go through shared memory
     auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
@@ -51,7 +143,21 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
     qos.wire_protocol().builtin.initialPeersList.push_back(peer);
   }
-  DomainParticipant* p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
+  DomainParticipant* p = nullptr;
+  if (o.loopback_only) {
+    remove_orphaned_shm_ports();
+    // another process may take the same id between the check and the bind: try the next
+    for (int attempt = 0, id = 0; attempt < 5 && p == nullptr; ++attempt, ++id) {
+      id = free_participant_id(o.domain_id, id);
+      if (id < 0) break;
+      qos.wire_protocol().participant_id = id;
+      p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
+    }
+  }
+  if (p == nullptr) {
+    qos.wire_protocol().participant_id = -1;  // Fast DDS's own choice
+    p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
+  }
   if (p == nullptr)
     throw std::runtime_error("cannot create a DDS participant '" + o.name + "' on domain " + std::to_string(o.domain_id));
   return ParticipantPtr(p);

@@ -194,7 +194,10 @@ class SimService {
       std::unique_lock<std::mutex> lock(inbox_.m);
       const double deadline = std::max(now + 1e-4, std::min(machine_->next_deadline(now), now + 0.05));
       inbox_.cv.wait_until(lock, t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(deadline)),
-                           [this] { return g_stop.load() || !inbox_.twists.empty() || !inbox_.commands.empty(); });
+                           [this] {
+                             return g_stop.load() || !inbox_.twists.empty() || !inbox_.commands.empty() ||
+                                    !inbox_.statuses.empty();
+                           });
     }
     summary(seconds_since(t0));
     return 0;

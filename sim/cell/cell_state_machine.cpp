@@ -194,7 +194,10 @@ bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
     return false;
   }
   if (p_.timing == Timing::kLockstep) {
-    if (!answer_) answer_ = t.twist;
+    if (!answer_) {
+      answer_ = t.twist;
+      awaited_->answered_at_s = now_s;
+    }
   } else {
     current_ = t.twist;
     last_applied_frame_ = *k;
@@ -209,6 +212,7 @@ void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
   const std::optional<std::uint64_t> k = frame_of(s.stamp_sec, s.stamp_nanosec, why);
   if (!k) return;
   statuses_[*k] = s;
+  peer_sends_statuses_ = true;
   while (statuses_.size() > kMaxKeptStatuses) statuses_.erase(statuses_.begin());
   if (p_.exit_on_converged && s.state == kServoConverged) check_convergence(s);
 }
@@ -295,18 +299,29 @@ void CellStateMachine::drain_deferred(double now_s) {
   }
 }
 
+// The status and the twist travel on two topics and either may land first. A lockstep step
+// waits for both, so the trace and the convergence check see the same statuses whatever the
+// delivery order or the load: the two-process trace equals the in-process one. A twist-only
+// client (it never sent a status) is not kept waiting.
+bool CellStateMachine::answer_complete(double now_s) const {
+  if (!peer_sends_statuses_ || status_for(awaited_->frame.index)) return true;
+  return now_s - awaited_->answered_at_s.value_or(now_s) > kStatusGraceS;
+}
+
 void CellStateMachine::lockstep(double now_s) {
   drain_deferred(now_s);
   if (loading_) return;
   if (awaited_) {
     if (answer_) {
-      if (awaited_->frame.applies_twist) {
-        trace_pending_.emplace_back(awaited_->frame.index, row(awaited_->frame, *answer_, std::nullopt));
-        move(*answer_, scenario_.dt_s, nullptr);
-        ++counters_.applied;
+      if (answer_complete(now_s)) {
+        if (awaited_->frame.applies_twist) {
+          trace_pending_.emplace_back(awaited_->frame.index, row(awaited_->frame, *answer_, std::nullopt));
+          move(*answer_, scenario_.dt_s, nullptr);
+          ++counters_.applied;
+        }
+        abandon_awaited();
+        drain_deferred(now_s);  // the commands that waited for the teach frame
       }
-      abandon_awaited();
-      drain_deferred(now_s);  // the commands that waited for the teach frame
     } else if (awaited_->frame.teach && now_s - awaited_->first_sent_at_s > p_.teach_timeout_s) {
       log("cellsim: no answer to the teach frame within " + std::to_string(static_cast<int>(p_.teach_timeout_s)) +
           " s (is a servo running?): going on");
@@ -336,7 +351,7 @@ void CellStateMachine::lockstep(double now_s) {
       ++frame_;
       ++counters_.frames;
       out_.frames.push_back(f);
-      awaited_ = Awaited{f, now_s, now_s};
+      awaited_ = Awaited{f, now_s, now_s, std::nullopt};
     }
   }
   flush_trace(false);
@@ -411,6 +426,7 @@ CellOutput CellStateMachine::poll(double now_s) {
 
 double CellStateMachine::next_deadline(double now_s) const {
   if (p_.timing == Timing::kLockstep) {
+    if (awaited_ && answer_ && awaited_->answered_at_s) return *awaited_->answered_at_s + kStatusGraceS + 1e-6;
     if (awaited_) {
       const double republish = awaited_->sent_at_s + p_.republish_s;
       return awaited_->frame.teach ? std::min(republish, awaited_->first_sent_at_s + p_.teach_timeout_s) : republish;

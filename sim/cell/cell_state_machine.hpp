@@ -136,6 +136,7 @@ class CellStateMachine {
   // Limits on what is kept between polls.
   static constexpr std::size_t kMaxQueuedCommands = 16;
   static constexpr std::size_t kMaxKeptStatuses = 64;
+  static constexpr double kStatusGraceS = 0.5;  // lockstep: how long an answer waits for its status
   static constexpr std::uint64_t kMaxSteps = 1'000'000;
 
  private:
@@ -149,6 +150,7 @@ class CellStateMachine {
   void flush_trace(bool all);
   void check_convergence(const ServoReport& s);
   void drain_deferred(double now_s);
+  bool answer_complete(double now_s) const;
   void lockstep(double now_s);
   void realtime(double now_s);
   void log(std::string line) { out_.log.push_back(std::move(line)); }
@@ -171,6 +173,7 @@ class CellStateMachine {
   struct Awaited {
     FrameOrder frame;
     double sent_at_s = 0, first_sent_at_s = 0;
+    std::optional<double> answered_at_s;  // when its valid twist arrived
   };
   std::optional<Awaited> awaited_;
   std::optional<Vector6d> answer_;            // the valid twist for the awaited frame
@@ -186,6 +189,7 @@ class CellStateMachine {
   bool watchdog_tripped_ = false;
 
   std::map<std::uint64_t, ServoReport> statuses_;  // by frame, newest kept
+  bool peer_sends_statuses_ = false;               // lockstep: an answer waits for its status
   std::deque<std::pair<std::uint64_t, TraceRow>> trace_pending_;  // waiting for their status
   int converged_refusals_logged_ = 0;
 };

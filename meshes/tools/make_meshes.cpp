@@ -4,7 +4,11 @@
 //   elliptic_cylinder.obj  semi-axes 0.20 m (X) x 0.10 m (Y), height 0.60 m along Z, closed
 //   ham.obj                a leg of ham along Z (0.45 m): a broad, flattened butt end, a
 //                          curved axis and a narrow shank; closed, asymmetric
-// usage: make_meshes OUTPUT_DIR
+// and, with --robots, the link meshes of the shipped arms (sim/robots/<arm>/meshes/), each
+// link a union of closed cylinders between the joint centres in the link's URDF frame:
+//   ur5e/    base, shoulder, upper_arm, forearm, wrist_1, wrist_2, wrist_3, camera
+//   puma560/ base, link1 ... link6, camera
+// usage: make_meshes OUTPUT_DIR | make_meshes --robots ROBOTS_DIR
 #include <array>
 #include <algorithm>
 #include <cmath>
@@ -114,11 +118,95 @@ Mesh make_ham(double length, double bulb, double shank, int around, int levels) 
   return close_tube(rings, {0, 0, 0}, {0.06, 0, length});
 }
 
+// A closed cylinder of radius r from p to q, appended to m.
+void add_cylinder(Mesh& m, V3 p, V3 q, double r, int around = 24) {
+  const double dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
+  const double len = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const V3 w{dx / len, dy / len, dz / len};
+  // any unit vector across the axis, then the third by the cross product
+  const V3 a = std::abs(w.x) < 0.9 ? V3{1, 0, 0} : V3{0, 1, 0};
+  V3 u{w.y * a.z - w.z * a.y, w.z * a.x - w.x * a.z, w.x * a.y - w.y * a.x};
+  const double un = std::sqrt(u.x * u.x + u.y * u.y + u.z * u.z);
+  u = {u.x / un, u.y / un, u.z / un};
+  const V3 v{w.y * u.z - w.z * u.y, w.z * u.x - w.x * u.z, w.x * u.y - w.y * u.x};
+  std::vector<std::vector<V3>> rings(2);
+  for (int k = 0; k < 2; ++k) {
+    const V3 c = k ? q : p;
+    for (int i = 0; i < around; ++i) {
+      const double th = 2 * kPi * i / around, cs = r * std::cos(th), sn = r * std::sin(th);
+      rings[k].push_back({c.x + cs * u.x + sn * v.x, c.y + cs * u.y + sn * v.y, c.z + cs * u.z + sn * v.z});
+    }
+  }
+  const Mesh tube = close_tube(rings, p, q);
+  const int base = static_cast<int>(m.v.size());
+  m.v.insert(m.v.end(), tube.v.begin(), tube.v.end());
+  for (const auto& t : tube.f) m.f.push_back({t[0] + base, t[1] + base, t[2] + base});
+}
+
+struct Link {
+  const char* file;
+  std::vector<std::array<double, 7>> cylinders;  // x0 y0 z0 x1 y1 z1 radius, in the link frame
+};
+
+bool write_links(const std::filesystem::path& dir, const std::vector<Link>& links, const char* arm) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  for (const Link& l : links) {
+    Mesh m;
+    for (const auto& c : l.cylinders) add_cylinder(m, {c[0], c[1], c[2]}, {c[3], c[4], c[5]}, c[6]);
+    const std::string what = std::string(arm) + " link mesh " + l.file + " (link frame of the URDF)";
+    if (!write_obj(dir / l.file, m, what.c_str())) return false;
+  }
+  return true;
+}
+
+// UR5e-class: link frames of sim/robots/ur5e/ur5e.urdf (the DH frames: link i spans from
+// its origin to (a_i, 0, d_i)); the upper arm sits 0.135 m along its joint axis, as on
+// the real arm, so that it folds past the forearm.
+std::vector<Link> ur5e_links() {
+  return {
+      {"base.obj", {{0, 0, 0, 0, 0, 0.086, 0.075}}},
+      {"shoulder.obj", {{0, 0, 0.088, 0, 0, 0.2, 0.06}}},
+      {"upper_arm.obj",
+       {{0, 0, 0.02, 0, 0, 0.19, 0.062}, {-0.04, 0, 0.135, -0.385, 0, 0.135, 0.054}, {-0.425, 0, 0.06, -0.425, 0, 0.19, 0.055}}},
+      {"forearm.obj", {{0, 0, -0.055, 0, 0, 0.055, 0.048}, {-0.03, 0, 0.0, -0.36, 0, 0.0, 0.038}}},
+      {"wrist_1.obj", {{0, 0, -0.045, 0, 0, 0.105, 0.045}}},
+      {"wrist_2.obj", {{0, 0, -0.045, 0, 0, 0.07, 0.045}}},
+      {"wrist_3.obj", {{0, 0, -0.042, 0, 0, 0.0996, 0.04}}},
+      // the camera body behind its optical frame: in the camera_link frame (x forward)
+      {"camera.obj", {{-0.07, 0, 0, -0.005, 0, 0, 0.03}}},
+  };
+}
+
+// PUMA 560-class (standard DH, Corke's parameters): a different arm, same kind of file.
+std::vector<Link> puma_links() {
+  return {
+      {"base.obj", {{0, 0, 0, 0, 0, 0.55, 0.12}}},
+      {"link1.obj", {{0, 0, 0.56, 0, 0, 0.72, 0.1}}},
+      {"link2.obj", {{0, 0, -0.1, 0, 0, 0.1, 0.1}, {0.04, 0, 0, 0.40, 0, 0, 0.07}}},
+      {"link3.obj", {{0, 0, -0.06, 0, 0, 0.2, 0.07}}},
+      {"link4.obj", {{0, 0, 0.02, 0, 0, 0.38, 0.045}}},
+      {"link5.obj", {{0, 0, -0.035, 0, 0, 0.035, 0.035}}},
+      {"link6.obj", {{0, 0, -0.03, 0, 0, 0.056, 0.03}}},
+      {"camera.obj", {{-0.07, 0, 0, -0.005, 0, 0, 0.03}}},
+  };
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "--robots") {
+    const std::filesystem::path dir = argv[2];
+    if (!write_links(dir / "ur5e" / "meshes", ur5e_links(), "ur5e") ||
+        !write_links(dir / "puma560" / "meshes", puma_links(), "puma560")) {
+      std::fprintf(stderr, "make_meshes: cannot write into %s\n", dir.c_str());
+      return 1;
+    }
+    std::printf("wrote the ur5e and puma560 link meshes into %s\n", dir.c_str());
+    return 0;
+  }
   if (argc != 2) {
-    std::fprintf(stderr, "usage: make_meshes OUTPUT_DIR\n");
+    std::fprintf(stderr, "usage: make_meshes OUTPUT_DIR | make_meshes --robots ROBOTS_DIR\n");
     return 2;
   }
   const std::filesystem::path dir = argv[1];

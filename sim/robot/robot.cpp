@@ -6,6 +6,15 @@
 
 namespace sim {
 
+std::string limit_names(std::uint32_t limits) {
+  static const char* names[] = {"cartesian_speed",  "joint_velocity", "joint_position", "singularity_slowdown",
+                                "singularity_stop", "workspace",      "collision"};
+  std::string s;
+  for (int i = 0; i < 7; ++i)
+    if (limits & (1u << i)) s += (s.empty() ? "" : "|") + std::string(names[i]);
+  return s;
+}
+
 FreeFlyingCamera::FreeFlyingCamera(const Eigen::Isometry3d& world_T_camera, double max_linear_mps,
                                    double max_angular_radps)
     : world_T_camera_(world_T_camera), max_linear_mps_(max_linear_mps), max_angular_radps_(max_angular_radps) {
@@ -23,6 +32,21 @@ Vector6d FreeFlyingCamera::apply_twist(const Vector6d& twist_c, double dt_s) {
   // keep the rotation orthonormal over thousands of steps
   world_T_camera_.linear() = Eigen::Quaterniond(world_T_camera_.rotation()).normalized().toRotationMatrix();
   return applied;
+}
+
+MotionReport FreeFlyingCamera::move(const Vector6d& twist_c, double dt_s, const Workspace& workspace) {
+  MotionReport r;
+  FreeFlyingCamera trial = *this;
+  const Vector6d a = trial.apply_twist(twist_c, dt_s);
+  if (!workspace.contains(trial.world_T_camera().translation())) {
+    r.limits = kLimitWorkspace;
+    r.event = "a twist would take the camera out of the workspace: robot stopped";
+    return r;
+  }
+  *this = trial;
+  r.applied = a;
+  if (a != twist_c) r.limits = kLimitCartesianSpeed;
+  return r;
 }
 
 }  // namespace sim

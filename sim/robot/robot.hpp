@@ -1,22 +1,52 @@
 // What carries the camera. The controller commands a camera-frame twist; a robot turns it
-// into motion within its limits. First a free-flying camera; an arm later, behind the
-// same interface.
+// into motion within its limits: a free-flying camera (the paper's idealisation), or an
+// arm from URDF simulated by Bullet (sim/arm), behind the same interface.
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cstdint>
+#include <string>
+#include <vector>
 
 #include "sim/geometry/se3.hpp"
+#include "sim/scenario/scenario.hpp"
 
 namespace sim {
+
+// Why a motion was limited (bits; in rt/sim/status and the trace).
+enum RobotLimit : std::uint32_t {
+  kLimitCartesianSpeed = 1u << 0,       // the cell's linear or angular speed limit
+  kLimitJointVelocity = 1u << 1,        // a joint's velocity limit (all joints slowed together)
+  kLimitJointPosition = 1u << 2,        // a joint reached its position margin
+  kLimitSingularitySlowdown = 1u << 3,  // condition number between the two thresholds
+  kLimitSingularityStop = 1u << 4,      // condition number at the stop threshold
+  kLimitWorkspace = 1u << 5,            // the camera would leave the workspace
+  kLimitCollision = 1u << 6,            // a contact stopped the arm
+};
+// "joint_velocity|singularity_slowdown"; "" when none.
+std::string limit_names(std::uint32_t limits);
+
+// What one motion did.
+struct MotionReport {
+  Vector6d applied = Vector6d::Zero();  // the camera twist made (camera frame), averaged
+  std::uint32_t limits = 0;             // RobotLimit bits
+  std::string event;                    // non-empty when the robot stopped by itself: why
+};
 
 class Robot {
  public:
   virtual ~Robot() = default;
   virtual Eigen::Isometry3d world_T_camera() const = 0;
+  // Places the camera at the pose. Throws std::invalid_argument (one line) when the robot
+  // cannot be there (out of reach, in collision).
   virtual void reset(const Eigen::Isometry3d& world_T_camera) = 0;
-  // Moves for dt seconds under the twist (v, w) expressed in the camera frame. Returns the
-  // twist actually applied (after the robot's limits).
-  virtual Vector6d apply_twist(const Vector6d& twist_c, double dt_s) = 0;
+  // Moves for dt seconds under the twist (v, w) expressed in the camera frame, keeping the
+  // camera inside the workspace (the motion stops at its border).
+  virtual MotionReport move(const Vector6d& twist_c, double dt_s, const Workspace& workspace) = 0;
+  // joint state (empty for a robot without joints)
+  virtual std::vector<std::string> joint_names() const { return {}; }
+  virtual Eigen::VectorXd joint_positions() const { return {}; }
+  virtual Eigen::VectorXd joint_velocities() const { return {}; }
 };
 
 // A camera that moves exactly as commanded, each axis clamped to its velocity limit:
@@ -26,7 +56,9 @@ class FreeFlyingCamera final : public Robot {
   FreeFlyingCamera(const Eigen::Isometry3d& world_T_camera, double max_linear_mps, double max_angular_radps);
   Eigen::Isometry3d world_T_camera() const override { return world_T_camera_; }
   void reset(const Eigen::Isometry3d& world_T_camera) override { world_T_camera_ = world_T_camera; }
-  Vector6d apply_twist(const Vector6d& twist_c, double dt_s) override;
+  MotionReport move(const Vector6d& twist_c, double dt_s, const Workspace& workspace) override;
+  // the motion without a workspace; returns the twist applied
+  Vector6d apply_twist(const Vector6d& twist_c, double dt_s);
 
  private:
   Eigen::Isometry3d world_T_camera_;

@@ -1,0 +1,277 @@
+#include "sim/arm/bullet_arm.hpp"
+
+#include <BulletCollision/CollisionShapes/btShapeHull.h>
+#include <BulletDynamics/Featherstone/btMultiBody.h>
+#include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
+#include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
+#include <BulletDynamics/Featherstone/btMultiBodyJointLimitConstraint.h>
+#include <BulletDynamics/Featherstone/btMultiBodyJointMotor.h>
+#include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
+#include <btBulletDynamicsCommon.h>
+
+#include <stdexcept>
+
+namespace sim {
+namespace {
+
+btVector3 bt(const Eigen::Vector3d& v) { return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z())); }
+
+btTransform bt(const Eigen::Isometry3d& t) {
+  const Eigen::Quaterniond q(t.rotation());
+  return btTransform(btQuaternion(btScalar(q.x()), btScalar(q.y()), btScalar(q.z()), btScalar(q.w())), bt(t.translation()));
+}
+
+// collision groups: the base sits on the cell's table and may touch it
+constexpr int kGroupBase = 1, kGroupLink = 2, kGroupObject = 4;
+constexpr btScalar kMargin = btScalar(0.001);
+constexpr btScalar kTouch = 0;  // closer than the two margins (2 mm): a contact
+
+// One Bullet body: a moving joint's link and the fixed links it carries.
+struct Body {
+  int segment = -1;  // chain index of its moving joint (-1: the base)
+  std::string name;  // the moving link's name
+  double mass = 0;
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();  // in the body (link) frame
+  Eigen::Vector3d inertia = Eigen::Vector3d::Constant(1e-4);
+  std::vector<Eigen::Vector3d> hull_points;  // in the body frame
+  Eigen::Isometry3d parent_T_origin = Eigen::Isometry3d::Identity();  // parent body frame -> joint origin
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+  bool prismatic = false;
+  double lower = 0, upper = 0, effort = 0;
+};
+
+}  // namespace
+
+struct BulletArm::Bullet {
+  std::vector<Body> bodies;  // [0] = base
+  Eigen::Isometry3d world_T_base;
+  std::vector<std::unique_ptr<btConvexHullShape>> hulls;  // per body, null when shapeless
+  std::vector<std::unique_ptr<btTriangleMesh>> object_meshes;
+  std::vector<std::unique_ptr<btBvhTriangleMeshShape>> object_shapes;
+  std::vector<std::string> object_names;
+
+  // rebuilt by reset()
+  std::unique_ptr<btDefaultCollisionConfiguration> config;
+  std::unique_ptr<btCollisionDispatcher> dispatcher;
+  std::unique_ptr<btDbvtBroadphase> broadphase;
+  std::unique_ptr<btMultiBodyConstraintSolver> solver;
+  std::unique_ptr<btMultiBodyDynamicsWorld> world;
+  std::unique_ptr<btMultiBody> mb;
+  std::vector<std::unique_ptr<btMultiBodyLinkCollider>> colliders;
+  std::vector<std::unique_ptr<btMultiBodyJointMotor>> motors;
+  std::vector<std::unique_ptr<btMultiBodyJointLimitConstraint>> stops;
+  std::vector<std::unique_ptr<btCollisionObject>> objects;
+
+  void teardown() {
+    if (world) {
+      for (auto& m : motors) world->removeMultiBodyConstraint(m.get());
+      for (auto& s : stops) world->removeMultiBodyConstraint(s.get());
+      for (auto& c : colliders) world->removeCollisionObject(c.get());
+      for (auto& o : objects) world->removeCollisionObject(o.get());
+      if (mb) world->removeMultiBody(mb.get());
+    }
+    motors.clear();
+    stops.clear();
+    colliders.clear();
+    objects.clear();
+    mb.reset();
+    world.reset();
+    solver.reset();
+    broadphase.reset();
+    dispatcher.reset();
+    config.reset();
+  }
+  ~Bullet() { teardown(); }
+};
+
+BulletArm::BulletArm(const RobotModel& model, const Eigen::Isometry3d& world_T_base, const World& objects,
+                     std::vector<std::string> object_names, double physics_period_s)
+    : b_(std::make_unique<Bullet>()), h_(physics_period_s) {
+  if (!(h_ > 0 && h_ <= 0.004)) throw std::invalid_argument("BulletArm: the physics period must be in (0, 4 ms] (>= 250 Hz)");
+  b_->world_T_base = world_T_base;
+  b_->object_names = std::move(object_names);
+  // bodies: fixed segments are merged into the body before them
+  Body base;
+  base.name = model.root_link;
+  if (model.root_has_shape) base.hull_points = model.root_shape.collision.vertices;
+  b_->bodies.push_back(base);
+  Eigen::Isometry3d body_T_link = Eigen::Isometry3d::Identity();  // last body's frame -> current link
+  for (std::size_t i = 0; i < model.chain.size(); ++i) {
+    const ChainSegment& s = model.chain[i];
+    if (s.type == JointType::kFixed) {
+      body_T_link = body_T_link * s.parent_T_origin;
+      Body& b = b_->bodies.back();
+      b.mass += b.segment >= 0 ? s.mass : 0.0;
+      if (s.has_shape)
+        for (const auto& v : s.shape.collision.vertices) b.hull_points.push_back(body_T_link * v);
+      continue;
+    }
+    Body b;
+    b.segment = static_cast<int>(i);
+    b.name = s.link;
+    b.mass = s.mass;
+    b.com = s.com;
+    b.inertia = s.inertia_diagonal;
+    b.parent_T_origin = body_T_link * s.parent_T_origin;
+    b.axis = s.axis;
+    b.prismatic = s.type == JointType::kPrismatic;
+    b.lower = s.lower;
+    b.upper = s.upper;
+    b.effort = s.max_effort;
+    if (s.has_shape) b.hull_points = s.shape.collision.vertices;
+    b_->bodies.push_back(std::move(b));
+    body_T_link = Eigen::Isometry3d::Identity();
+  }
+  for (const Body& b : b_->bodies) {
+    if (b.hull_points.empty()) {
+      b_->hulls.emplace_back();
+      continue;
+    }
+    // the hull in the body's centre-of-mass frame (Bullet's link frame), simplified
+    btConvexHullShape raw;
+    for (const auto& p : b.hull_points) raw.addPoint(bt(p - b.com), false);
+    raw.recalcLocalAabb();
+    raw.setMargin(0);
+    btShapeHull simplified(&raw);
+    simplified.buildHull(0);
+    auto hull = std::make_unique<btConvexHullShape>();
+    const btVector3* v = simplified.getVertexPointer();
+    for (int k = 0; k < simplified.numVertices(); ++k) hull->addPoint(v[k], false);
+    hull->recalcLocalAabb();
+    hull->setMargin(kMargin);
+    b_->hulls.push_back(std::move(hull));
+  }
+  for (const World::Object& o : objects.objects()) {
+    auto tm = std::make_unique<btTriangleMesh>(true, false);
+    for (const auto& t : o.triangles) tm->addTriangle(bt(o.vertices_w[t[0]]), bt(o.vertices_w[t[1]]), bt(o.vertices_w[t[2]]), false);
+    auto shape = std::make_unique<btBvhTriangleMeshShape>(tm.get(), true);
+    shape->setMargin(kMargin);
+    b_->object_meshes.push_back(std::move(tm));
+    b_->object_shapes.push_back(std::move(shape));
+  }
+  reset(Eigen::VectorXd::Zero(model.dof()));
+}
+
+BulletArm::~BulletArm() = default;
+
+void BulletArm::reset(const Eigen::VectorXd& q) {
+  Bullet& B = *b_;
+  const int n = static_cast<int>(B.bodies.size()) - 1;
+  if (q.size() != n || !q.allFinite()) throw std::invalid_argument("BulletArm::reset: wrong joint vector");
+  B.teardown();
+  B.config = std::make_unique<btDefaultCollisionConfiguration>();
+  B.dispatcher = std::make_unique<btCollisionDispatcher>(B.config.get());
+  B.broadphase = std::make_unique<btDbvtBroadphase>();
+  B.solver = std::make_unique<btMultiBodyConstraintSolver>();
+  B.world = std::make_unique<btMultiBodyDynamicsWorld>(B.dispatcher.get(), B.broadphase.get(), B.solver.get(), B.config.get());
+  B.world->setGravity(btVector3(0, 0, btScalar(-9.81)));
+
+  B.mb = std::make_unique<btMultiBody>(n, 0, btVector3(0, 0, 0), /*fixed base*/ true, /*can sleep*/ false);
+  B.mb->setBaseWorldTransform(bt(B.world_T_base));
+  for (int i = 0; i < n; ++i) {
+    const Body& b = B.bodies[static_cast<std::size_t>(i) + 1];
+    const Body& parent = B.bodies[static_cast<std::size_t>(i)];
+    const Eigen::Quaterniond rot_parent_to_this(b.parent_T_origin.rotation().transpose());
+    const btQuaternion r(btScalar(rot_parent_to_this.x()), btScalar(rot_parent_to_this.y()), btScalar(rot_parent_to_this.z()),
+                         btScalar(rot_parent_to_this.w()));
+    const btVector3 pivot = bt(b.parent_T_origin.translation() - parent.com);
+    if (b.prismatic)
+      B.mb->setupPrismatic(i, btScalar(b.mass), bt(b.inertia), i - 1, r, bt(b.axis), pivot, bt(b.com), true);
+    else
+      B.mb->setupRevolute(i, btScalar(b.mass), bt(b.inertia), i - 1, r, bt(b.axis), pivot, bt(b.com), true);
+  }
+  B.mb->finalizeMultiDof();
+  B.mb->setHasSelfCollision(true);
+  B.mb->setLinearDamping(0);
+  B.mb->setAngularDamping(0);
+  B.mb->setUseGyroTerm(true);
+  for (int i = 0; i < n; ++i) {
+    B.mb->setJointPos(i, btScalar(q[i]));
+    B.mb->setJointVel(i, 0);
+  }
+  B.world->addMultiBody(B.mb.get());
+
+  btAlignedObjectArray<btQuaternion> scratch_q;
+  btAlignedObjectArray<btVector3> scratch_m;
+  B.mb->forwardKinematics(scratch_q, scratch_m);
+  B.mb->updateCollisionObjectWorldTransforms(scratch_q, scratch_m);
+  for (int i = -1; i < n; ++i) {
+    auto& hull = B.hulls[static_cast<std::size_t>(i + 1)];
+    if (!hull) continue;
+    auto c = std::make_unique<btMultiBodyLinkCollider>(B.mb.get(), i);
+    c->setCollisionShape(hull.get());
+    c->setUserIndex(i);
+    if (i < 0) {
+      c->setWorldTransform(B.mb->getBaseWorldTransform());
+      B.mb->setBaseCollider(c.get());
+      B.world->addCollisionObject(c.get(), kGroupBase, kGroupLink);
+    } else {
+      B.mb->getLink(i).m_collider = c.get();
+      B.world->addCollisionObject(c.get(), kGroupLink, kGroupBase | kGroupLink | kGroupObject);
+    }
+    B.colliders.push_back(std::move(c));
+  }
+  B.mb->forwardKinematics(scratch_q, scratch_m);
+  B.mb->updateCollisionObjectWorldTransforms(scratch_q, scratch_m);
+  for (std::size_t k = 0; k < B.object_shapes.size(); ++k) {
+    auto o = std::make_unique<btCollisionObject>();
+    o->setCollisionShape(B.object_shapes[k].get());
+    o->setUserIndex(-1000 - static_cast<int>(k));
+    B.world->addCollisionObject(o.get(), kGroupObject, kGroupLink);
+    B.objects.push_back(std::move(o));
+  }
+  for (int i = 0; i < n; ++i) {
+    const Body& b = B.bodies[static_cast<std::size_t>(i) + 1];
+    auto m = std::make_unique<btMultiBodyJointMotor>(B.mb.get(), i, 0, btScalar(b.effort * h_));
+    B.world->addMultiBodyConstraint(m.get());
+    B.motors.push_back(std::move(m));
+    auto s = std::make_unique<btMultiBodyJointLimitConstraint>(B.mb.get(), i, btScalar(b.lower), btScalar(b.upper));
+    B.world->addMultiBodyConstraint(s.get());
+    B.stops.push_back(std::move(s));
+  }
+  B.world->updateAabbs();
+}
+
+std::optional<std::string> BulletArm::step(const Eigen::VectorXd& qdot) {
+  Bullet& B = *b_;
+  for (std::size_t i = 0; i < B.motors.size(); ++i)
+    B.motors[i]->setVelocityTarget(btScalar(static_cast<int>(i) < qdot.size() && std::isfinite(qdot[static_cast<Eigen::Index>(i)]) ? qdot[static_cast<Eigen::Index>(i)] : 0.0));
+  B.world->stepSimulation(btScalar(h_), 0, btScalar(h_));
+  return contact();
+}
+
+std::optional<std::string> BulletArm::contact() {
+  Bullet& B = *b_;
+  B.world->performDiscreteCollisionDetection();
+  const auto name_of = [&](const btCollisionObject* o) {
+    const int id = o->getUserIndex();
+    if (id <= -1000) return "object '" + B.object_names[static_cast<std::size_t>(-1000 - id)] + "'";
+    return "link '" + B.bodies[static_cast<std::size_t>(id + 1)].name + "'";
+  };
+  for (int m = 0; m < B.dispatcher->getNumManifolds(); ++m) {
+    const btPersistentManifold* pm = B.dispatcher->getManifoldByIndexInternal(m);
+    for (int c = 0; c < pm->getNumContacts(); ++c) {
+      if (pm->getContactPoint(c).getDistance() >= kTouch) continue;
+      char depth[32];
+      std::snprintf(depth, sizeof depth, "%.1f", -1e3 * pm->getContactPoint(c).getDistance());
+      return name_of(pm->getBody0()) + " touches " + name_of(pm->getBody1()) + " (" + depth + " mm deep)";
+    }
+  }
+  return std::nullopt;
+}
+
+Eigen::VectorXd BulletArm::q() const {
+  const int n = b_->mb->getNumLinks();
+  Eigen::VectorXd q(n);
+  for (int i = 0; i < n; ++i) q[i] = b_->mb->getJointPos(i);
+  return q;
+}
+
+Eigen::VectorXd BulletArm::qdot() const {
+  const int n = b_->mb->getNumLinks();
+  Eigen::VectorXd v(n);
+  for (int i = 0; i < n; ++i) v[i] = b_->mb->getJointVel(i);
+  return v;
+}
+
+}  // namespace sim

@@ -1,0 +1,316 @@
+#include "sim/arm/robot_model.hpp"
+
+#include <console_bridge/console.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <cmath>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+
+#include "servo/config/strict_yaml.hpp"
+
+namespace sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// urdfdom reports through console_bridge on stderr; the first error becomes our one line.
+class CapturedLog : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_error.empty()) first_error = text;
+  }
+  std::string first_error;
+};
+
+std::mutex& console_mutex() {
+  static std::mutex m;  // console_bridge's handler is process-wide
+  return m;
+}
+
+[[noreturn]] void fail(const std::filesystem::path& f, const std::string& what) {
+  throw RobotModelError(f.string() + ": " + what);
+}
+
+Eigen::Isometry3d to_iso(const urdf::Pose& p) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  Eigen::Quaterniond q(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z);
+  if (!(q.norm() > 0.5)) q = Eigen::Quaterniond::Identity();
+  t.linear() = q.normalized().toRotationMatrix();
+  return t;
+}
+
+bool finite_pose(const Eigen::Isometry3d& t) {
+  return t.matrix().allFinite() && t.translation().cwiseAbs().maxCoeff() <= 100.0;
+}
+
+// Closed primitive meshes for URDF <box>, <cylinder> (along z) and <sphere>.
+TriangleMesh box_mesh(const Eigen::Vector3d& size) {
+  TriangleMesh m;
+  for (int i = 0; i < 8; ++i)
+    m.vertices.emplace_back((i & 1 ? 0.5 : -0.5) * size.x(), (i & 2 ? 0.5 : -0.5) * size.y(), (i & 4 ? 0.5 : -0.5) * size.z());
+  m.triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                 {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  return m;
+}
+
+TriangleMesh cylinder_mesh(double r, double length, int around = 32) {
+  TriangleMesh m;
+  for (int k = 0; k < 2; ++k)
+    for (int i = 0; i < around; ++i) {
+      const double a = 2 * kPi * i / around;
+      m.vertices.emplace_back(r * std::cos(a), r * std::sin(a), (k ? 0.5 : -0.5) * length);
+    }
+  const int b = static_cast<int>(m.vertices.size());
+  m.vertices.emplace_back(0, 0, -0.5 * length);
+  m.vertices.emplace_back(0, 0, 0.5 * length);
+  for (int i = 0; i < around; ++i) {
+    const int j = (i + 1) % around;
+    m.triangles.push_back({i, j, around + j});
+    m.triangles.push_back({i, around + j, around + i});
+    m.triangles.push_back({b, j, i});
+    m.triangles.push_back({b + 1, around + i, around + j});
+  }
+  return m;
+}
+
+TriangleMesh sphere_mesh(double r, int rings = 12, int around = 24) {
+  TriangleMesh m;
+  m.vertices.emplace_back(0, 0, -r);
+  for (int k = 1; k < rings; ++k) {
+    const double th = kPi * k / rings - kPi / 2;
+    for (int i = 0; i < around; ++i) {
+      const double a = 2 * kPi * i / around;
+      m.vertices.emplace_back(r * std::cos(th) * std::cos(a), r * std::cos(th) * std::sin(a), r * std::sin(th));
+    }
+  }
+  m.vertices.emplace_back(0, 0, r);
+  const int top = static_cast<int>(m.vertices.size()) - 1;
+  const auto id = [&](int k, int i) { return 1 + (k - 1) * around + (i % around); };
+  for (int i = 0; i < around; ++i) m.triangles.push_back({0, id(1, i + 1), id(1, i)});
+  for (int k = 1; k + 1 < rings; ++k)
+    for (int i = 0; i < around; ++i) {
+      m.triangles.push_back({id(k, i), id(k, i + 1), id(k + 1, i + 1)});
+      m.triangles.push_back({id(k, i), id(k + 1, i + 1), id(k + 1, i)});
+    }
+  for (int i = 0; i < around; ++i) m.triangles.push_back({top, id(rings - 1, i), id(rings - 1, i + 1)});
+  return m;
+}
+
+// One URDF geometry as a mesh in the link frame.
+TriangleMesh geometry_mesh(const std::filesystem::path& urdf_file, const urdf::GeometrySharedPtr& g,
+                           const urdf::Pose& origin, const std::string& where) {
+  if (!g) fail(urdf_file, where + ": no geometry");
+  TriangleMesh m;
+  Eigen::Vector3d scale(1, 1, 1);
+  const auto positive = [&](double v, const char* what) {
+    if (!(v > 1e-6 && v < 100)) fail(urdf_file, where + ": " + what + " must be in (1e-6, 100) m");
+    return v;
+  };
+  switch (g->type) {
+    case urdf::Geometry::BOX: {
+      const auto& b = static_cast<const urdf::Box&>(*g);
+      m = box_mesh({positive(b.dim.x, "box size"), positive(b.dim.y, "box size"), positive(b.dim.z, "box size")});
+      break;
+    }
+    case urdf::Geometry::CYLINDER: {
+      const auto& c = static_cast<const urdf::Cylinder&>(*g);
+      m = cylinder_mesh(positive(c.radius, "cylinder radius"), positive(c.length, "cylinder length"));
+      break;
+    }
+    case urdf::Geometry::SPHERE:
+      m = sphere_mesh(positive(static_cast<const urdf::Sphere&>(*g).radius, "sphere radius"));
+      break;
+    case urdf::Geometry::MESH: {
+      const auto& me = static_cast<const urdf::Mesh&>(*g);
+      const std::string& name = me.filename;
+      if (name.rfind("package://", 0) == 0 || name.find("://") != std::string::npos)
+        fail(urdf_file, where + ": mesh '" + config::printable(name) +
+                            "': URIs are not resolved here; give a path relative to the URDF file");
+      std::filesystem::path p(name);
+      if (p.is_relative()) p = urdf_file.parent_path() / p;
+      m = load_mesh(p);  // walked by check_mesh_file before assimp; throws MeshError naming it
+      scale = Eigen::Vector3d(me.scale.x, me.scale.y, me.scale.z);
+      if (!scale.allFinite() || scale.cwiseAbs().minCoeff() < 1e-6 || scale.cwiseAbs().maxCoeff() > 1e3)
+        fail(urdf_file, where + ": mesh scale must be finite, between 1e-6 and 1000");
+      break;
+    }
+    default: fail(urdf_file, where + ": unsupported geometry type");
+  }
+  const Eigen::Isometry3d t = to_iso(origin);
+  if (!finite_pose(t)) fail(urdf_file, where + ": origin must be finite, within 100 m");
+  for (auto& v : m.vertices) v = t * scale.cwiseProduct(v);
+  return m;
+}
+
+void append(TriangleMesh& to, const TriangleMesh& m) {
+  const int base = static_cast<int>(to.vertices.size());
+  to.vertices.insert(to.vertices.end(), m.vertices.begin(), m.vertices.end());
+  for (const auto& t : m.triangles) to.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+}
+
+// A link's visual and collision meshes; false when it has neither.
+bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkShape& out, std::size_t& triangles) {
+  bool any = false;
+  for (const auto& v : link.visual_array) {
+    if (!v) continue;
+    append(out.visual, geometry_mesh(file, v->geometry, v->origin, "link '" + link.name + "' visual"));
+    if (v->material) {
+      const auto& c = v->material->color;
+      const double grey = (c.r + c.g + c.b) / 3.0;
+      if (std::isfinite(grey) && grey > 0) out.albedo = static_cast<float>(std::clamp(grey, 0.02, 1.0));
+    }
+    any = true;
+  }
+  for (const auto& c : link.collision_array) {
+    if (!c) continue;
+    append(out.collision, geometry_mesh(file, c->geometry, c->origin, "link '" + link.name + "' collision"));
+    any = true;
+  }
+  if (out.collision.triangles.empty()) out.collision = out.visual;
+  triangles += out.visual.triangles.size() + out.collision.triangles.size();
+  if (triangles > kMaxArmTriangles)
+    fail(file, "more than " + std::to_string(kMaxArmTriangles) + " triangles in the robot's meshes (the limit)");
+  return any;
+}
+
+}  // namespace
+
+int RobotModel::dof() const {
+  int n = 0;
+  for (const auto& s : chain) n += s.type != JointType::kFixed;
+  return n;
+}
+
+std::vector<std::string> RobotModel::joint_names() const {
+  std::vector<std::string> names;
+  for (const auto& s : chain)
+    if (s.type != JointType::kFixed) names.push_back(s.joint);
+  return names;
+}
+
+namespace {
+template <typename F>
+Eigen::VectorXd per_joint(const RobotModel& m, F f) {
+  Eigen::VectorXd v(m.dof());
+  int i = 0;
+  for (const auto& s : m.chain)
+    if (s.type != JointType::kFixed) v[i++] = f(s);
+  return v;
+}
+}  // namespace
+
+Eigen::VectorXd RobotModel::lower_limits() const { return per_joint(*this, [](const ChainSegment& s) { return s.lower; }); }
+Eigen::VectorXd RobotModel::upper_limits() const { return per_joint(*this, [](const ChainSegment& s) { return s.upper; }); }
+Eigen::VectorXd RobotModel::velocity_limits() const {
+  return per_joint(*this, [](const ChainSegment& s) { return s.max_velocity; });
+}
+Eigen::VectorXd RobotModel::effort_limits() const {
+  return per_joint(*this, [](const ChainSegment& s) { return s.max_effort; });
+}
+
+RobotModel load_robot_model(const std::filesystem::path& file, const std::string& camera_link) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(file, ec);
+  if (ec) fail(file, "cannot read the robot description (" + ec.message() + ")");
+  if (size > kMaxUrdfBytes) fail(file, "larger than " + std::to_string(kMaxUrdfBytes) + " bytes (the URDF limit)");
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (!in && !in.eof()) fail(file, "cannot read the robot description");
+
+  RobotModel model;
+  model.file = file;
+  model.urdf = text.str();
+  model.camera_link = camera_link;
+  urdf::ModelInterfaceSharedPtr urdf;
+  {
+    std::lock_guard<std::mutex> lock(console_mutex());
+    CapturedLog captured;
+    console_bridge::useOutputHandler(&captured);
+    try {
+      urdf = urdf::parseURDF(model.urdf);
+    } catch (const std::exception& e) {
+      captured.first_error = e.what();
+    }
+    console_bridge::restorePreviousOutputHandler();
+    if (!urdf)
+      fail(file, "not a valid URDF: " +
+                     config::printable(captured.first_error.empty() ? "parse error" : captured.first_error, 160));
+  }
+  model.name = urdf->getName();
+  urdf::LinkConstSharedPtr tip = urdf->getLink(camera_link);
+  if (!tip) fail(file, "no link named '" + config::printable(camera_link) + "' (the camera link)");
+
+  // walk up from the camera link to the root: the serial chain
+  std::vector<urdf::LinkConstSharedPtr> links{tip};
+  while (links.back()->parent_joint) {
+    if (links.size() > kMaxChainSegments)
+      fail(file, "more than " + std::to_string(kMaxChainSegments) + " links from the root to '" + camera_link + "'");
+    urdf::LinkConstSharedPtr parent = urdf->getLink(links.back()->parent_joint->parent_link_name);
+    if (!parent) fail(file, "joint '" + links.back()->parent_joint->name + "' has no parent link");
+    links.push_back(parent);
+  }
+  std::reverse(links.begin(), links.end());
+  model.root_link = links.front()->name;
+  std::size_t triangles = 0;
+  model.root_has_shape = read_shape(file, *links.front(), model.root_shape, triangles);
+
+  for (std::size_t i = 1; i < links.size(); ++i) {
+    const urdf::Link& link = *links[i];
+    const urdf::Joint& j = *link.parent_joint;
+    ChainSegment s;
+    s.joint = j.name;
+    s.link = link.name;
+    const std::string where = "joint '" + j.name + "'";
+    s.parent_T_origin = to_iso(j.parent_to_joint_origin_transform);
+    if (!finite_pose(s.parent_T_origin)) fail(file, where + ": origin must be finite, within 100 m");
+    switch (j.type) {
+      case urdf::Joint::FIXED: s.type = JointType::kFixed; break;
+      case urdf::Joint::REVOLUTE: s.type = JointType::kRevolute; break;
+      case urdf::Joint::CONTINUOUS:
+        s.type = JointType::kRevolute;
+        s.continuous = true;
+        break;
+      case urdf::Joint::PRISMATIC: s.type = JointType::kPrismatic; break;
+      default: fail(file, where + ": only fixed, revolute, continuous and prismatic joints are supported");
+    }
+    if (s.type != JointType::kFixed) {
+      s.axis = Eigen::Vector3d(j.axis.x, j.axis.y, j.axis.z);
+      if (!s.axis.allFinite() || s.axis.norm() < 1e-9) fail(file, where + ": axis must be a finite non-zero vector");
+      s.axis.normalize();
+      if (!j.limits) fail(file, where + ": no <limit> (velocity and effort limits are required)");
+      s.max_velocity = j.limits->velocity;
+      s.max_effort = j.limits->effort;
+      if (!(s.max_velocity > 0 && s.max_velocity <= 100)) fail(file, where + ": velocity limit must be in (0, 100]");
+      if (!(s.max_effort > 0 && s.max_effort <= 1e5)) fail(file, where + ": effort limit must be in (0, 1e5]");
+      if (s.continuous) {
+        s.lower = -2 * kPi;
+        s.upper = 2 * kPi;
+      } else {
+        s.lower = j.limits->lower;
+        s.upper = j.limits->upper;
+        const double range = s.type == JointType::kRevolute ? 4 * kPi : 100.0;
+        if (!(std::isfinite(s.lower) && std::isfinite(s.upper) && s.lower < s.upper && s.lower >= -range && s.upper <= range))
+          fail(file, where + ": position limits must be finite with lower < upper (and within +-4 pi rad)");
+      }
+    }
+    if (link.inertial) {
+      const urdf::Inertial& in = *link.inertial;
+      s.mass = in.mass;
+      s.com = Eigen::Vector3d(in.origin.position.x, in.origin.position.y, in.origin.position.z);
+      s.inertia_diagonal = Eigen::Vector3d(in.ixx, in.iyy, in.izz);
+      if (!(s.mass > 0 && s.mass <= 1e4) || !s.com.allFinite() || s.com.norm() > 10 || !s.inertia_diagonal.allFinite() ||
+          s.inertia_diagonal.minCoeff() <= 0 || s.inertia_diagonal.maxCoeff() > 1e4)
+        fail(file, "link '" + link.name + "': inertial mass, origin and diagonal inertia must be positive and finite");
+    }
+    s.has_shape = read_shape(file, link, s.shape, triangles);
+    model.chain.push_back(std::move(s));
+  }
+  if (model.dof() == 0) fail(file, "no moving joint between the root and '" + camera_link + "'");
+  return model;
+}
+
+}  // namespace sim

@@ -20,6 +20,9 @@ inline constexpr const char* kStatusTopic = "rt/servo/status";
 inline constexpr const char* kControlTopic = "rt/sim/control";
 inline constexpr const char* kClockTopic = "rt/clock";
 inline constexpr const char* kSimStatusTopic = "rt/sim/status";
+inline constexpr const char* kJointStatesTopic = "rt/joint_states";
+inline constexpr const char* kTfTopic = "rt/tf";
+inline constexpr const char* kRobotDescriptionTopic = "rt/robot_description";
 
 inline constexpr const char* kCameraFrame = "camera_optical";
 inline constexpr const char* kWorldFrame = "world";

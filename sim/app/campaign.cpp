@@ -33,6 +33,16 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
     return n;
   };
   const int visible_desired = visible(sc.world_T_desired);
+  // an arm must reach the pose too (a free-flying camera always does)
+  const std::unique_ptr<sim::Robot> probe = sim::make_robot(cell);
+  const auto reachable = [&](const Eigen::Isometry3d& wTc) {
+    try {
+      probe->reset(wTc);
+      return true;
+    } catch (const std::invalid_argument&) {
+      return false;
+    }
+  };
   std::mt19937_64 rng(o.seed);
   std::vector<std::array<double, 6>> offsets(static_cast<std::size_t>(o.runs));
   int redrawn = 0;
@@ -45,7 +55,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       }
       const auto wTc = sim::offset_pose(sc.world_T_desired, {off[0], off[1], off[2]}, {off[3], off[4], off[5]},
                                         sc.offset_frame_rotation_deg);
-      if (visible(wTc) >= 0.8 * visible_desired || attempt >= 1000) break;
+      if ((visible(wTc) >= 0.8 * visible_desired && reachable(wTc)) || attempt >= 1000) break;
       ++redrawn;
     }
   }

@@ -35,13 +35,27 @@ void write_png_rgb(const std::string& path, const cv::Mat& rgb) {
 }
 
 int run_render(const std::string& scenario_file, const std::string& pose_spec, const std::string& out_png,
-               const std::string& truth_file, std::uint64_t frame) {
+               const std::string& truth_file, std::uint64_t frame, const std::vector<double>& observer) {
   const sim::Scenario scenario = sim::load_scenario(scenario_file);
   const Eigen::Isometry3d wTc = sim::resolve_pose(scenario, pose_spec);
   const auto cell = sim::build_cell(scenario);
-  const cv::Mat image = sim::render_image(*cell, wTc, sim::frame_seed(scenario.seed, frame));
+  // the robot at the pose: the arm's links are drawn, lit and cast shadows
+  const std::unique_ptr<sim::Robot> robot = sim::make_robot(*cell);
+  try {
+    robot->reset(wTc);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("--pose '" + pose_spec + "': " + e.what());
+  }
+  const sim::LinkPoses links = robot->world_T_links();
+  Eigen::Isometry3d view = wTc;
+  if (observer.size() == 6) {
+    const Eigen::Vector3d eye(observer[0], observer[1], observer[2]), target(observer[3], observer[4], observer[5]);
+    if ((target - eye).norm() < 1e-6) throw std::invalid_argument("--observer: the eye and the target coincide");
+    view = sim::look_at(eye, target, Eigen::Vector3d::UnitZ());
+  }
+  const cv::Mat image = sim::render_image(*cell, view, sim::frame_seed(scenario.seed, frame), nullptr, nullptr, &links);
   write_png_rgb(out_png, image);
-  const auto truth = sim::compute_truth(*cell, wTc);
+  const auto truth = sim::compute_truth(*cell, wTc, &links);
   int visible = 0;
   for (const auto& t : truth) visible += t.visible;
   if (!truth_file.empty()) {
@@ -49,9 +63,17 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
     j["scenario"] = scenario.name;
     j["camera_pose"] = pose_json(wTc);
     j["camera_pose"]["frame_id"] = "world";
+    const auto q = robot->joint_positions();
+    if (q.size() > 0) {
+      j["joints"] = nlohmann::json::object();
+      const auto names = robot->joint_names();
+      for (Eigen::Index i = 0; i < q.size(); ++i) j["joints"][names[static_cast<std::size_t>(i)]] = q[i];
+    }
     j["spots"] = nlohmann::json::array();
     for (const auto& t : truth) {
       nlohmann::json s{{"row", t.row}, {"col", t.col}, {"visible", t.visible}};
+      if (t.hidden_by_arm) s["hidden_by_arm"] = true;
+      if (t.on_arm) s["on_arm"] = true;
       if (t.visible) {
         s["u"] = t.uv.x();
         s["v"] = t.uv.y();
@@ -165,6 +187,11 @@ int main(int argc, char** argv) {
   render->add_option("-o,--output", out, "PNG image to write")->required();
   render->add_option("--truth", truth, "ground-truth JSON to write");
   render->add_option("--frame", frame, "frame index (selects the noise draw)")->capture_default_str();
+  std::vector<double> observer;
+  render->add_option("--observer", observer,
+                     "render from an observer camera instead (eye x y z, target x y z, metres): the arm in view")
+      ->expected(6)
+      ->check(CLI::Range(-100.0, 100.0));
   cellsim::SweepOptions sweep;
   std::string sweep_dir;
   bool tolerant = false;
@@ -280,7 +307,7 @@ int main(int argc, char** argv) {
       std::printf("%s", table.c_str());
       return 0;
     }
-    if (*render) return run_render(scenario, pose, out, truth, frame);
+    if (*render) return run_render(scenario, pose, out, truth, frame, observer);
     if (*ds) {
       sweep.decoder.tolerance.enabled = tolerant;
       sweep.out_dir = sweep_dir;

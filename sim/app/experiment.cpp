@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
 
 namespace cellsim {
@@ -18,16 +19,16 @@ constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 // The spots the controller sees: decoded from the rendered image, or the truth's visible ones.
 std::vector<servo::ImageSpot> observe(const sim::Cell& cell, const servo::ServoPipeline& pipeline, FeatureSource src,
-                                      const Eigen::Isometry3d& wTc, std::uint64_t seed, sim::RenderScratch& scratch,
-                                      int* detected) {
+                                      const Eigen::Isometry3d& wTc, const sim::LinkPoses& links, std::uint64_t seed,
+                                      sim::RenderScratch& scratch, int* detected) {
   if (src == FeatureSource::kIdeal) {
     std::vector<servo::ImageSpot> spots;
-    for (const auto& t : sim::compute_truth(cell, wTc))
+    for (const auto& t : sim::compute_truth(cell, wTc, &links))
       if (t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
     if (detected) *detected = 0;
     return spots;
   }
-  return pipeline.locate(sim::render_image(cell, wTc, seed, &scratch), detected);
+  return pipeline.locate(sim::render_image(cell, wTc, seed, &scratch, nullptr, &links), detected);
 }
 
 }  // namespace
@@ -68,14 +69,21 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   ExperimentResult res;
 
   // teach by showing: the robot at the desired pose, s* from what the camera sees there
-  sim::FreeFlyingCamera robot(sc.world_T_desired, sc.robot.max_linear_mps, sc.robot.max_angular_radps);
+  const std::unique_ptr<sim::Robot> robot_owner = sim::make_robot(cell);
+  sim::Robot& robot = *robot_owner;
   std::uint64_t frame = 0;
-  const auto taught = observe(cell, pipeline, o.source, robot.world_T_camera(), sim::frame_seed(seed, frame++), scratch,
-                              nullptr);
+  const auto taught = observe(cell, pipeline, o.source, robot.world_T_camera(), robot.world_T_links(),
+                              sim::frame_seed(seed, frame++), scratch, nullptr);
   res.decoded_desired = pipeline.teach(taught, robot.world_T_camera());
 
-  robot.reset(o.initial.value_or(sc.world_T_initial()));
-  std::ofstream trace, features;
+  try {
+    robot.reset(o.initial.value_or(sc.world_T_initial()));
+  } catch (const std::invalid_argument& e) {
+    res.stop_reason = std::string("initial pose refused: ") + e.what();
+    return res;
+  }
+  std::ofstream trace, features, occlusion;
+  const bool arm = !robot.world_T_links().empty();
   if (!o.out_dir.empty()) {
     std::filesystem::create_directories(o.out_dir);
     trace.open(o.out_dir / "trace.csv");
@@ -83,14 +91,29 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     trace << "# scenario " << sc.name << ", model " << control::to_string(o.servo.law.model) << ", features "
           << to_string(o.source) << (o.source == FeatureSource::kIdeal ? " (simulator truth, not decoded)" : "")
           << "\n";
-    trace << "t,vx,vy,vz,wx,wy,wz,error_norm,decoded,matched,translation_error_m,rotation_error_deg\n";
+    trace << sim::kTraceHeader << "\n";
     trace << std::setprecision(9);
     if (o.write_features) features.open(o.out_dir / "features.jsonl");
+    if (o.write_features && arm) {
+      occlusion.open(o.out_dir / "occlusion.csv");
+      occlusion << "t,visible,hidden_by_arm,on_arm\n";
+    }
   }
 
   for (int k = 0; k < o.max_iterations; ++k) {
     const Eigen::Isometry3d wTc = robot.world_T_camera();
-    const auto spots = observe(cell, pipeline, o.source, wTc, sim::frame_seed(seed, frame++), scratch, nullptr);
+    const sim::LinkPoses links = robot.world_T_links();
+    const auto spots = observe(cell, pipeline, o.source, wTc, links, sim::frame_seed(seed, frame++), scratch, nullptr);
+    if (occlusion.is_open()) {
+      // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
+      int visible = 0, hidden = 0, on_arm = 0;
+      for (const auto& t : sim::compute_truth(cell, wTc, &links)) {
+        visible += t.visible;
+        hidden += t.hidden_by_arm;
+        on_arm += t.on_arm;
+      }
+      occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
+    }
     if (k == 0) res.decoded_initial = static_cast<int>(spots.size());
     const servo::StepResult step = pipeline.step(spots, wTc);
 
@@ -103,13 +126,15 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     rec.matched = static_cast<int>(step.matched.size());
     rec.translation_error_m = sim::translation_error(wTc, sc.world_T_desired);
     rec.rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
-    res.trace.push_back(rec);
     res.iterations = k + 1;
+    const bool last = step.control.status != control::ControlStatus::kServoing;
+    if (!last) rec.robot_limits = robot.move(step.control.twist, sc.dt_s, sc.workspace).limits;
+    res.trace.push_back(rec);
     if (trace.is_open()) {
       trace << rec.t_s;
       for (int i = 0; i < 6; ++i) trace << ',' << rec.twist[i];
       trace << ',' << rec.error_norm << ',' << rec.decoded << ',' << rec.matched << ',' << rec.translation_error_m << ','
-            << rec.rotation_error_deg << '\n';
+            << rec.rotation_error_deg << ',' << sim::limit_names(rec.robot_limits) << '\n';
     }
     if (features.is_open()) {
       nlohmann::json j;
@@ -137,7 +162,6 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       res.stop_reason = "safe stop: " + step.control.reason;
       break;
     }
-    robot.apply_twist(step.control.twist, sc.dt_s);
   }
   if (res.stop_reason.empty()) res.stop_reason = "iteration cap (" + std::to_string(o.max_iterations) + ") reached";
   res.final_translation_error_m = sim::translation_error(robot.world_T_camera(), sc.world_T_desired);

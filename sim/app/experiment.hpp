@@ -32,6 +32,7 @@ struct IterationRecord {
   double error_norm = 0, feature_rms = 0;
   int decoded = 0, matched = 0;
   double translation_error_m = 0, rotation_error_deg = 0;
+  std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (sim::RobotLimit bits)
 };
 
 struct ExperimentResult {

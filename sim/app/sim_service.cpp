@@ -19,6 +19,8 @@
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
+#include "std_msgsPubSubTypes.h"
+#include "tf2_msgsPubSubTypes.h"
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
 #include "sim/cell/cell_state_machine.hpp"
@@ -88,7 +90,7 @@ class SimService {
     cp.republish_s = o.republish_ms / 1e3;
     cp.max_frames = o.max_frames;
     cp.exit_on_converged = o.exit_on_converged;
-    machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cp);
+    machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cp, sim::make_robot(*cell_));
     cell_dds::ParticipantOptions po;
     po.domain_id = o.domain_id;
     po.name = "cellsim";
@@ -107,6 +109,12 @@ class SimService {
         p, cell_dds::kSpotTruthTopic, cell_dds::writer_qos(Stream::kFrame));
     clock_ = std::make_unique<cell_dds::Writer<rosgraph_msgs::msg::dds_::Clock_PubSubType>>(
         p, cell_dds::kClockTopic, cell_dds::writer_qos(Stream::kClock));
+    joints_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::JointState_PubSubType>>(
+        p, cell_dds::kJointStatesTopic, cell_dds::writer_qos(Stream::kFrame));
+    tf_ = std::make_unique<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>>(
+        p, cell_dds::kTfTopic, cell_dds::writer_qos(Stream::kFrame));
+    description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
+        p, cell_dds::kRobotDescriptionTopic, cell_dds::writer_qos(Stream::kLatched));
     twist_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
         p, cell_dds::kTwistTopic, cell_dds::reader_qos(Stream::kFrame),
         [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); });
@@ -129,8 +137,10 @@ class SimService {
         p, "cellsim",
         std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
         std::vector<eprosima::fastrtps::rtps::GUID_t>{image_->guid(), info_->guid(), pose_->guid(), sim_status_->guid(),
-                                                      truth_->guid(), clock_->guid()});
+                                                      truth_->guid(), clock_->guid(), joints_->guid(), tf_->guid(),
+                                                      description_->guid()});
     publish_camera_info();
+    publish_description();
     if (!o.trace_dir.empty()) {
       std::filesystem::create_directories(o.trace_dir);
       trace_.open(o.trace_dir / "trace.csv");
@@ -138,8 +148,7 @@ class SimService {
       trace_ << "# scenario " << cell_->scenario.name << ", cellsim serve ("
              << (o.mode == TimingMode::kLockstep ? "lockstep" : "realtime")
              << "), one row per applied step, twists and status from the servo\n";
-      trace_ << "t,vx,vy,vz,wx,wy,wz,error_norm,decoded,matched,translation_error_m,rotation_error_deg\n"
-             << std::setprecision(9);
+      trace_ << sim::kTraceHeader << "\n" << std::setprecision(9);
       trace_.flush();
     }
   }
@@ -210,9 +219,11 @@ class SimService {
     if (out.load) {
       try {
         auto cell = sim::build_cell(sim::load_scenario(*out.load));
+        auto robot = sim::make_robot(*cell);
         cell_ = std::move(cell);
-        machine_->loaded(cell_->scenario);
+        machine_->loaded(cell_->scenario, std::move(robot));
         publish_camera_info();
+        publish_description();
       } catch (const std::exception& e) {
         machine_->load_failed(e.what());
       }
@@ -240,11 +251,59 @@ class SimService {
     info_->write(ci);
   }
 
-  void publish_truth(const builtin_interfaces::msg::dds_::Time_& stamp, const Eigen::Isometry3d& wTc) {
+  // The URDF, for ROS 2 tools (rviz's RobotModel); latched: late joiners get it.
+  void publish_description() {
+    std_msgs::msg::dds_::String_ d;
+    if (cell_->scenario.robot.model) d.data(cell_->scenario.robot.model->urdf);
+    description_->write(d);
+  }
+
+  static geometry_msgs::msg::dds_::TransformStamped_ transform(const builtin_interfaces::msg::dds_::Time_& stamp,
+                                                                 const std::string& parent, const std::string& child,
+                                                                 const Eigen::Isometry3d& t) {
+    geometry_msgs::msg::dds_::TransformStamped_ m;
+    m.header().stamp(stamp);
+    m.header().frame_id(parent);
+    m.child_frame_id(child);
+    const Eigen::Quaterniond q(t.rotation());
+    m.transform().translation().x(t.translation().x());
+    m.transform().translation().y(t.translation().y());
+    m.transform().translation().z(t.translation().z());
+    m.transform().rotation().x(q.x());
+    m.transform().rotation().y(q.y());
+    m.transform().rotation().z(q.z());
+    m.transform().rotation().w(q.w());
+    return m;
+  }
+
+  // rt/joint_states and rt/tf (world -> base -> each link -> camera optical frame)
+  void publish_robot(const builtin_interfaces::msg::dds_::Time_& stamp, const sim::FrameOrder& f) {
+    tf2_msgs::msg::dds_::TFMessage_ tf;
+    const auto& model = cell_->scenario.robot.model;
+    if (!model || f.world_T_links.size() != model->chain.size() + 1) {
+      tf.transforms().push_back(transform(stamp, cell_dds::kWorldFrame, cell_dds::kCameraFrame, f.world_T_camera));
+      tf_->write(tf);
+      return;
+    }
+    tf.transforms().push_back(transform(stamp, cell_dds::kWorldFrame, model->root_link, f.world_T_links[0]));
+    for (std::size_t i = 0; i < model->chain.size(); ++i)
+      tf.transforms().push_back(transform(stamp, i == 0 ? model->root_link : model->chain[i - 1].link, model->chain[i].link,
+                                          f.world_T_links[i].inverse() * f.world_T_links[i + 1]));
+    tf_->write(tf);
+    sensor_msgs::msg::dds_::JointState_ js;
+    js.header().stamp(stamp);
+    js.name(f.joint_names);
+    js.position(std::vector<double>(f.joint_positions.data(), f.joint_positions.data() + f.joint_positions.size()));
+    js.velocity(std::vector<double>(f.joint_velocities.data(), f.joint_velocities.data() + f.joint_velocities.size()));
+    joints_->write(js);
+  }
+
+  void publish_truth(const builtin_interfaces::msg::dds_::Time_& stamp, const sim::FrameOrder& f) {
+    const Eigen::Isometry3d& wTc = f.world_T_camera;
     cell_msgs::msg::dds_::SpotTruthArray_ truth;
     truth.header().stamp(stamp);
     truth.header().frame_id(cell_dds::kCameraFrame);
-    for (const auto& t : sim::compute_truth(*cell_, wTc)) {
+    for (const auto& t : sim::compute_truth(*cell_, wTc, &f.world_T_links)) {
       cell_msgs::msg::dds_::SpotTruth_ s;
       s.row(static_cast<int16_t>(t.row));
       s.col(static_cast<int16_t>(t.col));
@@ -261,7 +320,8 @@ class SimService {
   void publish_frame(const sim::FrameOrder& f) {
     const auto stamp = cell_dds::stamp_of(f.index, dt());
     const Eigen::Isometry3d& wTc = f.world_T_camera;
-    const cv::Mat rgb = sim::render_image(*cell_, wTc, sim::frame_seed(cell_->scenario.seed, f.index), &scratch_);
+    const cv::Mat rgb = sim::render_image(*cell_, wTc, sim::frame_seed(cell_->scenario.seed, f.index), &scratch_,
+                                          nullptr, &f.world_T_links);
 
     namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
     cell_msgs::msg::dds_::SimStatus_ st;
@@ -270,6 +330,8 @@ class SimService {
     st.state(f.teach ? SST::TEACHING : !f.applies_twist ? SST::IDLE : machine_->running() ? SST::RUNNING : SST::STEPPING);
     st.applies_twist(f.applies_twist);
     st.frame(f.index);
+    st.robot_limits(f.robot_limits);
+    st.robot_limit_names(sim::limit_names(f.robot_limits));
     sim_status_->write(st);  // before the image: the servo pairs them by stamp
 
     geometry_msgs::msg::dds_::PoseStamped_ pose;
@@ -285,7 +347,8 @@ class SimService {
     pose.pose().orientation().w(q.w());
     pose_->write(pose);  // before the image: the servo may need it to triangulate
 
-    if (truth_->matched() > 0) publish_truth(stamp, wTc);  // 400 visibility rays: only when someone listens
+    publish_robot(stamp, f);
+    if (truth_->matched() > 0) publish_truth(stamp, f);  // 400 visibility rays: only when someone listens
 
     sensor_msgs::msg::dds_::Image_ img;
     img.header().stamp(stamp);
@@ -308,7 +371,8 @@ class SimService {
     trace_ << r.time_s;
     for (int i = 0; i < 6; ++i) trace_ << ',' << r.twist[i];
     trace_ << ',' << (r.status ? r.status->error_norm : std::nan("")) << ',' << (r.status ? r.status->decoded : 0) << ','
-           << (r.status ? r.status->matched : 0) << ',' << r.translation_error_m << ',' << r.rotation_error_deg << '\n';
+           << (r.status ? r.status->matched : 0) << ',' << r.translation_error_m << ',' << r.rotation_error_deg << ','
+           << sim::limit_names(r.robot_limits) << '\n';
     if (o_.mode == TimingMode::kRealtime) trace_.flush();  // a realtime run usually ends by a signal
   }
 
@@ -349,6 +413,9 @@ class SimService {
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>> truth_;
   std::unique_ptr<cell_dds::Writer<rosgraph_msgs::msg::dds_::Clock_PubSubType>> clock_;
+  std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::JointState_PubSubType>> joints_;
+  std::unique_ptr<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>> tf_;
+  std::unique_ptr<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>> description_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>> control_out_;
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>> control_in_;

@@ -30,7 +30,13 @@ std::optional<Eigen::VectorXd> ArmRobot::solve(const Eigen::Isometry3d& world_T_
   return kin_.inverse(world_T_base_.inverse() * world_T_camera, seed, why);
 }
 
+void ArmRobot::pin(const Eigen::Isometry3d& world_T_camera, const Eigen::VectorXd& q) {
+  if (q.size() == kin_.dof()) pinned_.emplace_back(world_T_camera, q);
+}
+
 void ArmRobot::reset(const Eigen::Isometry3d& world_T_camera) {
+  for (const auto& [pose, q] : pinned_)
+    if (pose.matrix() == world_T_camera.matrix()) return reset_joints(q);
   std::string why;
   // from home: the same pose gives the same joints whatever the arm did before
   const auto q = solve(world_T_camera, home_, &why);
@@ -42,6 +48,7 @@ void ArmRobot::reset_joints(const Eigen::VectorXd& q) {
   if (q.size() != kin_.dof() || !kin_.within_limits(q))
     throw std::invalid_argument("joint angles outside the limits of " + model_->file.filename().string());
   arm_.reset(q);
+  q_ref_ = q;
   carry_ns_ = 0;
   fault_.reset();
   sync();
@@ -77,7 +84,8 @@ MotionReport ArmRobot::move(const Vector6d& twist_c, double dt_s, const Workspac
       r.limits |= cmd.limits;
       r.applied += cmd.twist / static_cast<double>(steps);
     }
-    const auto contact = arm_.step(cmd.qdot);
+    q_ref_ += cmd.qdot * h;
+    const auto contact = arm_.step(cmd.qdot, q_ref_);
     sync();
     if (contact) {
       fault_ = *contact;

@@ -25,13 +25,16 @@ class ArmRobot final : public Robot {
   Eigen::Isometry3d world_T_camera() const override { return world_T_camera_; }
   void reset(const Eigen::Isometry3d& world_T_camera) override;
   void reset_joints(const Eigen::VectorXd& q);
+  // reset() to exactly this pose takes these joint angles (a scenario's desired and
+  // initial configurations) instead of solving IK again
+  void pin(const Eigen::Isometry3d& world_T_camera, const Eigen::VectorXd& q);
   MotionReport move(const Vector6d& twist_c, double dt_s, const Workspace& workspace) override;
   std::vector<std::string> joint_names() const override { return model_->joint_names(); }
   Eigen::VectorXd joint_positions() const override { return q_; }
   Eigen::VectorXd joint_velocities() const override { return qdot_; }
 
   // base_T_link for the root and each chain segment (RobotModel order), in the world
-  std::vector<Eigen::Isometry3d> world_T_links() const;
+  std::vector<Eigen::Isometry3d> world_T_links() const override;
   const RobotModel& model() const { return *model_; }
   const ArmKinematics& kinematics() const { return kin_; }
   const Eigen::Isometry3d& world_T_base() const { return world_T_base_; }
@@ -48,10 +51,11 @@ class ArmRobot final : public Robot {
   ArmKinematics kin_;
   ArmController controller_;
   BulletArm arm_;
-  Eigen::VectorXd home_, q_, qdot_;
+  Eigen::VectorXd home_, q_, qdot_, q_ref_;
   Eigen::Isometry3d world_T_camera_ = Eigen::Isometry3d::Identity();
   std::int64_t period_ns_ = 1000000, carry_ns_ = 0;
   std::optional<std::string> fault_;
+  std::vector<std::pair<Eigen::Isometry3d, Eigen::VectorXd>> pinned_;
 };
 
 }  // namespace sim

@@ -24,6 +24,8 @@ btTransform bt(const Eigen::Isometry3d& t) {
 // collision groups: the base sits on the cell's table and may touch it
 constexpr int kGroupBase = 1, kGroupLink = 2, kGroupObject = 4;
 constexpr btScalar kMargin = btScalar(0.001);
+// the joint servo's position correction: this fraction of the error per physics period
+constexpr double kPositionGain = 0.05;
 constexpr btScalar kTouch = 0;  // closer than the two margins (2 mm): a contact
 
 // One Bullet body: a moving joint's link and the fixed links it carries.
@@ -232,10 +234,16 @@ void BulletArm::reset(const Eigen::VectorXd& q) {
   B.world->updateAabbs();
 }
 
-std::optional<std::string> BulletArm::step(const Eigen::VectorXd& qdot) {
+std::optional<std::string> BulletArm::step(const Eigen::VectorXd& qdot, const Eigen::VectorXd& q_ref) {
   Bullet& B = *b_;
-  for (std::size_t i = 0; i < B.motors.size(); ++i)
-    B.motors[i]->setVelocityTarget(btScalar(static_cast<int>(i) < qdot.size() && std::isfinite(qdot[static_cast<Eigen::Index>(i)]) ? qdot[static_cast<Eigen::Index>(i)] : 0.0));
+  const auto n = static_cast<Eigen::Index>(B.motors.size());
+  if (qdot.size() != n || q_ref.size() != n || !qdot.allFinite() || !q_ref.allFinite())
+    throw std::invalid_argument("BulletArm::step: joint vectors must be finite, one value per joint");
+  for (Eigen::Index i = 0; i < n; ++i) {
+    auto& m = *B.motors[static_cast<std::size_t>(i)];
+    m.setVelocityTarget(btScalar(qdot[i]), 1);
+    m.setPositionTarget(btScalar(q_ref[i]), btScalar(kPositionGain));
+  }
   B.world->stepSimulation(btScalar(h_), 0, btScalar(h_));
   return contact();
 }

@@ -30,8 +30,10 @@ class BulletArm {
 
   double period() const { return h_; }
   void reset(const Eigen::VectorXd& q);
-  // One physics period with the motors aiming at qdot. Returns the first forbidden contact.
-  std::optional<std::string> step(const Eigen::VectorXd& qdot);
+  // One physics period with the motors aiming at velocity qdot and position q_ref (the
+  // integrated velocity reference, as a joint servo holds it: gravity does not make the
+  // arm drift). Returns the first forbidden contact.
+  std::optional<std::string> step(const Eigen::VectorXd& qdot, const Eigen::VectorXd& q_ref);
   // Forbidden contacts in the present state (after reset: is the start collision-free?).
   std::optional<std::string> contact();
   Eigen::VectorXd q() const;

@@ -33,18 +33,21 @@ const char* command_name(int c) {
 
 }  // namespace
 
-CellStateMachine::CellStateMachine(const Scenario& scenario, CellParams params)
-    : scenario_(scenario), p_(params) {
+CellStateMachine::CellStateMachine(const Scenario& scenario, CellParams params, std::unique_ptr<Robot> robot)
+    : scenario_(scenario), p_(params), robot_(std::move(robot)) {
   if (!(p_.watchdog_s > 0) || !(p_.physics_period_s > 0) || !(p_.republish_s > 0) || !(p_.teach_timeout_s > 0))
     throw std::invalid_argument("CellStateMachine: watchdog, physics period, republish and teach timeout must be positive");
-  robot_ = std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
-                                              scenario_.robot.max_angular_radps);
+  if (!robot_)
+    robot_ = std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
+                                                scenario_.robot.max_angular_radps);
 }
 
-void CellStateMachine::loaded(const Scenario& scenario) {
+void CellStateMachine::loaded(const Scenario& scenario, std::unique_ptr<Robot> robot) {
   scenario_ = scenario;
-  robot_ = std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
-                                              scenario_.robot.max_angular_radps);
+  robot_ = robot ? std::move(robot)
+                 : std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
+                                                      scenario_.robot.max_angular_radps);
+  limits_ = 0;
   loading_ = false;
   running_ = false;
   steps_ = 0;
@@ -107,16 +110,26 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       } catch (const std::exception& e) {
         return refuse(e.what());
       }
+      try {
+        robot_->reset(pose);
+      } catch (const std::exception& e) {
+        return refuse(e.what());
+      }
       abandon_awaited();
-      robot_->reset(pose);
+      limits_ = 0;
       running_ = false;
       steps_ = 0;
       current_.setZero();
       return;
     }
     case static_cast<int>(CellCommand::kTeach):
+      try {
+        robot_->reset(scenario_.world_T_desired);
+      } catch (const std::exception& e) {
+        return refuse(e.what());
+      }
       abandon_awaited();
-      robot_->reset(scenario_.world_T_desired);
+      limits_ = 0;
       running_ = false;
       steps_ = 0;
       current_.setZero();
@@ -237,18 +250,17 @@ void CellStateMachine::check_convergence(const ServoReport& s) {
   }
 }
 
-bool CellStateMachine::move(const Vector6d& twist, double duration_s, Vector6d* applied) {
-  FreeFlyingCamera trial = *robot_;
-  const Vector6d a = trial.apply_twist(twist, duration_s);
-  if (!scenario_.workspace.contains(trial.world_T_camera().translation())) {
-    if (worth_logging(++counters_.rejected_workspace))
-      log("cellsim: a twist would take the camera out of the workspace: robot stopped");
-    if (applied) applied->setZero();
-    return false;
+bool CellStateMachine::move(const Vector6d& twist, double duration_s) {
+  const MotionReport r = robot_->move(twist, duration_s, scenario_.workspace);
+  limits_ = r.limits;
+  if (!r.event.empty()) {
+    if (r.limits & kLimitWorkspace) {
+      if (worth_logging(++counters_.rejected_workspace)) log("cellsim: " + r.event);
+    } else if (worth_logging(++counters_.robot_stops)) {
+      log("cellsim: " + r.event);
+    }
   }
-  *robot_ = trial;
-  if (applied) *applied = a;
-  return true;
+  return r.event.empty();
 }
 
 FrameOrder CellStateMachine::order(bool teach, bool repeat) const {
@@ -259,6 +271,11 @@ FrameOrder CellStateMachine::order(bool teach, bool repeat) const {
   f.teach = teach;
   f.applies_twist = !teach && (running_ || steps_ > 0);
   f.repeat = repeat;
+  f.world_T_links = robot_->world_T_links();
+  f.joint_names = robot_->joint_names();
+  f.joint_positions = robot_->joint_positions();
+  f.joint_velocities = robot_->joint_velocities();
+  f.robot_limits = limits_;
   return f;
 }
 
@@ -273,6 +290,7 @@ TraceRow CellStateMachine::row(const FrameOrder& f, const Vector6d& twist, const
   r.time_s = static_cast<double>(f.index - run_first_frame_) * scenario_.dt_s;
   r.twist = twist;
   r.status = st;
+  r.robot_limits = f.robot_limits;
   const Eigen::Isometry3d& wTc = f.world_T_camera;
   r.translation_error_m = translation_error(wTc, scenario_.world_T_desired);
   r.rotation_error_deg = rotation_error(wTc, scenario_.world_T_desired) * kRadToDeg;
@@ -316,7 +334,8 @@ void CellStateMachine::lockstep(double now_s) {
       if (answer_complete(now_s)) {
         if (awaited_->frame.applies_twist) {
           trace_pending_.emplace_back(awaited_->frame.index, row(awaited_->frame, *answer_, std::nullopt));
-          move(*answer_, scenario_.dt_s, nullptr);
+          move(*answer_, scenario_.dt_s);
+          trace_pending_.back().second.robot_limits = limits_;
           ++counters_.applied;
         }
         abandon_awaited();
@@ -373,7 +392,7 @@ void CellStateMachine::realtime(double now_s) {
     const double t1 = std::min(now_s, physics_at_s_ + p_.physics_period_s);
     if (moving && !current_.isZero(0)) {
       const double end = std::min(t1, valid_until_s_);
-      if (end > physics_at_s_ && !move(current_, end - physics_at_s_, nullptr)) current_.setZero();
+      if (end > physics_at_s_ && !move(current_, end - physics_at_s_)) current_.setZero();
       if (valid_until_s_ <= t1 && !current_.isZero(0)) {
         ++counters_.watchdog_stops;
         log("cellsim: watchdog: no valid twist for " + std::to_string(static_cast<long long>(1e3 * p_.watchdog_s)) +

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
 #include "sim/scenario/scenario.hpp"
 
@@ -80,6 +81,12 @@ struct FrameOrder {
   bool applies_twist = false;     // a twist answering it will move the robot
   bool teach = false;             // rendered at the desired pose for TEACH
   bool repeat = false;            // lockstep: the same frame again (unanswered)
+  // the robot's state when rendered: link poses (ArmRobot::world_T_links; empty for the
+  // free-flying camera), joints, and why its last motion was limited
+  std::vector<Eigen::Isometry3d> world_T_links;
+  std::vector<std::string> joint_names;
+  Eigen::VectorXd joint_positions, joint_velocities;
+  std::uint32_t robot_limits = 0;
 };
 
 // One applied step of the robot.
@@ -89,11 +96,12 @@ struct TraceRow {
   // pose error when the frame was rendered (before the twist moved the robot)
   std::optional<ServoReport> status;
   double translation_error_m = 0, rotation_error_deg = 0;
+  std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (RobotLimit bits)
 };
 
 struct CellCounters {
   long frames = 0, applied = 0, rejected_nan = 0, rejected_frame = 0, rejected_stale = 0, rejected_workspace = 0,
-       watchdog_stops = 0, commands = 0, commands_refused = 0, dropped_inputs = 0;
+       watchdog_stops = 0, robot_stops = 0, commands = 0, commands_refused = 0, dropped_inputs = 0;
 };
 
 struct CellOutput {
@@ -106,7 +114,8 @@ struct CellOutput {
 
 class CellStateMachine {
  public:
-  CellStateMachine(const Scenario& scenario, CellParams params);
+  // `robot`: what carries the camera (make_robot of the cell); null: a free-flying camera
+  CellStateMachine(const Scenario& scenario, CellParams params, std::unique_ptr<Robot> robot = nullptr);
 
   // Inputs, as they arrive. Each returns false when the input was refused (and says why in
   // the next output's log).
@@ -120,7 +129,7 @@ class CellStateMachine {
   double next_deadline(double now_s) const;
 
   // After a CellOutput::load: the scenario was loaded (robot at its desired pose, idle) or not.
-  void loaded(const Scenario& scenario);
+  void loaded(const Scenario& scenario, std::unique_ptr<Robot> robot = nullptr);
   void load_failed(const std::string& reason);
 
   Eigen::Isometry3d world_T_camera() const { return robot_->world_T_camera(); }
@@ -142,7 +151,7 @@ class CellStateMachine {
  private:
   void apply_command(const CommandMsg& c, double now_s);
   std::optional<std::uint64_t> frame_of(std::int64_t sec, std::uint32_t nanosec, std::string& why) const;
-  bool move(const Vector6d& twist, double duration_s, Vector6d* applied);
+  bool move(const Vector6d& twist, double duration_s);
   void abandon_awaited();
   FrameOrder order(bool teach, bool repeat) const;
   TraceRow row(const FrameOrder& frame, const Vector6d& twist, const std::optional<ServoReport>& st) const;
@@ -157,7 +166,8 @@ class CellStateMachine {
 
   Scenario scenario_;
   CellParams p_;
-  std::unique_ptr<FreeFlyingCamera> robot_;
+  std::unique_ptr<Robot> robot_;
+  std::uint32_t limits_ = 0;  // why the last motion was limited (RobotLimit bits)
   CellOutput out_;
   CellCounters counters_;
   std::uint64_t frame_ = 0;          // index of the next new frame

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "servo/pattern/pattern_file.hpp"
+#include "sim/arm/arm_robot.hpp"
 
 namespace sim {
 
@@ -22,6 +23,14 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
       throw MeshError(scenario.file.string() + ": objects: more than " + std::to_string(kMaxSceneTriangles) +
                       " triangles in the scene (the limit), reached at mesh " + o.mesh.string());
     cell->world.add_object(std::move(mesh), o.world_T_object, o.albedo);
+    cell->object_names.push_back(o.name);
+  }
+  if (scenario.robot.arm_enabled && scenario.robot.model) {
+    const RobotModel& m = *scenario.robot.model;
+    if (m.root_has_shape) cell->arm_meshes.add(m.root_shape.visual, 0, m.root_shape.albedo);
+    for (std::size_t i = 0; i < m.chain.size(); ++i)
+      if (m.chain[i].has_shape && !m.chain[i].shape.visual.triangles.empty())
+        cell->arm_meshes.add(m.chain[i].shape.visual, static_cast<int>(i) + 1, m.chain[i].shape.albedo);
   }
   cell->triangles = collect_triangles(cell->world);
 
@@ -55,6 +64,29 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   cell->noise_pool.resize(std::size_t{1} << 21);  // 8 MB, 2.2 VGA frames of values
   for (float& x : cell->noise_pool) x = gauss(rng);
   return cell;
+}
+
+std::unique_ptr<Robot> make_robot(const Cell& cell) {
+  const Scenario& s = cell.scenario;
+  if (!s.robot.arm_enabled || !s.robot.model)
+    return std::make_unique<FreeFlyingCamera>(s.world_T_desired, s.robot.max_linear_mps, s.robot.max_angular_radps);
+  const ArmSpec& a = s.robot.arm;
+  ArmControllerParams p;
+  p.max_linear_mps = s.robot.max_linear_mps;
+  p.max_angular_radps = s.robot.max_angular_radps;
+  p.damping = a.damping;
+  p.slowdown_condition = a.slowdown_condition;
+  p.stop_condition = a.stop_condition;
+  p.joint_margin_rad = a.joint_margin_rad;
+  Eigen::VectorXd home = s.robot.desired_q;
+  if (a.home_rad.size() == static_cast<std::size_t>(home.size()))
+    home = Eigen::Map<const Eigen::VectorXd>(a.home_rad.data(), home.size());
+  auto arm = std::make_unique<ArmRobot>(s.robot.model, a.world_T_base, cell.world, cell.object_names, p, home,
+                                        1.0 / a.physics_hz);
+  arm->pin(s.world_T_desired, s.robot.desired_q);
+  arm->pin(s.world_T_initial(), s.robot.initial_q);
+  arm->reset(s.world_T_desired);
+  return arm;
 }
 
 }  // namespace sim

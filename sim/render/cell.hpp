@@ -5,6 +5,7 @@
 #include <memory>
 #include <vector>
 
+#include "sim/robot/robot.hpp"
 #include "sim/render/camera_model.hpp"
 #include "sim/render/projector.hpp"
 #include "sim/render/rasterizer.hpp"
@@ -29,10 +30,18 @@ struct Cell {
   // unit-variance Gaussian samples drawn once from the scenario seed; each frame reads
   // them from seeded random offsets (one load per pixel value instead of a draw)
   std::vector<float> noise_pool;
+  // the arm's link meshes in their link frames (none for the free-flying camera); a frame
+  // places them with the robot's link poses (ArmRobot::world_T_links order)
+  MovingMeshes arm_meshes;
+  std::vector<std::string> object_names;
 };
 
 // Loads meshes and the pattern named by the scenario. Throws MeshError or
 // pattern::PatternFileError (one line naming the file) when one is unusable.
 std::unique_ptr<Cell> build_cell(const Scenario& scenario);
+
+// The robot the scenario names, at the desired pose: the free-flying camera, or the arm
+// (its desired and initial poses pinned to the joint angles resolved at load).
+std::unique_ptr<Robot> make_robot(const Cell& cell);
 
 }  // namespace sim

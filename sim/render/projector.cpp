@@ -29,8 +29,28 @@ Eigen::Vector3d Projector::ray_w(const Eigen::Vector2d& px) const {
   return (spec_.world_T_projector.linear() * d_p).normalized();
 }
 
+namespace {
+constexpr double kRange = 50.0;  // metres: far beyond any cell
+}
+
+void Projector::recast(SpotHit& h, const MovingMeshes& meshes, const std::vector<Eigen::Isometry3d>& poses,
+                       int object_offset) const {
+  const Eigen::Vector3d origin = spec_.world_T_projector.translation();
+  const auto cast = [&](const Eigen::Vector2d& px, std::optional<RayHit>& hit) {
+    auto a = meshes.ray_test(poses, origin, origin + kRange * ray_w(px));
+    if (!a || (hit && hit->fraction <= a->fraction)) return;
+    a->object += object_offset;
+    hit = a;
+  };
+  const Eigen::Vector2d centre = spot_pixel(h.row, h.col);
+  cast(centre, h.centre);
+  for (int i = 0; i < kRimSamples && i < static_cast<int>(h.rim.size()); ++i) {
+    const double a = 2.0 * M_PI * i / kRimSamples;
+    cast(centre + spec_.spot_radius_px * Eigen::Vector2d(std::cos(a), std::sin(a)), h.rim[static_cast<std::size_t>(i)]);
+  }
+}
+
 std::vector<SpotHit> Projector::cast_spots(const World& world) const {
-  constexpr double kRange = 50.0;  // metres: far beyond any cell
   const Eigen::Vector3d origin = spec_.world_T_projector.translation();
   std::vector<SpotHit> hits;
   for (int r = 0; r < pattern_.rows; ++r)

@@ -36,6 +36,10 @@ class Projector {
   // Casts every lit spot's centre and rim rays into the world. The projector and the
   // objects are static, so callers cache this until the world changes.
   std::vector<SpotHit> cast_spots(const World& world) const;
+  // Casts one spot's rays at moving meshes placed by `poses`; where they hit nearer than the
+  // static hit, the hit becomes theirs (object = object_offset + mesh index).
+  void recast(SpotHit& hit, const MovingMeshes& meshes, const std::vector<Eigen::Isometry3d>& poses,
+              int object_offset) const;
 
   // Blur (sigma, projector pixels) of the projected image at depth z along the optical axis:
   // the residual blur inside the focus range, growing linearly outside it.

@@ -66,26 +66,30 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
 
 }  // namespace
 
+void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t) {
+  for (const auto& tri : triangles) {
+    const Eigen::Vector3d a = world_T_mesh * vertices[tri[0]];
+    const Eigen::Vector3d b = world_T_mesh * vertices[tri[1]];
+    const Eigen::Vector3d c = world_T_mesh * vertices[tri[2]];
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-15) continue;  // degenerate: no surface
+    t.a.push_back(a);
+    t.b.push_back(b);
+    t.c.push_back(c);
+    t.normal_w.push_back(n.normalized());
+    t.offset.push_back(t.normal_w.back().dot(a));
+    t.object.push_back(object);
+    t.albedo.push_back(albedo);
+  }
+}
+
 SceneTriangles collect_triangles(const World& world) {
   SceneTriangles t;
   const auto& objects = world.objects();
-  for (std::size_t o = 0; o < objects.size(); ++o) {
-    const auto& obj = objects[o];
-    for (const auto& tri : obj.triangles) {
-      const Eigen::Vector3d& a = obj.vertices_w[tri[0]];
-      const Eigen::Vector3d& b = obj.vertices_w[tri[1]];
-      const Eigen::Vector3d& c = obj.vertices_w[tri[2]];
-      const Eigen::Vector3d n = (b - a).cross(c - a);
-      if (n.norm() < 1e-15) continue;  // degenerate: no surface
-      t.a.push_back(a);
-      t.b.push_back(b);
-      t.c.push_back(c);
-      t.normal_w.push_back(n.normalized());
-      t.offset.push_back(t.normal_w.back().dot(a));
-      t.object.push_back(static_cast<int>(o));
-      t.albedo.push_back(static_cast<float>(obj.albedo));
-    }
-  }
+  for (std::size_t o = 0; o < objects.size(); ++o)
+    append_triangles(objects[o].vertices_w, objects[o].triangles, Eigen::Isometry3d::Identity(), static_cast<int>(o),
+                     static_cast<float>(objects[o].albedo), t);
   return t;
 }
 
@@ -97,11 +101,16 @@ void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_wor
   const std::size_t n = static_cast<std::size_t>(out.width) * out.height;
   out.inv_depth.assign(n, 0.0f);
   out.triangle.assign(n, -1);
+  rasterize_more(tris, 0, viewer_T_world, k, out);
+}
+
+void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
+                    const Intrinsics& k, DepthBuffer& out) {
 
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
   };
-  for (std::size_t i = 0; i < tris.a.size(); ++i) {
+  for (std::size_t i = first; i < tris.a.size(); ++i) {
     const Eigen::Vector3d v[3] = {viewer_T_world * tris.a[i], viewer_T_world * tris.b[i], viewer_T_world * tris.c[i]};
     const int behind = (v[0].z() < kNear) + (v[1].z() < kNear) + (v[2].z() < kNear);
     if (behind == 3) continue;

@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -55,5 +56,12 @@ struct DepthBuffer {
 // Triangles crossing the near plane are clipped.
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
                DepthBuffer& out);
+// Adds triangles [first, end) to a buffer rasterised from the same viewpoint (the moving
+// arm over the static scene's buffer).
+void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
+                    const Intrinsics& k, DepthBuffer& out);
+// Appends a mesh placed at world_T_mesh, as object `object` with `albedo`.
+void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& out);
 
 }  // namespace sim

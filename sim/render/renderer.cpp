@@ -47,13 +47,14 @@ const EdgeProfile& edge_profile() {
 
 // The image region one spot can light: the projected rim and centre hits on one object,
 // widened by the defocus blur. A spot straddling a depth edge gives one box per object.
-void spot_boxes(const Cell& cell, const Eigen::Isometry3d& c_T_w, std::vector<SpotBox>& out) {
+void spot_boxes(const Cell& cell, const std::vector<SpotHit>& hits, const Eigen::Isometry3d& c_T_w,
+                std::vector<SpotBox>& out) {
   out.clear();
   const Intrinsics& k = cell.scenario.camera.intrinsics;
   const ProjectorSpec& ps = cell.projector->spec();
   const Eigen::Vector3d P = ps.world_T_projector.translation();
-  for (std::size_t i = 0; i < cell.spot_hits.size(); ++i) {
-    const SpotHit& h = cell.spot_hits[i];
+  for (std::size_t i = 0; i < hits.size(); ++i) {
+    const SpotHit& h = hits[i];
     // group hits by object: up to a few boxes per spot
     std::array<int, 4> objects{-1, -1, -1, -1};
     std::array<Eigen::AlignedBox2d, 4> boxes;
@@ -97,26 +98,93 @@ void spot_boxes(const Cell& cell, const Eigen::Isometry3d& c_T_w, std::vector<Sp
 
 }  // namespace
 
+FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buf, bool with_triangles) {
+  FrameScene scene{&cell.triangles, &cell.spot_hits, &cell.projector_depth, false};
+  if (!links || links->empty() || cell.arm_meshes.size() == 0) return scene;
+  const MovingMeshes& arm = cell.arm_meshes;
+  const int object_offset = static_cast<int>(cell.object_names.size());
+  const std::size_t first = cell.triangles.a.size();
+  if (with_triangles) {
+    // the static part is copied once per buffer, then only the arm is replaced
+    if (buf.triangles.a.size() < first || buf.triangles.object.empty() || buf.triangles.object[0] != cell.triangles.object[0] ||
+        buf.triangles.a.front() != cell.triangles.a.front())
+      buf.triangles = cell.triangles;
+    SceneTriangles& t = buf.triangles;
+    for (auto* v : {&t.a, &t.b, &t.c, &t.normal_w}) v->resize(first);
+    t.offset.resize(first);
+    t.object.resize(first);
+    t.albedo.resize(first);
+    for (std::size_t i = 0; i < arm.size(); ++i) {
+      const auto l = static_cast<std::size_t>(arm.link(i));
+      if (l >= links->size()) continue;
+      append_triangles(arm.mesh(i).vertices, arm.mesh(i).triangles, (*links)[l], object_offset + static_cast<int>(i),
+                       arm.albedo(i), t);
+    }
+    scene.triangles = &t;
+  }
+  // is any of the arm in the projector's beam? its box on the projector's image plane
+  const Projector& proj = *cell.projector;
+  const Intrinsics& kp = proj.spec().intrinsics;
+  const Eigen::Isometry3d p_T_w = proj.projector_T_world();
+  Eigen::AlignedBox2d box;
+  bool behind = false;
+  for (std::size_t i = 0; i < arm.size(); ++i) {
+    const auto l = static_cast<std::size_t>(arm.link(i));
+    if (l >= links->size()) continue;
+    const Eigen::Isometry3d p_T_mesh = p_T_w * (*links)[l];
+    for (const auto& v : arm.mesh(i).vertices) {
+      const Eigen::Vector3d x = p_T_mesh * v;
+      if (x.z() < 1e-3) {
+        behind = true;
+        continue;
+      }
+      box.extend(Eigen::Vector2d(kp.fx * x.x() / x.z() + kp.cx, kp.fy * x.y() / x.z() + kp.cy));
+    }
+  }
+  const double reach = proj.spec().spot_radius_px + 2;
+  const Eigen::AlignedBox2d image(Eigen::Vector2d(-reach, -reach), Eigen::Vector2d(kp.width + reach, kp.height + reach));
+  if (!behind && (box.isEmpty() || !box.intersects(image))) return scene;
+  scene.arm_in_beam = true;
+  buf.spot_hits = cell.spot_hits;
+  for (SpotHit& h : buf.spot_hits) {
+    const Eigen::Vector2d c = proj.spot_pixel(h.row, h.col);
+    if (!behind && (c.x() < box.min().x() - reach || c.x() > box.max().x() + reach || c.y() < box.min().y() - reach ||
+                    c.y() > box.max().y() + reach))
+      continue;
+    proj.recast(h, arm, *links, object_offset);
+  }
+  scene.spot_hits = &buf.spot_hits;
+  if (with_triangles) {
+    buf.projector_depth = cell.projector_depth;
+    rasterize_more(*scene.triangles, first, p_T_w, kp, buf.projector_depth);
+    scene.projector_depth = &buf.projector_depth;
+  }
+  return scene;
+}
+
 std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame) {
   std::uint64_t s = scenario_seed ^ (0xD1B54A32D192ED03ull * (frame + 1));
   return splitmix64(s);
 }
 
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
-                     RenderScratch* scratch, const CameraSpec* sensor) {
+                     RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links) {
   const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
   const Intrinsics& k = cell.scenario.camera.intrinsics;  // the lens is the cell's, whatever the sensor
   const Projector& proj = *cell.projector;
   const ProjectorSpec& ps = proj.spec();
   const Intrinsics& kp = ps.intrinsics;
-  const SceneTriangles& tris = cell.triangles;
   const EdgeProfile& edge = edge_profile();
 
   RenderScratch local;
   RenderScratch& s = scratch ? *scratch : local;
+  const FrameScene scene = pose_scene(cell, links, s.arm, true);
+  const SceneTriangles& tris = *scene.triangles;
+  const std::vector<SpotHit>& hits = *scene.spot_hits;
+  const DepthBuffer& projector_depth = *scene.projector_depth;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
   rasterize(tris, c_T_w, k, cell.camera_margin_px, s.camera_depth);
-  spot_boxes(cell, c_T_w, s.boxes);
+  spot_boxes(cell, hits, c_T_w, s.boxes);
 
   // spot colours after the sensor's channel crosstalk, per pattern symbol
   std::array<Eigen::Vector3f, 10> spot_rgb;
@@ -165,7 +233,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
     for (const SpotBox& box : s.boxes) {
       const int v0 = std::max(box.v0, band.start), v1 = std::min(box.v1, band.end - 1);
       if (v0 > v1) continue;
-      const SpotHit& hit = cell.spot_hits[box.spot];
+      const SpotHit& hit = hits[box.spot];
       const Eigen::Vector2d centre = proj.spot_pixel(hit.row, hit.col);
       const Eigen::Vector3f& colour = spot_rgb[hit.symbol];
       const double reach_max2 = box.reach_px * box.reach_px;
@@ -194,7 +262,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
           const double reach = radius + 3.0 * sigma;  // 0.5 erfc(3 / sqrt 2) = 0.1 %: nothing beyond
           if (rho2 > reach * reach) continue;
           // lit when the projector's nearest surface along this direction is this one
-          if (X_p.z() > cell.projector_depth.depth_at(du + centre.x(), dv + centre.y()) * (1.0 + 2e-3) + 2e-3) continue;
+          if (X_p.z() > projector_depth.depth_at(du + centre.x(), dv + centre.y()) * (1.0 + 2e-3) + 2e-3) continue;
           const Eigen::Vector3d X = C + z_c * (R * d_c);
           const Eigen::Vector3d L = P - X;
           const double dist2 = L.squaredNorm();
@@ -243,7 +311,11 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   return image;
 }
 
-std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera) {
+std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera, const LinkPoses* links) {
+  ArmFrameBuffers buffers;
+  const FrameScene scene = pose_scene(cell, links, buffers, false);
+  const bool arm = links && !links->empty() && cell.arm_meshes.size() > 0;
+  const int first_arm_object = static_cast<int>(cell.object_names.size());
   const pattern::MArray& pat = cell.projector->pattern();
   const Intrinsics& k = cell.scenario.camera.intrinsics;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
@@ -255,9 +327,10 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
       t.row = r;
       t.col = c;
     }
-  for (const SpotHit& h : cell.spot_hits) {
+  for (const SpotHit& h : *scene.spot_hits) {
     if (!h.centre) continue;
     SpotTruth& t = truth[static_cast<std::size_t>(h.row) * pat.cols + h.col];
+    t.on_arm = h.centre->object >= first_arm_object;
     t.point_w = h.centre->point_w;
     const Eigen::Vector3d X_c = c_T_w * t.point_w;
     t.depth_m = X_c.z();
@@ -269,6 +342,10 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
     // the segment from the camera to 1 mm short of the spot must be free
     const Eigen::Vector3d to = t.point_w + (C - t.point_w).normalized() * 1e-3;
     t.visible = !cell.world.ray_test(C, to).has_value();
+    if (t.visible && arm && cell.arm_meshes.ray_test(*links, C, to)) {
+      t.visible = false;
+      t.hidden_by_arm = true;
+    }
     if (!t.visible) continue;
     for (const auto& rim : h.rim)
       if (rim && rim->object == h.centre->object) {

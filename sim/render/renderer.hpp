@@ -25,8 +25,28 @@ struct SpotBox {
   int u0 = 0, v0 = 0, u1 = -1, v1 = -1;
 };
 
+// Where the arm's links are in one frame (ArmRobot::world_T_links); null or empty: no arm.
+using LinkPoses = std::vector<Eigen::Isometry3d>;
+
+// The scene of one frame: the cell's static parts, and the arm's links where they are
+// (their triangles, the spots they catch, their shadow in the projector's depth map).
+struct FrameScene {
+  const SceneTriangles* triangles = nullptr;
+  const std::vector<SpotHit>* spot_hits = nullptr;
+  const DepthBuffer* projector_depth = nullptr;
+  bool arm_in_beam = false;
+};
+struct ArmFrameBuffers {
+  SceneTriangles triangles;
+  std::vector<SpotHit> spot_hits;
+  DepthBuffer projector_depth;
+};
+// The arm's triangles are added when `with_triangles` (rendering); the spots' hits always.
+FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buffers, bool with_triangles);
+
 // Buffers reused from frame to frame (pass the same one to avoid reallocating).
 struct RenderScratch {
+  ArmFrameBuffers arm;
   DepthBuffer camera_depth;
   std::vector<float> radiance;  // linear RGB, 1 = full scale at exposure 1
   std::vector<SpotBox> boxes;
@@ -38,13 +58,17 @@ struct RenderScratch {
 // draw of the frame: the same seed gives a byte-identical image.
 // `sensor`, when given, replaces the scenario camera's exposure, ambient, noise and crosstalk
 // (its intrinsics must be the scenario's): studies over noise levels use it.
+// `links`: the arm's link poses in this frame (drawn, lit, casting shadows).
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
-                     RenderScratch* scratch = nullptr, const CameraSpec* sensor = nullptr);
+                     RenderScratch* scratch = nullptr, const CameraSpec* sensor = nullptr,
+                     const LinkPoses* links = nullptr);
 
 // Ground truth for one spot (pattern row, col).
 struct SpotTruth {
   int row = 0, col = 0;
   bool visible = false;            // lit, facing the camera, unoccluded, inside the image
+  bool hidden_by_arm = false;      // lit and facing the camera, but an arm link is in the way
+  bool on_arm = false;             // it lands on an arm link (the arm is in the projector's beam)
   Eigen::Vector2d uv{0, 0};        // distorted image position of the centre hit (pixels)
   double depth_m = 0;              // Z of the centre hit in the camera frame
   Eigen::Vector3d point_w{0, 0, 0};
@@ -53,7 +77,8 @@ struct SpotTruth {
 
 // One entry per pattern spot, row-major. Visibility from a Bullet ray from the camera to
 // the spot's centre hit.
-std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera);
+std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera,
+                                     const LinkPoses* links = nullptr);
 
 // Mixes a frame index into a scenario seed (splitmix64), for per-frame noise seeds.
 std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame);

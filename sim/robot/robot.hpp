@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "sim/geometry/se3.hpp"
-#include "sim/scenario/scenario.hpp"
+#include "sim/geometry/workspace.hpp"
 
 namespace sim {
 
@@ -47,6 +47,8 @@ class Robot {
   virtual std::vector<std::string> joint_names() const { return {}; }
   virtual Eigen::VectorXd joint_positions() const { return {}; }
   virtual Eigen::VectorXd joint_velocities() const { return {}; }
+  // where its links are, for drawing them (empty for a robot the camera never sees)
+  virtual std::vector<Eigen::Isometry3d> world_T_links() const { return {}; }
 };
 
 // A camera that moves exactly as commanded, each axis clamped to its velocity limit:

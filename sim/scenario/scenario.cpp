@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include "sim/arm/kinematics.hpp"
 #include "sim/geometry/se3.hpp"
 
 namespace sim {
@@ -67,6 +68,92 @@ Intrinsics read_intrinsics(const Reader& r, Intrinsics in) {
     in.cy = 0.5 * (in.height - 1);
   }
   return in;
+}
+
+std::vector<double> joint_list(const Reader& r) {
+  std::vector<double> q(r.size_at_most(kMaxChainSegments));
+  for (std::size_t i = 0; i < q.size(); ++i) q[i] = r.at(i).in_range(-720, 720) * kDeg;
+  return q;
+}
+
+// robot: free_flying | {type: free_flying, max_linear_mps, max_angular_dps}
+//      | {type: arm, urdf, camera_link, base_pose, home_joints_deg, desired_joints_deg,
+//         initial_joints_deg, max_linear_mps, max_angular_dps, controller: {...}}
+void read_robot(const Reader& r, RobotSpec& robot) {
+  if (r.node().IsScalar()) {
+    if (r.text(40) != "free_flying") r.fail("give free_flying, or a map with type: arm or type: free_flying");
+    return;
+  }
+  r.only_keys({"type", "max_linear_mps", "max_angular_dps", "urdf", "camera_link", "base_pose", "home_joints_deg",
+               "desired_joints_deg", "initial_joints_deg", "controller"});
+  const std::string type = r.has("type") ? r.at("type").text(40) : "free_flying";
+  if (type == "arm") robot.arm_enabled = true;
+  else if (type != "free_flying") r.at("type").fail("must be arm or free_flying");
+  if (r.has("max_linear_mps")) robot.max_linear_mps = r.at("max_linear_mps").in_range(1e-6, 10);
+  if (r.has("max_angular_dps")) robot.max_angular_radps = r.at("max_angular_dps").in_range(1e-6, 3600) * kDeg;
+  if (!robot.arm_enabled) {
+    for (const char* k : {"urdf", "camera_link", "base_pose", "home_joints_deg", "desired_joints_deg", "initial_joints_deg",
+                          "controller"})
+      if (r.has(k)) r.at(k).fail("only with type: arm");
+    return;
+  }
+  ArmSpec& a = robot.arm;
+  a.urdf = r.at("urdf").existing_file();
+  if (r.has("camera_link")) a.camera_link = r.at("camera_link").text(200);
+  if (r.has("base_pose")) a.world_T_base = read_pose(r.at("base_pose"), Eigen::Vector3d::UnitZ());
+  if (r.has("home_joints_deg")) a.home_rad = joint_list(r.at("home_joints_deg"));
+  if (r.has("desired_joints_deg")) a.desired_joints_rad = joint_list(r.at("desired_joints_deg"));
+  if (r.has("initial_joints_deg")) a.initial_joints_rad = joint_list(r.at("initial_joints_deg"));
+  if (r.has("controller")) {
+    const Reader c = r.at("controller");
+    c.only_keys({"damping", "slowdown_condition", "stop_condition", "joint_margin_deg", "physics_hz"});
+    if (c.has("damping")) a.damping = c.at("damping").in_range(1e-6, 10);
+    if (c.has("slowdown_condition")) a.slowdown_condition = c.at("slowdown_condition").in_range(1, 1e6);
+    if (c.has("stop_condition")) a.stop_condition = c.at("stop_condition").in_range(1, 1e6);
+    if (a.stop_condition <= a.slowdown_condition) c.fail("stop_condition must exceed slowdown_condition");
+    if (c.has("joint_margin_deg")) a.joint_margin_rad = c.at("joint_margin_deg").in_range(0, 45) * kDeg;
+    if (c.has("physics_hz")) a.physics_hz = c.at("physics_hz").in_range(250, 10000);
+  }
+}
+
+// The arm read from its URDF, and the joint angles of the desired and initial poses: a
+// pose out of the arm's reach is refused here, at load, not at the first RESET.
+void resolve_arm(const Reader& top, Scenario& s) {
+  const Reader r = top.at("robot");
+  ArmSpec& a = s.robot.arm;
+  try {
+    s.robot.model = std::make_shared<const RobotModel>(load_robot_model(a.urdf, a.camera_link));
+  } catch (const std::exception& e) {
+    r.at("urdf").fail(e.what());
+  }
+  const ArmKinematics kin(*s.robot.model);
+  const auto sized = [&](const std::vector<double>& q, const char* key) {
+    if (q.size() != static_cast<std::size_t>(kin.dof()))
+      r.at(key).fail("must list " + std::to_string(kin.dof()) + " angles (the arm's joints)");
+    const Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
+    if (!kin.within_limits(v)) r.at(key).fail("outside the joint limits of " + a.urdf.filename().string());
+    return v;
+  };
+  const Eigen::VectorXd home = a.home_rad.empty() ? Eigen::VectorXd(0.5 * (kin.lower() + kin.upper()))
+                                                  : sized(a.home_rad, "home_joints_deg");
+  const Eigen::Isometry3d base_T_world = a.world_T_base.inverse();
+  std::string why;
+  if (!a.desired_joints_rad.empty()) {
+    s.robot.desired_q = sized(a.desired_joints_rad, "desired_joints_deg");
+    s.world_T_desired = a.world_T_base * kin.base_T_camera(s.robot.desired_q);
+  } else if (const auto q = kin.inverse(base_T_world * s.world_T_desired, home, &why)) {
+    s.robot.desired_q = *q;
+  } else {
+    top.at("desired_pose").fail("the arm cannot place the camera there: " + why);
+  }
+  if (!a.initial_joints_rad.empty()) {
+    s.robot.initial_q = sized(a.initial_joints_rad, "initial_joints_deg");
+    s.initial_pose = a.world_T_base * kin.base_T_camera(s.robot.initial_q);
+  } else if (const auto q = kin.inverse(base_T_world * s.world_T_initial(), s.robot.desired_q, &why)) {
+    s.robot.initial_q = *q;
+  } else {
+    (top.has("initial_offset") ? top.at("initial_offset") : r).fail("the arm cannot place the camera there: " + why);
+  }
 }
 
 Scenario read_scenario(const std::filesystem::path& file) {
@@ -146,14 +233,9 @@ Scenario read_scenario(const std::filesystem::path& file) {
     if (c.has("crosstalk")) cam.crosstalk = c.at("crosstalk").in_range(0, 0.5);
   }
 
-  if (top.has("robot")) {
-    const Reader r = top.at("robot");
-    r.only_keys({"max_linear_mps", "max_angular_dps"});
-    if (r.has("max_linear_mps")) s.robot.max_linear_mps = r.at("max_linear_mps").in_range(1e-6, 10);
-    if (r.has("max_angular_dps")) s.robot.max_angular_radps = r.at("max_angular_dps").in_range(1e-6, 3600) * kDeg;
-  }
-
-  s.world_T_desired = read_pose(top.at("desired_pose"), Eigen::Vector3d::UnitZ());
+  if (top.has("robot")) read_robot(top.at("robot"), s.robot);
+  if (top.has("desired_pose") || s.robot.arm.desired_joints_rad.empty())
+    s.world_T_desired = read_pose(top.at("desired_pose"), Eigen::Vector3d::UnitZ());
   if (top.has("initial_offset")) {
     const Reader o = top.at("initial_offset");
     o.only_keys({"translation_cm", "rotation_deg", "frame_rotation_deg"});
@@ -163,6 +245,8 @@ Scenario read_scenario(const std::filesystem::path& file) {
       s.offset_frame_rotation_deg = o.at("frame_rotation_deg").numbers_in<3>(-kMaxAngleDeg, kMaxAngleDeg);
     if (o.has("rotation_deg")) s.initial_rotation_deg = o.at("rotation_deg").numbers_in<3>(-kMaxAngleDeg, kMaxAngleDeg);
   }
+
+  if (s.robot.arm_enabled) resolve_arm(top, s);
 
   // the camera's workspace: given, or the desired and initial positions with a margin
   if (top.has("workspace")) {
@@ -179,7 +263,8 @@ Scenario read_scenario(const std::filesystem::path& file) {
   }
   for (const auto& [name, pose] : {std::pair<const char*, Eigen::Isometry3d>{"desired_pose", s.world_T_desired},
                                    {"initial_offset", s.world_T_initial()}})
-    if (!s.workspace.contains(pose.translation())) top.at(name).fail("the camera would be outside the workspace");
+    if (!s.workspace.contains(pose.translation()))
+      (top.has(name) ? top.at(name) : top.at("robot")).fail(std::string(name) + ": the camera would be outside the workspace");
   return s;
 }
 
@@ -194,6 +279,7 @@ Eigen::Isometry3d offset_pose(const Eigen::Isometry3d& world_T_desired, const st
 }
 
 Eigen::Isometry3d Scenario::world_T_initial() const {
+  if (initial_pose) return *initial_pose;
   return offset_pose(world_T_desired, initial_translation_cm, initial_rotation_deg, offset_frame_rotation_deg);
 }
 

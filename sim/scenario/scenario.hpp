@@ -5,10 +5,14 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "sim/arm/robot_model.hpp"
+#include "sim/geometry/workspace.hpp"
 
 namespace sim {
 
@@ -31,16 +35,6 @@ inline constexpr double kMaxCoordinateM = 100.0;             // |x|, |y|, |z| of
 inline constexpr double kMaxAngleDeg = 3600.0;
 inline constexpr int kMaxPatternSide = 1024;
 inline constexpr double kDefaultWorkspaceMarginM = 1.0;
-
-// Where the camera may be: RESET poses outside are refused and a twist that would leave it
-// stops the robot.
-struct Workspace {
-  Eigen::Vector3d min_m = Eigen::Vector3d::Constant(-kMaxCoordinateM);
-  Eigen::Vector3d max_m = Eigen::Vector3d::Constant(kMaxCoordinateM);
-  bool contains(const Eigen::Vector3d& p) const {
-    return (p.array() >= min_m.array()).all() && (p.array() <= max_m.array()).all();
-  }
-};
 
 struct ObjectSpec {
   std::string name;
@@ -80,9 +74,30 @@ struct CameraSpec {
   double crosstalk = 0.06;      // fraction of each colour channel leaking into the others
 };
 
+// The arm carrying the camera (robot: {type: arm, ...}): a URDF with a serial chain to
+// the camera's optical link, placed in the world, and its controller's settings.
+struct ArmSpec {
+  std::filesystem::path urdf;                     // absolute
+  std::string camera_link = "camera_optical";
+  Eigen::Isometry3d world_T_base = Eigen::Isometry3d::Identity();
+  std::vector<double> home_rad;                   // IK seed: picks the arm's configuration family
+  std::vector<double> desired_joints_rad;         // when given, the desired pose is their FK
+  std::vector<double> initial_joints_rad;         // when given, the initial pose is their FK
+  double damping = 0.05;
+  double slowdown_condition = 17, stop_condition = 30;  // MoveIt Servo's thresholds
+  double joint_margin_rad = 0.05;
+  double physics_hz = 1000;
+};
+
 struct RobotSpec {
+  bool arm_enabled = false;  // false: the free-flying camera
   double max_linear_mps = 0.5;
   double max_angular_radps = 1.0;
+  ArmSpec arm;
+  // resolved at load: the robot read from the URDF, and the joint angles of the desired
+  // and initial camera poses (by IK from home, or as given)
+  std::shared_ptr<const RobotModel> model;
+  Eigen::VectorXd desired_q, initial_q;
 };
 
 struct Scenario {
@@ -104,6 +119,8 @@ struct Scenario {
   std::array<double, 3> initial_rotation_deg{0, 0, 0};
   std::array<double, 3> offset_frame_rotation_deg{0, 0, 0};
   Eigen::Isometry3d world_T_initial() const;
+  // set when the initial pose is given as joint angles (build_cell fills it by FK)
+  std::optional<Eigen::Isometry3d> initial_pose;
 };
 
 // Throws ScenarioError (one line naming the file and the key) on unknown keys, wrong types,

@@ -47,4 +47,34 @@ class World {
   std::vector<Object> objects_;
 };
 
+// Meshes that move, each with a pose per frame (the arm's links). A ray is cast in each
+// mesh's own frame against its Bullet BVH, so casting changes no shared state: threads may
+// cast at once, and the poses are an argument, not a state.
+class MovingMeshes {
+ public:
+  MovingMeshes();
+  ~MovingMeshes();
+  MovingMeshes(const MovingMeshes&) = delete;
+  MovingMeshes& operator=(const MovingMeshes&) = delete;
+
+  // `link`: which entry of the poses places it. Returns the mesh's index.
+  int add(const TriangleMesh& mesh, int link, double albedo);
+  std::size_t size() const { return meshes_.size(); }
+  const TriangleMesh& mesh(std::size_t i) const { return meshes_[i]; }
+  int link(std::size_t i) const { return links_[i]; }
+  float albedo(std::size_t i) const { return albedo_[i]; }
+
+  // Closest hit on the segment; RayHit::object is the mesh's index.
+  std::optional<RayHit> ray_test(const std::vector<Eigen::Isometry3d>& world_T_link, const Eigen::Vector3d& from_w,
+                                 const Eigen::Vector3d& to_w) const;
+
+ private:
+  struct Bullet;
+  std::unique_ptr<Bullet> bullet_;
+  std::vector<TriangleMesh> meshes_;
+  std::vector<int> links_;
+  std::vector<float> albedo_;
+  std::vector<Eigen::AlignedBox3d> boxes_;
+};
+
 }  // namespace sim

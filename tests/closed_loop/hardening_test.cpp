@@ -76,7 +76,8 @@ TEST(Hardening, CellsimSurvivesBadCommandsAndKeepsObeying) {
   EXPECT_TRUE(w.wait_for([&] { return w.poses >= 2; }, 30s)) << "no frames after the commands";
   EXPECT_TRUE(w.wait_for(
       [&] {
-        return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_initial()) < 1e-9;
+        // the arm holds its joints as Bullet's floats: the camera is there to a micrometre
+        return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_initial()) < 1e-5;
       },
       30s))
       << "RESET initial after the refused commands was not obeyed";

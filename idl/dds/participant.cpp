@@ -3,10 +3,12 @@
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
+#include <sys/file.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <cstdlib>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -86,6 +88,11 @@ void remove_orphaned_shm_ports() {
     for (const auto& f : std::filesystem::directory_iterator(kShmDir, ec)) {
       const std::string name = f.path().filename().string();
       if (name.rfind("fastrtps_port", 0) != 0 || name.find('_', 13) != std::string::npos || mapped.count(name)) continue;
+      // a port another process is creating right now is not mapped nor locked yet: removing
+      // it would leave that participant deaf to shared memory (seen under parallel tests as
+      // a watcher that received nothing); only files untouched for a minute are candidates
+      const auto age = std::filesystem::file_time_type::clock::now() - std::filesystem::last_write_time(f.path(), ec);
+      if (ec || age < std::chrono::seconds(60)) continue;
       // the listener holds a lock on <port>_el while it lives
       const std::string el = std::string(kShmDir) + name + "_el";
       const int fd = open(el.c_str(), O_RDWR);
@@ -110,7 +117,14 @@ int free_participant_id(int domain, int from) {
     const int meta = unicast_port(domain, id, 10), user = unicast_port(domain, id, 11);
     if (user > 65535) break;
     if (shm_port_exists(meta) || shm_port_exists(user)) continue;
-    if (udp_port_free(meta) && udp_port_free(user)) return id;
+    if (!udp_port_free(meta) || !udp_port_free(user)) continue;
+    // two of our processes starting at once would both see the id free: the first to lock
+    // it takes it (the lock lives as long as the process; the next participant takes the next id)
+    const std::string lock = "/tmp/cell_dds_participant_" + std::to_string(domain) + "_" + std::to_string(id) + ".lock";
+    const int fd = open(lock.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0666);
+    if (fd < 0) return id;  // no /tmp: the port checks alone
+    if (flock(fd, LOCK_EX | LOCK_NB) == 0) return id;
+    close(fd);
   }
   return -1;
 }

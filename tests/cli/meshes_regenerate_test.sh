@@ -1,10 +1,16 @@
 #!/usr/bin/env bash
-# The committed meshes are exactly what the committed generator writes.
+# The committed meshes (scene objects and the arms' links) are exactly what the committed
+# generator writes.
 set -u
-tool="$1"; committed="$2"
+tool="$1"; committed="$2"; robots="$3"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 "$tool" "$tmp" >/dev/null || { echo "FAIL: make_meshes"; exit 1; }
 for m in plane elliptic_cylinder ham; do
   cmp -s "$tmp/$m.obj" "$committed/$m.obj" || { echo "FAIL: meshes/$m.obj differs from make_meshes output (run: make_meshes meshes/)"; exit 1; }
+done
+"$tool" --robots "$tmp/robots" >/dev/null || { echo "FAIL: make_meshes --robots"; exit 1; }
+for f in "$tmp"/robots/*/meshes/*.obj; do
+  rel="${f#$tmp/robots/}"
+  cmp -s "$f" "$robots/$rel" || { echo "FAIL: sim/robots/$rel differs from make_meshes output (run: make_meshes --robots sim/robots)"; exit 1; }
 done
 echo "meshes: committed files match the generator"

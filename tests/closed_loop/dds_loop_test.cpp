@@ -83,6 +83,10 @@ TEST(DdsLoop, CylinderConvergesInLockstep) {
   expect_lockstep_convergence(unique_domain(2), tmp_dir("cylinder"), servo_args("0.6"), "cylinder", "1200");
 }
 
+TEST(DdsLoop, HamConvergesInLockstep) {
+  expect_lockstep_convergence(unique_domain(9), tmp_dir("ham"), servo_args("0.6"), "ham", "1200");
+}
+
 TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
   const int domain = unique_domain(8);
   const std::string dir = tmp_dir("cylinder_current");

@@ -2,6 +2,9 @@
 // no DDS), in simulated time with an iteration cap: no wall-clock waits.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+
 #include "sim/app/experiment.hpp"
 
 namespace {
@@ -36,6 +39,41 @@ TEST(InProcessLoop, CylinderConvergesUnder1mmAnd0_1Deg) {
   EXPECT_TRUE(r.converged) << r.stop_reason;
   EXPECT_LT(r.final_translation_error_m, 1e-3);
   EXPECT_LT(r.final_rotation_error_deg, 0.1);
+}
+
+TEST(InProcessLoop, HamConvergesUnder1mmAnd0_1Deg) {
+  const auto r = run("ham", control::InteractionModel::kDesiredConstantDepth, 0.6, cellsim::FeatureSource::kDecoded, 900);
+  EXPECT_TRUE(r.converged) << r.stop_reason;
+  EXPECT_LT(r.final_translation_error_m, 1e-3);
+  EXPECT_LT(r.final_rotation_error_deg, 0.1);
+}
+
+// The arm's shadow moves over the cylinder and hides part of the pattern (up to a quarter
+// of the spots mid-run): the decoder keeps identifying what is left and the servo converges.
+TEST(InProcessLoop, CylinderConvergesWhileTheArmShadowsPartOfThePattern) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder_occlusion.yaml"));
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.6;
+  o.max_iterations = 900;
+  o.out_dir = std::filesystem::path(CELL_BINARY_DIR) / "test_out" / "cylinder_occlusion";
+  const auto r = cellsim::run_experiment(*cell, o);
+  EXPECT_TRUE(r.converged) << r.stop_reason;
+  EXPECT_LT(r.final_translation_error_m, 1e-3);
+  EXPECT_LT(r.final_rotation_error_deg, 0.1);
+  // the occlusion happened: spots caught by the arm, per frame, in occlusion.csv
+  std::ifstream f(o.out_dir / "occlusion.csv");
+  std::string line;
+  std::getline(f, line);
+  int most = 0, decoded_then = 0;
+  std::size_t k = 0;
+  while (std::getline(f, line)) {
+    const int on_arm = std::stoi(line.substr(line.rfind(',') + 1));
+    if (on_arm > most && k < r.trace.size()) most = on_arm, decoded_then = r.trace[k].decoded;
+    ++k;
+  }
+  EXPECT_GE(most, 50) << "the arm never shadowed the pattern";
+  EXPECT_GE(decoded_then, 40) << "decoding did not keep working under the shadow";
 }
 
 TEST(InProcessLoop, Fig5ConstantDepth0_9DoesNotConvergeButTrueDepthsDo) {

@@ -1,9 +1,23 @@
 # Sourced by the closed-loop scripts: starts `servo run` and `cellsim serve` on a domain of
 # this test's own, logs in a temporary folder, both stopped (then killed) on exit.
 # usage: start_services BIN SRC "cellsim serve arguments..."
+# Sets cell_domain to a domain no other test uses while this shell lives (the same flock
+# as watcher.hpp's unique_domain); the lock's descriptor stays open in this shell.
+claim_domain() {
+  local start=$(( $$ % 200 )) i d
+  for ((i = 0; i < 200; i++)); do
+    d=$(( 20 + (start + i) % 200 ))
+    exec {cell_domain_fd}>"/tmp/cell_dds_domain_$d.lock" || continue
+    if flock -n "$cell_domain_fd"; then cell_domain=$d; return 0; fi
+    exec {cell_domain_fd}>&-
+  done
+  cell_domain=$(( 20 + start ))
+}
+
 start_services() {
   local bin="$1" src="$2" sim_args="$3"
-  export ROS_DOMAIN_ID=$(( $$ % 150 + 50 ))
+  claim_domain
+  export ROS_DOMAIN_ID="$cell_domain"
   tmp=$(mktemp -d)
   trap 'kill -INT $servo $sim 2>/dev/null; sleep 1; kill -KILL $servo $sim 2>/dev/null; rm -rf "$tmp"' EXIT
   "$bin/servo" run --pattern "$src/servo/pattern/data/marray_20x20_k3_w3.txt" --z-hat 0.9 > "$tmp/servo.log" 2>&1 &

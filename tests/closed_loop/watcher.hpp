@@ -19,6 +19,10 @@
 #include "geometry_msgsPubSubTypes.h"
 #include "sim/geometry/se3.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 namespace closed_loop {
 
 using namespace std::chrono_literals;
@@ -30,7 +34,22 @@ inline const std::string kBin = std::string(CELL_BINARY_DIR) + "/bin/";
 inline const std::string kSrc = std::string(CELL_SOURCE_DIR);
 inline const std::string kPattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt";
 
-inline int unique_domain(int salt) { return 1 + static_cast<int>((getpid() * 7 + salt * 13) % 200); }
+// A DDS domain no other test of this machine uses while this process lives: ctest runs tests
+// in parallel, and two cells on one domain would talk to each other (a pid hash alone once
+// collided). The claim is an flock on /tmp/cell_dds_domain_<id>.lock, released when the
+// process ends however it ends; the shell tests claim theirs the same way (services.sh).
+inline int unique_domain(int salt) {
+  const int start = static_cast<int>((getpid() * 7 + salt * 13) % 200);
+  for (int i = 0; i < 200; ++i) {
+    const int d = 20 + (start + i) % 200;
+    const std::string path = "/tmp/cell_dds_domain_" + std::to_string(d) + ".lock";
+    const int fd = ::open(path.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0666);
+    if (fd < 0) continue;
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) return d;  // held (fd kept open) until the process exits
+    ::close(fd);
+  }
+  return 20 + start;
+}
 
 inline std::string tmp_dir(const std::string& name) {
   const auto d = std::filesystem::temp_directory_path() / ("dds_loop_" + std::to_string(getpid()) + "_" + name);

@@ -388,3 +388,58 @@ TEST(Autorun, WaitsForTheServoAndResendsTeachUntilTaught) {
 
 }  // namespace
 }  // namespace sim
+
+// The cell with the arm (issue 10): a twist that drives the camera down into the ham's
+// table stops the arm at the contact; the frames' status and the trace say why.
+#include "sim/render/cell.hpp"
+
+namespace sim {
+namespace {
+
+TEST(LockstepArm, ACollisionStopsTheArmAndTheStatusAndTraceSayWhy) {
+  const auto cell = build_cell(load_scenario(kScenarios + "ham.yaml"));
+  CellParams p;
+  p.timing = Timing::kLockstep;
+  CellStateMachine m(cell->scenario, p, make_robot(*cell));
+  const double dt = cell->scenario.dt_s;
+  m.on_command(cmd(CellCommand::kStart), 0);
+  // down, in the camera's axes
+  const Eigen::Vector3d down_c = cell->scenario.world_T_desired.rotation().transpose() * Eigen::Vector3d(0, 0, -0.3);
+  Vector6d down = Vector6d::Zero();
+  down.head<3>() = down_c;
+  std::vector<std::string> log;
+  std::vector<TraceRow> trace;
+  std::uint32_t seen = 0;
+  double t = 0;
+  for (std::uint64_t k = 0; k < 150 && !(seen & kLimitCollision); ++k, t += 0.001) {
+    CellOutput o = m.poll(t);
+    for (auto& l : o.log) log.push_back(l);
+    for (auto& r : o.trace) trace.push_back(r);
+    for (auto& f : o.frames) seen |= f.robot_limits;
+    ASSERT_EQ(o.frames.size(), 1u) << "frame " << k;
+    EXPECT_EQ(o.frames[0].joint_positions.size(), 6);
+    EXPECT_EQ(o.frames[0].world_T_links.size(), cell->scenario.robot.model->chain.size() + 1);
+    ServoReport st = status_for(k, dt, 2);
+    m.on_servo_status(st, t);
+    ASSERT_TRUE(m.on_twist(twist_for(k, dt, down), t));
+  }
+  ASSERT_TRUE(seen & kLimitCollision) << "never reached the table";
+  bool said = false;
+  for (const auto& l : log) said |= l.find("collision:") != std::string::npos && l.find("object 'table'") != std::string::npos;
+  EXPECT_TRUE(said);
+  const Eigen::Isometry3d stopped = m.world_T_camera();
+  for (std::uint64_t k = 0; k < 5; ++k, t += 0.001) {
+    CellOutput o = m.poll(t);
+    for (auto& r : o.trace) trace.push_back(r);
+    m.on_servo_status(status_for(m.next_frame() - 1, dt, 2), t);
+    m.on_twist(twist_for(m.next_frame() - 1, dt, down), t);
+  }
+  EXPECT_EQ((m.world_T_camera().matrix() - stopped.matrix()).norm(), 0) << "the arm moved after the collision";
+  for (auto& r : m.poll(t).trace) trace.push_back(r);
+  bool traced = false;
+  for (const auto& r : trace) traced |= (r.robot_limits & kLimitCollision) != 0;
+  EXPECT_TRUE(traced);
+}
+
+}  // namespace
+}  // namespace sim

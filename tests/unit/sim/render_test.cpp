@@ -148,6 +148,63 @@ TEST(Render, CylinderHidesSomeOfItsOwnSpots) {
   EXPECT_LT(visible_on_cylinder, lit_on_cylinder);  // self-occlusion at the rim
 }
 
+// The arm's links are part of the scene: a link put on a spot's ray catches the spot (the
+// spot's light lands on the link), the object behind it is in the link's shadow, and the
+// link is drawn where the camera sees it.
+TEST(Render, AProjectorRayHitsALinkPlacedInItsWay) {
+  const auto cell = build_cell(load_scenario(kScenarios + "plane.yaml"));
+  ASSERT_GT(cell->arm_meshes.size(), 0u);
+  const auto robot = make_robot(*cell);
+  LinkPoses links = robot->world_T_links();
+  const Eigen::Isometry3d wTc = cell->scenario.world_T_desired;
+  const auto before = compute_truth(*cell, wTc, &links);
+  const SpotTruth& spot = before[10 * 20 + 10];
+  ASSERT_TRUE(spot.visible);
+  ASSERT_FALSE(spot.on_arm);
+  // the forearm (link 3), its frame 10 cm from the wall along the spot's ray
+  const Eigen::Vector3d P = cell->projector->world_T_projector().translation();
+  const Eigen::Vector3d ray = (spot.point_w - P).normalized();
+  const std::size_t forearm = 3;
+  links[forearm] = Eigen::Isometry3d::Identity();
+  links[forearm].translation() = spot.point_w - 0.1 * ray;
+  links[forearm].linear() = look_at(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()).linear();
+  const auto after = compute_truth(*cell, wTc, &links);
+  const SpotTruth& caught = after[10 * 20 + 10];
+  EXPECT_TRUE(caught.on_arm);
+  EXPECT_LT((caught.point_w - P).norm(), (spot.point_w - P).norm() - 0.05) << "the light did not stop at the link";
+  // in the image: where the spot lit the wall, the link's shadow (or the link itself)
+  CameraSpec quiet = cell->scenario.camera;
+  quiet.noise_sigma = 0;
+  quiet.shot_noise = 0;
+  const cv::Mat lit = render_image(*cell, wTc, 1, nullptr, &quiet, nullptr);
+  const cv::Mat shadowed = render_image(*cell, wTc, 1, nullptr, &quiet, &links);
+  const int u = static_cast<int>(std::lround(spot.uv.x())), v = static_cast<int>(std::lround(spot.uv.y()));
+  const cv::Vec3b a = lit.at<cv::Vec3b>(v, u), b = shadowed.at<cv::Vec3b>(v, u);
+  EXPECT_GT(a[0] + a[1] + a[2], 150) << "the spot was not lit to begin with";
+  EXPECT_LT(b[0] + b[1] + b[2], 0.5 * (a[0] + a[1] + a[2])) << "no shadow where the link stands";
+
+  // the same link between the camera and another spot hides it from the camera
+  const SpotTruth& far = before[5 * 20 + 5];
+  ASSERT_TRUE(far.visible);
+  const Eigen::Vector3d C = wTc.translation();
+  links = robot->world_T_links();
+  links[forearm].translation() = C + 0.3 * (far.point_w - C).normalized();
+  links[forearm].linear() = look_at(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()).linear();
+  const auto hidden = compute_truth(*cell, wTc, &links);
+  EXPECT_FALSE(hidden[5 * 20 + 5].visible);
+  EXPECT_TRUE(hidden[5 * 20 + 5].hidden_by_arm);
+}
+
+TEST(Render, TheArmAwayFromTheBeamAndTheViewChangesNoPixel) {
+  const auto cell = build_cell(load_scenario(kScenarios + "plane.yaml"));
+  const auto robot = make_robot(*cell);
+  const LinkPoses links = robot->world_T_links();
+  const Eigen::Isometry3d wTc = cell->scenario.world_T_desired;
+  const cv::Mat without = render_image(*cell, wTc, 7, nullptr, nullptr, nullptr);
+  const cv::Mat with = render_image(*cell, wTc, 7, nullptr, nullptr, &links);
+  EXPECT_EQ(cv::norm(without, with, cv::NORM_INF), 0);
+}
+
 }  // namespace
 }  // namespace sim
 

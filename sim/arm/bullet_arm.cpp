@@ -245,12 +245,18 @@ std::optional<std::string> BulletArm::step(const Eigen::VectorXd& qdot, const Ei
     m.setPositionTarget(btScalar(q_ref[i]), btScalar(kPositionGain));
   }
   B.world->stepSimulation(btScalar(h_), 0, btScalar(h_));
-  return contact();
+  // the contacts the step itself found (at its start): a second detection would double the
+  // cost of a step for one physics period's earlier warning
+  return first_contact();
 }
 
 std::optional<std::string> BulletArm::contact() {
-  Bullet& B = *b_;
-  B.world->performDiscreteCollisionDetection();
+  b_->world->performDiscreteCollisionDetection();
+  return first_contact();
+}
+
+std::optional<std::string> BulletArm::first_contact() const {
+  const Bullet& B = *b_;
   const auto name_of = [&](const btCollisionObject* o) {
     const int id = o->getUserIndex();
     if (id <= -1000) return "object '" + B.object_names[static_cast<std::size_t>(-1000 - id)] + "'";

@@ -40,6 +40,8 @@ class BulletArm {
   Eigen::VectorXd qdot() const;
 
  private:
+  std::optional<std::string> first_contact() const;
+
   struct Bullet;
   std::unique_ptr<Bullet> b_;
   double h_;

@@ -14,14 +14,14 @@ struct ScreenVertex {
 };
 
 void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, std::int32_t id,
-                   DepthBuffer& out) {
+                   DepthBuffer& out, const RasterClip& clip) {
   const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
   if (std::abs(area) < 1e-12) return;
   const double m = out.margin;
-  const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({p0.u, p1.u, p2.u}) + m)));
-  const int x1 = std::min(out.width - 1, static_cast<int>(std::floor(std::max({p0.u, p1.u, p2.u}) + m)));
-  const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({p0.v, p1.v, p2.v}) + m)));
-  const int y1 = std::min(out.height - 1, static_cast<int>(std::floor(std::max({p0.v, p1.v, p2.v}) + m)));
+  const int x0 = std::max(clip.x0, static_cast<int>(std::ceil(std::min({p0.u, p1.u, p2.u}) + m)));
+  const int x1 = std::min({out.width - 1, clip.x1, static_cast<int>(std::floor(std::max({p0.u, p1.u, p2.u}) + m))});
+  const int y0 = std::max(clip.y0, static_cast<int>(std::ceil(std::min({p0.v, p1.v, p2.v}) + m)));
+  const int y1 = std::min({out.height - 1, clip.y1, static_cast<int>(std::floor(std::max({p0.v, p1.v, p2.v}) + m))});
   if (x0 > x1 || y0 > y1) return;
   // barycentric weights and 1/z are affine in screen space: w(x, y) = a x + b y + c
   const double inv_area = 1.0 / area;
@@ -101,11 +101,11 @@ void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_wor
   const std::size_t n = static_cast<std::size_t>(out.width) * out.height;
   out.inv_depth.assign(n, 0.0f);
   out.triangle.assign(n, -1);
-  rasterize_more(tris, 0, viewer_T_world, k, out);
+  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{});
 }
 
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                    const Intrinsics& k, DepthBuffer& out) {
+                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip) {
 
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
@@ -116,7 +116,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
     if (behind == 3) continue;
     const auto id = static_cast<std::int32_t>(i);
     if (behind == 0) {
-      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out);
+      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip);
       continue;
     }
     // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
@@ -130,7 +130,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
       if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
     }
     for (int f = 1; f + 1 < count; ++f)
-      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out);
+      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip);
   }
 }
 

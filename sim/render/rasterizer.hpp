@@ -56,10 +56,14 @@ struct DepthBuffer {
 // Triangles crossing the near plane are clipped.
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
                DepthBuffer& out);
+// Buffer pixels a rasterisation may write (inclusive).
+struct RasterClip {
+  int x0 = 0, y0 = 0, x1 = std::numeric_limits<int>::max(), y1 = std::numeric_limits<int>::max();
+};
 // Adds triangles [first, end) to a buffer rasterised from the same viewpoint (the moving
-// arm over the static scene's buffer).
+// arm over the static scene's buffer), only inside `clip`.
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                    const Intrinsics& k, DepthBuffer& out);
+                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip = RasterClip{});
 // Appends a mesh placed at world_T_mesh, as object `object` with `albedo`.
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
                       const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& out);

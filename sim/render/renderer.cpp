@@ -99,7 +99,7 @@ void spot_boxes(const Cell& cell, const std::vector<SpotHit>& hits, const Eigen:
 }  // namespace
 
 FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buf, bool with_triangles) {
-  FrameScene scene{&cell.triangles, &cell.spot_hits, &cell.projector_depth, false};
+  FrameScene scene{&cell.triangles, &cell.spot_hits, &cell.projector_depth, nullptr, false};
   if (!links || links->empty() || cell.arm_meshes.size() == 0) return scene;
   const MovingMeshes& arm = cell.arm_meshes;
   const int object_offset = static_cast<int>(cell.object_names.size());
@@ -155,9 +155,49 @@ FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers&
   }
   scene.spot_hits = &buf.spot_hits;
   if (with_triangles) {
-    buf.projector_depth = cell.projector_depth;
-    rasterize_more(*scene.triangles, first, p_T_w, kp, buf.projector_depth);
-    scene.projector_depth = &buf.projector_depth;
+    DepthBuffer& d = buf.arm_projector_depth;
+    const DepthBuffer& full = cell.projector_depth;
+    const std::size_t n = static_cast<std::size_t>(full.width) * full.height;
+    if (d.width != full.width || d.height != full.height || d.margin != full.margin || d.inv_depth.size() != n) {
+      d.width = full.width;
+      d.height = full.height;
+      d.margin = full.margin;
+      d.inv_depth.assign(n, 0.0f);
+      d.triangle.assign(n, -1);
+      buf.dirty_u1 = buf.dirty_v1 = -1;
+    }
+    for (int v = std::max(0, buf.dirty_v0); v <= std::min(d.height - 1, buf.dirty_v1); ++v) {
+      const std::size_t row = static_cast<std::size_t>(v) * d.width;
+      const int u0 = std::max(0, buf.dirty_u0), u1 = std::min(d.width - 1, buf.dirty_u1);
+      if (u0 > u1) break;
+      std::fill(d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u0), d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), 0.0f);
+      std::fill(d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u0), d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), -1);
+    }
+    // only where spots can shine is the projector's depth ever read: the pattern's region,
+    // widened by the farthest a blurred spot reaches
+    const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
+    double farthest = 0;
+    for (const SpotHit& h : cell.spot_hits)
+      if (h.centre) farthest = std::max(farthest, (h.centre->point_w - proj.world_T_projector().translation()).norm());
+    const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(farthest + 0.5) + 4.0;
+    RasterClip clip{static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin,
+                    static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin,
+                    static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin,
+                    static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin};
+    clip.x0 = std::max(clip.x0, 0);
+    clip.y0 = std::max(clip.y0, 0);
+    if (!behind) {
+      clip.x0 = std::max(clip.x0, static_cast<int>(std::floor(box.min().x())) + d.margin - 2);
+      clip.y0 = std::max(clip.y0, static_cast<int>(std::floor(box.min().y())) + d.margin - 2);
+      clip.x1 = std::min(clip.x1, static_cast<int>(std::ceil(box.max().x())) + d.margin + 2);
+      clip.y1 = std::min(clip.y1, static_cast<int>(std::ceil(box.max().y())) + d.margin + 2);
+    }
+    rasterize_more(*scene.triangles, first, p_T_w, kp, d, clip);
+    buf.dirty_u0 = clip.x0;
+    buf.dirty_v0 = clip.y0;
+    buf.dirty_u1 = clip.x1;
+    buf.dirty_v1 = clip.y1;
+    scene.arm_projector_depth = &d;
   }
   return scene;
 }
@@ -182,6 +222,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   const SceneTriangles& tris = *scene.triangles;
   const std::vector<SpotHit>& hits = *scene.spot_hits;
   const DepthBuffer& projector_depth = *scene.projector_depth;
+  const DepthBuffer* arm_depth = scene.arm_projector_depth;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
   rasterize(tris, c_T_w, k, cell.camera_margin_px, s.camera_depth);
   spot_boxes(cell, hits, c_T_w, s.boxes);
@@ -262,7 +303,9 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
           const double reach = radius + 3.0 * sigma;  // 0.5 erfc(3 / sqrt 2) = 0.1 %: nothing beyond
           if (rho2 > reach * reach) continue;
           // lit when the projector's nearest surface along this direction is this one
-          if (X_p.z() > projector_depth.depth_at(du + centre.x(), dv + centre.y()) * (1.0 + 2e-3) + 2e-3) continue;
+          float nearest = projector_depth.depth_at(du + centre.x(), dv + centre.y());
+          if (arm_depth) nearest = std::min(nearest, arm_depth->depth_at(du + centre.x(), dv + centre.y()));
+          if (X_p.z() > nearest * (1.0 + 2e-3) + 2e-3) continue;
           const Eigen::Vector3d X = C + z_c * (R * d_c);
           const Eigen::Vector3d L = P - X;
           const double dist2 = L.squaredNorm();

@@ -33,13 +33,18 @@ using LinkPoses = std::vector<Eigen::Isometry3d>;
 struct FrameScene {
   const SceneTriangles* triangles = nullptr;
   const std::vector<SpotHit>* spot_hits = nullptr;
-  const DepthBuffer* projector_depth = nullptr;
+  const DepthBuffer* projector_depth = nullptr;      // the static scene's, from the projector
+  const DepthBuffer* arm_projector_depth = nullptr;  // the arm's alone (null: not in the beam)
   bool arm_in_beam = false;
 };
 struct ArmFrameBuffers {
   SceneTriangles triangles;
   std::vector<SpotHit> spot_hits;
-  DepthBuffer projector_depth;
+  // the arm seen from the projector, over a buffer the size of the static one; only the
+  // region the arm covered last frame is cleared (copying the static buffer each frame cost
+  // more than the rest of the arm's rendering)
+  DepthBuffer arm_projector_depth;
+  int dirty_u0 = 0, dirty_v0 = 0, dirty_u1 = -1, dirty_v1 = -1;
 };
 // The arm's triangles are added when `with_triangles` (rendering); the spots' hits always.
 FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buffers, bool with_triangles);

@@ -86,7 +86,7 @@ struct ArmSpec {
   double damping = 0.05;
   double slowdown_condition = 17, stop_condition = 30;  // MoveIt Servo's thresholds
   double joint_margin_rad = 0.05;
-  double physics_hz = 1000;
+  double physics_hz = 500;                        // the arm's physics (and controller) rate
 };
 
 struct RobotSpec {

@@ -101,3 +101,47 @@ BENCHMARK(BM_RenderPatternSize)->Name("render_pattern/64x64")->Arg(64)->Unit(ben
 BENCHMARK(BM_RenderImageSize)->Name("render_image/baseline_vga")->Arg(480)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RenderImageSize)->Name("render_image/720p")->Arg(720)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RenderImageSize)->Name("render_image/1080p")->Arg(1080)->Unit(benchmark::kMillisecond);
+
+namespace {
+
+// The arm in the frame (issue 10): the same VGA frame rendered without and with the arm's
+// links. "in_beam": the robot's camera at the initial pose of cylinder_occlusion, the arm in
+// the projector's beam (its shadow on the cylinder, spots landing on it); "in_view": an
+// observer camera that sees the arm and the cylinder.
+struct ArmScene {
+  std::unique_ptr<sim::Cell> cell;
+  sim::LinkPoses links;
+  Eigen::Isometry3d robot_camera, observer;
+};
+
+const ArmScene& arm_scene() {
+  static const ArmScene scene = [] {
+    ArmScene s;
+    s.cell = sim::build_cell(sim::load_scenario(std::string(CELL_SOURCE_DIR) + "/sim/scenarios/cylinder_occlusion.yaml"));
+    const auto robot = sim::make_robot(*s.cell);
+    robot->reset(s.cell->scenario.world_T_initial());
+    s.links = robot->world_T_links();
+    s.robot_camera = robot->world_T_camera();
+    s.observer = sim::look_at({0.9, -1.4, 1.0}, {0.5, 0.0, 0.45}, Eigen::Vector3d::UnitZ());
+    return s;
+  }();
+  return scene;
+}
+
+void BM_ArmFrame(benchmark::State& state, bool observer, bool with_arm) {
+  const ArmScene& s = arm_scene();
+  sim::RenderScratch scratch;
+  std::uint64_t frame = 0;
+  for (auto _ : state) {
+    cv::Mat img = sim::render_image(*s.cell, observer ? s.observer : s.robot_camera, sim::frame_seed(1, frame++), &scratch,
+                                    nullptr, with_arm ? &s.links : nullptr);
+    benchmark::DoNotOptimize(img.data);
+  }
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(BM_ArmFrame, beam_base, false, false)->Name("render_arm_in_beam/baseline_no_arm")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_ArmFrame, beam_arm, false, true)->Name("render_arm_in_beam/with_arm")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_ArmFrame, view_base, true, false)->Name("render_arm_in_view/baseline_no_arm")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_ArmFrame, view_arm, true, true)->Name("render_arm_in_view/with_arm")->Unit(benchmark::kMillisecond);

@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Plots an experiment's trace.csv like the paper's Fig. 4c-d / 5d-i:
-velocities.png (camera velocities vs time) and error_norm.png (norm of the task function).
+velocities.png (camera velocities vs time) and error_norm.png (norm of the task function);
+with an arm, occlusion.png from occlusion.csv (spots the arm hides or catches, per frame).
 Usage: plot_trace.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
 import argparse
 import csv
@@ -19,7 +20,33 @@ def read_trace(path):
     rows = list(csv.DictReader(lines))
     if not rows:
         sys.exit(f"plot_trace: {path} has no iterations")
-    return {k: [float(r[k]) for r in rows] for k in rows[0]}
+    text = {"robot_limits"}  # the robot's reasons for limiting a step: names, not numbers
+    return {k: [r[k] if k in text else float(r[k]) for r in rows] for k in rows[0]}
+
+
+def plot_occlusion(directory, title, trace=None):
+    path = os.path.join(directory, "occlusion.csv")
+    if not os.path.exists(path):
+        return
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return
+    t = [float(r["t"]) for r in rows]
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(t, [int(r["visible"]) for r in rows], color="k", label="visible to the camera")
+    ax.plot(t, [int(r["on_arm"]) for r in rows], color="tab:red", label="caught by the arm (its shadow on the object)")
+    ax.plot(t, [int(r["hidden_by_arm"]) for r in rows], color="tab:orange", label="hidden from the camera by the arm")
+    if trace and "decoded" in trace:
+        ax.plot(trace["t"], trace["decoded"], "--", color="tab:blue", label="decoded by the servo")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("spots")
+    ax.set_title(f"{title}: the arm and the pattern" if title else "the arm and the pattern")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "occlusion.png"), dpi=110)
+    plt.close(fig)
 
 
 def main():
@@ -54,6 +81,7 @@ def main():
     fig.tight_layout()
     fig.savefig(os.path.join(args.dir, "error_norm.png"), dpi=110)
     plt.close(fig)
+    plot_occlusion(args.dir, args.title, t)
 
 
 if __name__ == "__main__":

@@ -85,8 +85,19 @@ MotionReport ArmRobot::move(const Vector6d& twist_c, double dt_s, const Workspac
       r.applied += cmd.twist / static_cast<double>(steps);
     }
     q_ref_ += cmd.qdot * h;
+    const Eigen::VectorXd before = q_;
     const auto contact = arm_.step(cmd.qdot, q_ref_);
     sync();
+    if (!q_.allFinite() || !qdot_.allFinite()) {
+      // a physics blow-up (absurd inertias in a URDF): stop where the arm last was
+      arm_.reset(before);
+      q_ref_ = before;
+      sync();
+      fault_ = "the physics diverged (check the URDF's inertias)";
+      r.limits |= kLimitCollision;
+      r.event = *fault_ + ": robot stopped until RESET";
+      break;
+    }
     if (contact) {
       fault_ = *contact;
       r.limits |= kLimitCollision;

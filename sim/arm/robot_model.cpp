@@ -176,6 +176,51 @@ bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkS
   return any;
 }
 
+// The XML walked before any parser sees it: TinyXML2 recurses once per nesting level (a
+// file of 140 000 nested elements overflows the stack), and DTDs (entity expansion) have no
+// place in a URDF. Returns what is wrong, or "".
+std::string check_xml_structure(const std::string& text) {
+  std::size_t depth = 0, elements = 0;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const unsigned char ch = static_cast<unsigned char>(text[i]);
+    if (ch == 0) return "a NUL byte at offset " + std::to_string(i);
+    if (ch != '<') continue;
+    if (text.compare(i, 4, "<!--") == 0) {
+      const std::size_t end = text.find("-->", i + 4);
+      if (end == std::string::npos) return "a comment that never ends";
+      i = end + 2;
+      continue;
+    }
+    if (text.compare(i, 9, "<![CDATA[") == 0) {
+      const std::size_t end = text.find("]]>", i + 9);
+      if (end == std::string::npos) return "a CDATA section that never ends";
+      i = end + 2;
+      continue;
+    }
+    if (i + 1 < text.size() && text[i + 1] == '!') return "a DTD or declaration (<!...>): not allowed in a URDF";
+    if (i + 1 < text.size() && text[i + 1] == '?') {
+      const std::size_t end = text.find("?>", i + 2);
+      if (end == std::string::npos) return "a processing instruction that never ends";
+      i = end + 1;
+      continue;
+    }
+    const std::size_t close = text.find('>', i + 1);
+    if (close == std::string::npos) return "a tag that never ends";
+    if (text[i + 1] == '/') {
+      if (depth == 0) return "a closing tag without its opening one";
+      --depth;
+    } else if (text[close - 1] != '/') {
+      if (++depth > kMaxUrdfDepth) return "elements nested deeper than " + std::to_string(kMaxUrdfDepth) + " levels";
+      ++elements;
+    } else {
+      ++elements;
+    }
+    if (elements > kMaxUrdfElements) return "more than " + std::to_string(kMaxUrdfElements) + " elements";
+    i = close;
+  }
+  return "";
+}
+
 }  // namespace
 
 int RobotModel::dof() const {
@@ -224,6 +269,7 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
   RobotModel model;
   model.file = file;
   model.urdf = text.str();
+  if (const std::string bad = check_xml_structure(model.urdf); !bad.empty()) fail(file, "not a valid URDF: " + bad);
   model.camera_link = camera_link;
   urdf::ModelInterfaceSharedPtr urdf;
   {
@@ -302,9 +348,11 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
       s.mass = in.mass;
       s.com = Eigen::Vector3d(in.origin.position.x, in.origin.position.y, in.origin.position.z);
       s.inertia_diagonal = Eigen::Vector3d(in.ixx, in.iyy, in.izz);
-      if (!(s.mass > 0 && s.mass <= 1e4) || !s.com.allFinite() || s.com.norm() > 10 || !s.inertia_diagonal.allFinite() ||
-          s.inertia_diagonal.minCoeff() <= 0 || s.inertia_diagonal.maxCoeff() > 1e4)
-        fail(file, "link '" + link.name + "': inertial mass, origin and diagonal inertia must be positive and finite");
+      if (!(s.mass >= 1e-6 && s.mass <= 1e4) || !s.com.allFinite() || s.com.norm() > 10 || !s.inertia_diagonal.allFinite() ||
+          s.inertia_diagonal.minCoeff() < 1e-9 || s.inertia_diagonal.maxCoeff() > 1e4)
+        fail(file, "link '" + link.name +
+                       "': inertial mass must be in [1e-6, 1e4] kg, its origin within 10 m, its diagonal inertia in "
+                       "[1e-9, 1e4] kg m^2");
     }
     s.has_shape = read_shape(file, link, s.shape, triangles);
     model.chain.push_back(std::move(s));

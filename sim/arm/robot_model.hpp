@@ -25,6 +25,8 @@ class RobotModelError : public std::runtime_error {
 inline constexpr std::uintmax_t kMaxUrdfBytes = 1u << 20;
 inline constexpr std::size_t kMaxChainSegments = 32;   // links from the root to the camera link
 inline constexpr std::size_t kMaxArmTriangles = 400'000;
+inline constexpr std::size_t kMaxUrdfDepth = 64;          // XML nesting (the parser recurses)
+inline constexpr std::size_t kMaxUrdfElements = 100'000;
 
 enum class JointType { kFixed, kRevolute, kPrismatic };
 

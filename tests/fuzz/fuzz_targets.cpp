@@ -4,7 +4,7 @@
 // a crash, a sanitizer report or a hang is a defect. ctest runs each target for a bounded
 // number of inputs; bin/fuzz runs them for long under AddressSanitizer and UBSan.
 //
-//   fuzz_targets --target decoder|pattern|scenario|mesh|cell|servo|cdr --iterations N [--seconds S] [--seed K]
+//   fuzz_targets --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr --iterations N [--seconds S] [--seed K]
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +19,7 @@
 #include "sensor_msgsPubSubTypes.h"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/pattern/pattern_file.hpp"
+#include "sim/arm/arm_robot.hpp"
 #include "sim/cell/cell_state_machine.hpp"
 #include "sim/render/renderer.hpp"
 #include "sim/scene/mesh_check.hpp"
@@ -112,6 +113,40 @@ struct ScenarioTarget : Target {
     try {
       const sim::Scenario s = sim::load_scenario(file);
       sim::resolve_pose(s, "initial");
+    } catch (const std::exception&) {
+    }
+  }
+};
+
+// URDF text: the shipped arm's file, mutated (numbers, tokens, XML structure), read and
+// then put through kinematics and a Bullet arm's first steps.
+struct UrdfTarget : Target {
+  std::string seed = read(kSrc + "/sim/robots/ur5e/ur5e.urdf");
+  std::filesystem::path file = std::filesystem::temp_directory_path() / ("fuzz_urdf_" + std::to_string(getpid()) + ".urdf");
+  sim::World empty;
+  UrdfTarget() {
+    for (std::size_t p = 0; (p = seed.find("\"meshes/", p)) != std::string::npos; p += 2)
+      seed.replace(p + 1, 7, kSrc + "/sim/robots/ur5e/meshes/");
+  }
+  ~UrdfTarget() override { std::filesystem::remove(file); }
+  void one(std::mt19937_64& rng) override {
+    static const char* xml[] = {"<", ">", "/>", "</link>", "<link name='x'>", "<joint name='j' type='revolute'>",
+                                "<!DOCTYPE r>", "<!--", "<![CDATA[", "\"", "<x><x><x><x><x><x><x><x>", "&amp;",
+                                "type='prismatic'", "type='floating'", "<limit/>", "<axis xyz='0 0 0'/>"};
+    std::string text = mutated(seed, rng);
+    for (int i = static_cast<int>(rng() % 3); i > 0; --i)
+      text.insert(rng() % (text.size() + 1), xml[rng() % (sizeof xml / sizeof *xml)]);
+    std::ofstream(file, std::ios::binary) << text;
+    try {
+      const auto model = std::make_shared<sim::RobotModel>(sim::load_robot_model(file, "camera_optical"));
+      const sim::ArmKinematics kin(*model);
+      const Eigen::VectorXd q = 0.5 * (kin.lower() + kin.upper());
+      kin.inverse(kin.base_T_camera(q), q);
+      sim::ArmRobot arm(model, Eigen::Isometry3d::Identity(), empty, {}, {}, q);
+      sim::Vector6d v;
+      for (int i = 0; i < 6; ++i) v[i] = uniform_extreme(rng);
+      if (v.allFinite()) arm.move(v, 0.01, sim::Workspace{});
+      if (!arm.world_T_camera().matrix().allFinite()) std::abort();  // a NaN pose must never come out
     } catch (const std::exception&) {
     }
   }
@@ -391,12 +426,13 @@ int main(int argc, char** argv) {
   if (target == "pattern") t = std::make_unique<PatternTarget>();
   else if (target == "scenario") t = std::make_unique<ScenarioTarget>();
   else if (target == "mesh") t = std::make_unique<MeshTarget>();
+  else if (target == "urdf") t = std::make_unique<UrdfTarget>();
   else if (target == "decoder") t = std::make_unique<DecoderTarget>();
   else if (target == "servo") t = std::make_unique<ServoTarget>();
   else if (target == "cell") t = std::make_unique<CellTarget>();
   else if (target == "cdr") t = std::make_unique<CdrTarget>();
   else {
-    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|cell|servo|cdr\n");
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr\n");
     return 2;
   }
   std::mt19937_64 rng(seed);

@@ -295,6 +295,15 @@ TEST(RobotModel, MalformedDescriptionsAreRefusedInOneLineNamingTheFile) {
       {"<robot name='r'><link name='a'/><link name='camera'/><joint name='j' type='revolute'><parent link='a'/>"
        "<child link='camera'/><axis xyz='0 0 1'/><limit lower='-1' upper='1' velocity='1e300' effort='1'/></joint></robot>",
        "velocity limit"},
+      // the XML parser recurses per level: 100 000 nested elements would overflow the stack
+      {"<robot name='r'><link name='a'>" + [] {
+         std::string deep;
+         for (int i = 0; i < 100000; ++i) deep += "<x>";
+         for (int i = 0; i < 100000; ++i) deep += "</x>";
+         return deep;
+       }() + "</link></robot>",
+       "nested deeper than 64"},
+      {"<!DOCTYPE r [<!ENTITY a 'aaaa'>]><robot name='r'/>", "DTD"},
   };
   int i = 0;
   for (const auto& [text, expected] : cases) {

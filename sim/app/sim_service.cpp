@@ -390,10 +390,10 @@ class SimService {
       dropped = inbox_.dropped;
     }
     std::printf("cellsim: %ld frames, %ld twists applied, rejected %ld NaN/Inf, %ld wrong frame, %ld stale, %ld out of "
-                "the workspace; %ld watchdog stops; %ld commands (%ld refused); %ld inputs dropped; final error %.3f "
-                "mm, %.4f deg\n",
+                "the workspace; %ld watchdog stops; %ld robot stops (collision); %ld commands (%ld refused); %ld inputs "
+                "dropped; final error %.3f mm, %.4f deg\n",
                 c.frames, c.applied, c.rejected_nan, c.rejected_frame, c.rejected_stale, c.rejected_workspace,
-                c.watchdog_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
+                c.watchdog_stops, c.robot_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
                 1e3 * sim::translation_error(wTc, cell_->scenario.world_T_desired),
                 sim::rotation_error(wTc, cell_->scenario.world_T_desired) * 180.0 / 3.14159265358979323846);
     if (trace_.is_open()) trace_.flush();

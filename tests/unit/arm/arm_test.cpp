@@ -116,6 +116,25 @@ TEST_P(BothArms, InverseKinematicsRoundTripsTo1e6WithinTheLimits) {
   EXPECT_NE(why.find("no joint configuration"), std::string::npos);
 }
 
+TEST_P(BothArms, TheControllerMakesTheCommandedTwistAwayFromLimitsAndSingularities) {
+  const RobotModel m = load_robot_model(GetParam(), "camera_optical");
+  const ArmKinematics k(m);
+  const ArmController c;
+  std::mt19937_64 rng(5);
+  int checked = 0;
+  for (int n = 0; n < 100; ++n) {
+    const Eigen::VectorXd q = random_q(k, rng, 0.6);
+    Vector6d v;
+    for (int i = 0; i < 6; ++i) v[i] = std::uniform_real_distribution<double>(-0.02, 0.02)(rng);
+    const ArmCommand cmd = c.step(k, q, v, 0.002);
+    const Eigen::JacobiSVD<Matrix6Xd> svd(k.jacobian_camera(q));
+    if (cmd.limits != 0 || svd.singularValues()[5] < 0.05) continue;  // damped or limited: not the exact twist
+    EXPECT_LT((k.jacobian_camera(q) * cmd.qdot - v).norm(), 1e-9);
+    ++checked;
+  }
+  EXPECT_GT(checked, 5);
+}
+
 INSTANTIATE_TEST_SUITE_P(Arms, BothArms, ::testing::Values(kUr5e, kPuma),
                          [](const auto& info) { return info.param.find("ur5e") != std::string::npos ? "Ur5e" : "Puma560"; });
 
@@ -318,6 +337,37 @@ TEST(RobotModel, MalformedDescriptionsAreRefusedInOneLineNamingTheFile) {
       EXPECT_EQ(what.find('\n'), std::string::npos) << what;
     }
   }
+}
+
+}  // namespace
+}  // namespace sim
+
+namespace sim {
+namespace {
+
+// Two links that are not neighbours touching is a contact too (the base may touch what it
+// stands on, neighbours always touch at their joint): somewhere among random configurations
+// the wrist meets the upper arm or the base, and the report names both links.
+TEST_F(Ur5e, LinksThatAreNotNeighboursTouchingIsReported) {
+  World empty;
+  BulletArm arm(model, Eigen::Isometry3d::Identity(), empty, {}, 0.002);
+  std::mt19937_64 rng(4);
+  int self = 0, free = 0;
+  for (int n = 0; n < 200; ++n) {
+    arm.reset(random_q(kin, rng, 0.9));
+    const auto c = arm.contact();
+    if (!c) {
+      ++free;
+      continue;
+    }
+    EXPECT_NE(c->find("link '"), std::string::npos) << *c;
+    EXPECT_NE(c->find("touches link '"), std::string::npos) << *c;
+    ++self;
+  }
+  EXPECT_GE(self, 3) << "no self-contact among the random configurations";
+  EXPECT_GT(free, 10);
+  arm.reset(home());
+  EXPECT_FALSE(arm.contact()) << *arm.contact();
 }
 
 }  // namespace

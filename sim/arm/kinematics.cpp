@@ -77,16 +77,7 @@ std::vector<Eigen::Isometry3d> ArmKinematics::link_poses(const Eigen::VectorXd& 
   return poses;
 }
 
-Eigen::Isometry3d ArmKinematics::base_T_camera(const Eigen::VectorXd& q) const {
-  KDL::Frame t = KDL::Frame::Identity();
-  unsigned j = 0;
-  for (const KDL::Segment& seg : kdl_->chain.segments) {
-    const bool moves = seg.getJoint().getType() != KDL::Joint::None;
-    t = t * seg.pose(moves ? q[j] : 0.0);
-    j += moves;
-  }
-  return from_kdl(t);
-}
+Eigen::Isometry3d ArmKinematics::base_T_camera(const Eigen::VectorXd& q) const { return link_poses(q).back(); }
 
 Matrix6Xd ArmKinematics::jacobian_base(const Eigen::VectorXd& q) const {
   KDL::Jacobian jac(static_cast<unsigned>(dof_));

@@ -1,10 +1,17 @@
 #include "sim/app/campaign.hpp"
 
+#include "servo/config/strict_yaml.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <stdexcept>
 #include <mutex>
 #include <random>
 #include <sstream>
@@ -18,6 +25,157 @@ double median(std::vector<double> v) {
   if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
+}
+
+}  // namespace
+
+namespace {
+
+// One run of a campaign as campaign.csv holds it (the line itself, and what the summary needs).
+struct CampaignRow {
+  std::string line, model;
+  int run = 0;
+  bool converged = false;
+  int iterations = 0;
+  double translation_mm = 0, rotation_deg = 0;
+};
+
+constexpr const char* kCsvHeader =
+    "model,run,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,converged,iterations,final_translation_mm,final_rotation_deg,"
+    "decoded_initial,stop_reason";
+
+CampaignRow parse_row(const std::string& line, const std::string& where) {
+  std::vector<std::string> f;
+  std::size_t a = 0;
+  for (int i = 0; i < 13; ++i) {
+    const std::size_t b = line.find(',', a);
+    if (b == std::string::npos) throw std::invalid_argument(where + ": a row with fewer than 14 fields");
+    f.push_back(line.substr(a, b - a));
+    a = b + 1;
+  }
+  CampaignRow r;
+  r.line = line;
+  r.model = f[0];
+  try {
+    r.run = std::stoi(f[1]);
+    r.converged = f[8] == "1";
+    r.iterations = std::stoi(f[9]);
+    r.translation_mm = std::stod(f[10]);
+    r.rotation_deg = std::stod(f[11]);
+  } catch (const std::exception&) {
+    throw std::invalid_argument(where + ": a row with a malformed number: " + line.substr(0, 80));
+  }
+  return r;
+}
+
+struct CampaignMeta {
+  std::string scenario, source;
+  std::uint64_t seed = 0;
+  int runs = 0, max_iterations = 0, redrawn = 0, visible_desired = 0, shard_index = 1, shard_count = 1;
+  std::vector<std::string> models;
+  double scale = 1;
+};
+
+bool same_campaign(const CampaignMeta& a, const CampaignMeta& b) {
+  return a.scenario == b.scenario && a.source == b.source && a.seed == b.seed && a.runs == b.runs &&
+         a.max_iterations == b.max_iterations && a.models == b.models && a.scale == b.scale &&
+         a.shard_count == b.shard_count && a.redrawn == b.redrawn && a.visible_desired == b.visible_desired;
+}
+
+CampaignMeta read_meta(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::invalid_argument(file.string() + ": cannot read (is this a campaign folder?)");
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    CampaignMeta m;
+    m.scenario = j.at("scenario").get<std::string>();
+    m.source = j.at("features").get<std::string>();
+    m.seed = j.at("seed").get<std::uint64_t>();
+    m.runs = j.at("runs").get<int>();
+    m.max_iterations = j.at("max_iterations").get<int>();
+    m.redrawn = j.at("redrawn").get<int>();
+    m.visible_desired = j.at("visible_desired").get<int>();
+    m.models = j.at("models").get<std::vector<std::string>>();
+    m.scale = j.at("scale").get<double>();
+    m.shard_index = j.at("shard").at(0).get<int>();
+    m.shard_count = j.at("shard").at(1).get<int>();
+    if (m.runs < 1 || m.shard_count < 1 || m.shard_index < 1 || m.shard_index > m.shard_count || m.models.empty())
+      throw std::invalid_argument("inconsistent values");
+    return m;
+  } catch (const std::exception& e) {
+    throw std::invalid_argument(file.string() + ": not a campaign description (" + config::printable(e.what()) + ")");
+  }
+}
+
+std::vector<CampaignRow> read_rows(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::invalid_argument(file.string() + ": cannot read");
+  std::string line;
+  if (!std::getline(in, line) || line != kCsvHeader) throw std::invalid_argument(file.string() + ": not a campaign.csv");
+  std::vector<CampaignRow> rows;
+  while (std::getline(in, line))
+    if (!line.empty()) rows.push_back(parse_row(line, file.string()));
+  return rows;
+}
+
+std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& rows) {
+  std::ostringstream md;
+  md << "| model | converged | median iterations | median final error, converged runs (mm / deg) | worst final "
+        "error, converged runs (mm / deg) |\n"
+     << "|---|---|---|---|---|\n";
+  for (const std::string& model : meta.models) {
+    int converged = 0, total = 0;
+    std::vector<double> iters, terr, rerr;
+    for (const CampaignRow& r : rows) {
+      if (r.model != model) continue;
+      ++total;
+      if (!r.converged) continue;
+      ++converged;
+      iters.push_back(r.iterations);
+      terr.push_back(r.translation_mm);
+      rerr.push_back(r.rotation_deg);
+    }
+    const double worst_t = terr.empty() ? std::nan("") : *std::max_element(terr.begin(), terr.end());
+    const double worst_r = rerr.empty() ? std::nan("") : *std::max_element(rerr.begin(), rerr.end());
+    char line[320];
+    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %.0f | %.3f / %.4f | %.3f / %.4f |\n", model.c_str(),
+                  converged, total, total ? 100.0 * converged / total : 0.0, median(iters), median(terr), median(rerr),
+                  worst_t, worst_r);
+    md << line;
+  }
+  char note[260];
+  std::snprintf(note, sizeof note,
+                "\n%s, %d initial poses (seed %llu, %d draws redrawn for showing < 80 %% of the %d spots seen at "
+                "the desired pose), %s features\n",
+                meta.scenario.c_str(), meta.runs, static_cast<unsigned long long>(meta.seed), meta.redrawn,
+                meta.visible_desired, meta.source.c_str());
+  md << note;
+  if (meta.shard_count > 1)
+    md << "shard " << meta.shard_index << "/" << meta.shard_count << ": every " << meta.shard_count
+       << "th initial pose from pose " << meta.shard_index - 1 << " (`cellsim campaign merge` combines the shards)\n";
+  return md.str();
+}
+
+void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, const std::vector<CampaignRow>& rows,
+                    const std::string& md) {
+  std::filesystem::create_directories(dir);
+  std::ofstream csv(dir / "campaign.csv");
+  if (!csv) throw std::runtime_error((dir / "campaign.csv").string() + ": cannot write");
+  csv << kCsvHeader << "\n";
+  for (const auto& r : rows) csv << r.line << "\n";
+  nlohmann::json j;
+  j["scenario"] = m.scenario;
+  j["features"] = m.source;
+  j["seed"] = m.seed;
+  j["runs"] = m.runs;
+  j["max_iterations"] = m.max_iterations;
+  j["redrawn"] = m.redrawn;
+  j["visible_desired"] = m.visible_desired;
+  j["models"] = m.models;
+  j["scale"] = m.scale;
+  j["shard"] = {m.shard_index, m.shard_count};
+  std::ofstream(dir / "campaign.json") << j.dump(1) << "\n";
+  std::ofstream(dir / "summary.md") << md;
 }
 
 }  // namespace
@@ -65,8 +223,10 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
     ExperimentResult result;
   };
   std::vector<Job> jobs;
+  // a shard runs every N-th initial pose: the draws above are the same for every shard
   for (std::size_t m = 0; m < o.models.size(); ++m)
-    for (int r = 0; r < o.runs; ++r) jobs.push_back({m, r, {}});
+    for (int r = 0; r < o.runs; ++r)
+      if (r % o.shard_count == o.shard_index - 1) jobs.push_back({m, r, {}});
   std::atomic<std::size_t> next{0}, done{0};
   std::mutex io;
   const auto work = [&] {
@@ -94,53 +254,74 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   work();
   for (auto& t : threads) t.join();
 
-  std::ostringstream md;
-  md << "| model | converged | median iterations | median final error, converged runs (mm / deg) | worst final "
-        "error, converged runs (mm / deg) |\n"
-     << "|---|---|---|---|---|\n";
-  std::ofstream csv;
-  if (!o.out_dir.empty()) {
-    std::filesystem::create_directories(o.out_dir);
-    csv.open(o.out_dir / "campaign.csv");
-    csv << "model,run,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,converged,iterations,final_translation_mm,final_rotation_deg,"
-           "decoded_initial,stop_reason\n";
-  }
-  for (std::size_t m = 0; m < o.models.size(); ++m) {
-    int converged = 0;
-    std::vector<double> iters, terr, rerr;
+  std::vector<CampaignRow> rows;
+  for (std::size_t m = 0; m < o.models.size(); ++m)
     for (const Job& job : jobs) {
       if (job.model != m) continue;
       const auto& r = job.result;
-      if (r.converged) {
-        ++converged;
-        iters.push_back(r.iterations);
-        terr.push_back(1e3 * r.final_translation_error_m);
-        rerr.push_back(r.final_rotation_error_deg);
-      }
-      if (csv.is_open()) {
-        csv << control::to_string(o.models[m]) << ',' << job.run;
-        for (double x : offsets[static_cast<std::size_t>(job.run)]) csv << ',' << x;
-        csv << ',' << r.converged << ',' << r.iterations << ',' << 1e3 * r.final_translation_error_m << ','
-            << r.final_rotation_error_deg << ',' << r.decoded_initial << ",\"" << r.stop_reason << "\"\n";
-      }
+      std::ostringstream line;
+      line << std::setprecision(17) << control::to_string(o.models[m]) << ',' << job.run;
+      for (double x : offsets[static_cast<std::size_t>(job.run)]) line << ',' << x;
+      line << ',' << r.converged << ',' << r.iterations << ',' << 1e3 * r.final_translation_error_m << ','
+           << r.final_rotation_error_deg << ',' << r.decoded_initial << ",\"" << r.stop_reason << "\"";
+      rows.push_back(parse_row(line.str(), "campaign"));
     }
-    const double worst_t = terr.empty() ? std::nan("") : *std::max_element(terr.begin(), terr.end());
-    const double worst_r = rerr.empty() ? std::nan("") : *std::max_element(rerr.begin(), rerr.end());
-    char line[320];
-    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %.0f | %.3f / %.4f | %.3f / %.4f |\n",
-                  control::to_string(o.models[m]).c_str(), converged, o.runs, 100.0 * converged / o.runs, median(iters),
-                  median(terr), median(rerr), worst_t, worst_r);
-    md << line;
+  CampaignMeta meta;
+  meta.scenario = sc.name;
+  meta.seed = o.seed;
+  meta.runs = o.runs;
+  for (const auto m : o.models) meta.models.push_back(control::to_string(m));
+  meta.source = to_string(o.source);
+  meta.scale = o.scale;
+  meta.max_iterations = o.max_iterations;
+  meta.redrawn = redrawn;
+  meta.visible_desired = visible_desired;
+  meta.shard_index = o.shard_index;
+  meta.shard_count = o.shard_count;
+  const std::string md = summarize(meta, rows);
+  if (!o.out_dir.empty()) write_campaign(o.out_dir, meta, rows, md);
+  return md;
+}
+
+std::string merge_campaigns(const std::vector<std::filesystem::path>& dirs, const std::filesystem::path& out_dir) {
+  if (dirs.empty()) throw std::invalid_argument("campaign merge: no shard folders given");
+  std::optional<CampaignMeta> first;
+  std::set<int> shards;
+  std::vector<CampaignRow> rows;
+  for (const auto& dir : dirs) {
+    const CampaignMeta meta = read_meta(dir / "campaign.json");
+    if (!first) {
+      first = meta;
+    } else if (!same_campaign(*first, meta)) {
+      throw std::invalid_argument((dir / "campaign.json").string() +
+                                  ": another campaign than the first folder's (scenario, seed, runs, models, features, "
+                                  "scale, iteration cap and shard count must match)");
+    }
+    if (!shards.insert(meta.shard_index).second)
+      throw std::invalid_argument((dir / "campaign.json").string() + ": shard " + std::to_string(meta.shard_index) +
+                                  " given twice");
+    for (auto& r : read_rows(dir / "campaign.csv")) rows.push_back(std::move(r));
   }
-  char note[200];
-  std::snprintf(note, sizeof note,
-                "\n%s, %d initial poses (seed %llu, %d draws redrawn for showing < 80 %% of the %d spots seen at "
-                "the desired pose), %s features\n",
-                sc.name.c_str(), o.runs, static_cast<unsigned long long>(o.seed), redrawn, visible_desired,
-                to_string(o.source).c_str());
-  md << note;
-  if (!o.out_dir.empty()) std::ofstream(o.out_dir / "summary.md") << md.str();
-  return md.str();
+  if (static_cast<int>(shards.size()) != first->shard_count)
+    throw std::invalid_argument("campaign merge: " + std::to_string(shards.size()) + " of the " +
+                                std::to_string(first->shard_count) + " shards given");
+  // the unsharded order: by model (in the campaign's order), then by run
+  const auto model_index = [&](const std::string& m) {
+    return std::find(first->models.begin(), first->models.end(), m) - first->models.begin();
+  };
+  std::sort(rows.begin(), rows.end(), [&](const CampaignRow& a, const CampaignRow& b) {
+    return std::make_pair(model_index(a.model), a.run) < std::make_pair(model_index(b.model), b.run);
+  });
+  CampaignMeta merged = *first;
+  merged.shard_index = 1;
+  merged.shard_count = 1;
+  if (rows.size() != merged.models.size() * static_cast<std::size_t>(merged.runs))
+    throw std::invalid_argument("campaign merge: " + std::to_string(rows.size()) + " runs found, " +
+                                std::to_string(merged.models.size() * static_cast<std::size_t>(merged.runs)) +
+                                " expected");
+  const std::string md = summarize(merged, rows);
+  write_campaign(out_dir, merged, rows, md);
+  return md;
 }
 
 }  // namespace cellsim

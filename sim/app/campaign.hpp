@@ -20,10 +20,20 @@ struct CampaignOptions {
   double scale = 1.0;  // initial offsets drawn in [-scale |x|, scale |x|] of the scenario's
   int max_iterations = 400;
   int threads = 2;
+  // run the shard_index-th of shard_count slices (1-based): every shard_count-th initial
+  // pose; `merge_campaigns` combines the slices into the unsharded result
+  int shard_index = 1, shard_count = 1;
   std::filesystem::path out_dir;
 };
 
 // Returns the summary table as Markdown (also written to out_dir/summary.md).
+// Writes campaign.csv (one row per run, numbers to 17 digits), campaign.json (what was run)
+// and summary.md into out_dir.
 std::string run_campaign(const sim::Cell& cell, const CampaignOptions& options);
+
+// Combines the folders of all shards of one campaign into out_dir: the same campaign.csv and
+// summary.md as the unsharded run. Throws std::invalid_argument (one line) when the folders
+// are not the shards of one campaign, or one is missing or repeated.
+std::string merge_campaigns(const std::vector<std::filesystem::path>& shard_dirs, const std::filesystem::path& out_dir);
 
 }  // namespace cellsim

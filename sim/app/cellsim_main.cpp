@@ -14,6 +14,7 @@
 #include "servo/pattern/window_table.hpp"
 #include "sim/app/decode_sweep.hpp"
 #include "sim/app/experiment.hpp"
+#include "servo/config/strict_yaml.hpp"
 #include "sim/app/campaign.hpp"
 #include "sim/app/sim_service.hpp"
 #include "dds/participant.hpp"
@@ -222,7 +223,14 @@ int main(int argc, char** argv) {
   cellsim::CampaignOptions camp;
   std::string camp_dir, camp_models = "desired-constant-depth,desired,current,mean";
   auto* cp = app.add_subcommand("campaign", "many random initial poses per interaction-matrix model");
-  cp->add_option("scenario", scenario, "scenario YAML file")->required();
+  cp->add_option("scenario", scenario, "scenario YAML file");
+  std::string shard;
+  cp->add_option("--shard", shard, "run slice I of N (I/N): every N-th initial pose; merge the slices with `campaign merge`");
+  std::vector<std::string> merge_dirs;
+  std::string merge_out;
+  auto* merge = cp->add_subcommand("merge", "combine the folders of a sharded campaign into the unsharded result");
+  merge->add_option("folders", merge_dirs, "the shards' output folders")->required();
+  merge->add_option("-o,--output", merge_out, "folder for the merged campaign.csv and summary.md")->required();
   cp->add_option("--runs", camp.runs, "initial poses per model")->capture_default_str()->check(CLI::PositiveNumber);
   cp->add_option("--models", camp_models, "comma-separated models")->capture_default_str();
   cp->add_option("--seed", camp.seed, "seed of the initial-pose draw")->capture_default_str();
@@ -230,7 +238,7 @@ int main(int argc, char** argv) {
   cp->add_option("--max-iterations", camp.max_iterations, "iteration cap per run")->capture_default_str();
   cp->add_option("--features", source, "decoded | ideal")->capture_default_str();
   cp->add_option("--threads", camp.threads, "worker threads")->capture_default_str();
-  cp->add_option("-o,--output", camp_dir, "folder for campaign.csv and summary.md")->required();
+  cp->add_option("-o,--output", camp_dir, "folder for campaign.csv, campaign.json and summary.md");
   LawFlags camp_law;
   cp->add_option("--z-hat", camp_law.z_hat, "depth of desired-constant-depth (m)");
   cp->add_option("--gain", camp_law.gain, "constant gain")->capture_default_str();
@@ -293,6 +301,21 @@ int main(int argc, char** argv) {
     }
     if (*ex) return run_experiment_cli(scenario, law, source, max_iterations, initial, exp_dir, !no_plot);
     if (*cp) {
+      if (*merge) {
+        std::vector<std::filesystem::path> dirs(merge_dirs.begin(), merge_dirs.end());
+        std::printf("%s", cellsim::merge_campaigns(dirs, merge_out).c_str());
+        return 0;
+      }
+      if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
+      if (camp_dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
+      if (!shard.empty()) {
+        int i = 0, n = 0;
+        char extra = 0;
+        if (std::sscanf(shard.c_str(), "%d/%d%c", &i, &n, &extra) != 2 || n < 1 || n > 100000 || i < 1 || i > n)
+          throw std::invalid_argument("--shard '" + config::printable(shard) + "': expected I/N with 1 <= I <= N");
+        camp.shard_index = i;
+        camp.shard_count = n;
+      }
       const auto cell = sim::build_cell(sim::load_scenario(scenario));
       camp.source = cellsim::parse_feature_source(source);
       camp.base = cellsim::servo_config_for(*cell);

@@ -33,6 +33,82 @@ int domain_id_from_env(int fallback) {
   return static_cast<int>(v);
 }
 
+const char* to_string(DiscoveryRange r) {
+  switch (r) {
+    case DiscoveryRange::kLocalhost: return "LOCALHOST";
+    case DiscoveryRange::kSubnet: return "SUBNET";
+    case DiscoveryRange::kOff: return "OFF";
+  }
+  return "?";
+}
+
+Discovery parse_discovery(const char* range, const char* peers, const char* localhost_only) {
+  Discovery d;
+  const auto shown = [](const std::string& v) { return v.size() > 60 ? v.substr(0, 60) + "..." : v; };
+  if (range && *range) {
+    const std::string r = range;
+    if (r == "LOCALHOST") d.range = DiscoveryRange::kLocalhost;
+    else if (r == "SUBNET" || r == "SYSTEM_DEFAULT") d.range = DiscoveryRange::kSubnet;
+    else if (r == "OFF") d.range = DiscoveryRange::kOff;
+    else
+      throw std::invalid_argument("ROS_AUTOMATIC_DISCOVERY_RANGE='" + shown(r) +
+                                  "': expected LOCALHOST, SUBNET, OFF or SYSTEM_DEFAULT");
+  }
+  if (localhost_only && *localhost_only) {
+    const std::string v = localhost_only;
+    if (v == "1") d.range = DiscoveryRange::kLocalhost;
+    else if (v != "0") throw std::invalid_argument("ROS_LOCALHOST_ONLY='" + shown(v) + "': expected 0 or 1");
+  }
+  if (peers && *peers) {
+    const std::string list = peers;
+    if (list.size() > 4096) throw std::invalid_argument("ROS_STATIC_PEERS: longer than 4096 characters");
+    for (std::size_t a = 0, b; a <= list.size(); a = b + 1) {
+      b = list.find(';', a);
+      if (b == std::string::npos) b = list.size();
+      std::string peer = list.substr(a, b - a);
+      while (!peer.empty() && peer.front() == ' ') peer.erase(peer.begin());
+      while (!peer.empty() && peer.back() == ' ') peer.pop_back();
+      if (peer.empty()) continue;
+      in_addr addr{};
+      if (inet_pton(AF_INET, peer.c_str(), &addr) != 1)
+        throw std::invalid_argument("ROS_STATIC_PEERS: '" + shown(peer) + "' is not an IPv4 address");
+      if (d.static_peers.size() >= 64) throw std::invalid_argument("ROS_STATIC_PEERS: more than 64 peers");
+      d.static_peers.push_back(peer);
+    }
+  }
+  return d;
+}
+
+Discovery discovery_from_env() {
+  return parse_discovery(std::getenv("ROS_AUTOMATIC_DISCOVERY_RANGE"), std::getenv("ROS_STATIC_PEERS"),
+                         std::getenv("ROS_LOCALHOST_ONLY"));
+}
+
+Discovery discovery_from(const std::string& range_flag, const std::string& peers_flag) {
+  Discovery d = discovery_from_env();
+  const auto renamed = [](const std::invalid_argument& e, const std::string& var, const std::string& flag) {
+    std::string m = e.what();
+    const auto at = m.find(var);
+    if (at != std::string::npos) m.replace(at, var.size(), flag);
+    return std::invalid_argument(m);
+  };
+  if (!range_flag.empty()) {
+    try {
+      d.range = parse_discovery(range_flag.c_str(), nullptr, nullptr).range;
+    } catch (const std::invalid_argument& e) {
+      throw renamed(e, "ROS_AUTOMATIC_DISCOVERY_RANGE", "--discovery-range");
+    }
+  }
+  if (!peers_flag.empty()) {
+    try {
+      d.static_peers = parse_discovery(nullptr, peers_flag.c_str(), nullptr).static_peers;
+    } catch (const std::invalid_argument& e) {
+      throw renamed(e, "ROS_STATIC_PEERS", "--static-peers");
+    }
+  }
+  return d;
+}
+
 void ParticipantDeleter::operator()(DomainParticipant* p) const {
   if (p == nullptr) return;
   p->delete_contained_entities();
@@ -140,25 +216,40 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
   }
   DomainParticipantQos qos = PARTICIPANT_QOS_DEFAULT;
   qos.name(o.name);
-  if (o.loopback_only) {
-    qos.transport().use_builtin_transports = false;
-    auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
-    udp->interfaceWhiteList.emplace_back("127.0.0.1");
-    // the initial peer is tried at this many participant ids: ids skipped for dead processes'
-    // ports (below) must stay within reach
-    udp->maxInitialPeersRange = 64;
-    qos.transport().user_transports.push_back(udp);
-    // large frames between processes of one host go through shared memory
-    auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
-    shm->segment_size(8 * 1024 * 1024);
-    qos.transport().user_transports.push_back(shm);
-    eprosima::fastrtps::rtps::Locator_t peer;
-    peer.kind = LOCATOR_KIND_UDPv4;
-    eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
-    qos.wire_protocol().builtin.initialPeersList.push_back(peer);
+  const Discovery& d = o.discovery;
+  const bool loopback_only = d.range == DiscoveryRange::kLocalhost && d.static_peers.empty();
+  const auto peer_locator = [](const std::string& address) {
+    eprosima::fastrtps::rtps::Locator_t l;
+    l.kind = LOCATOR_KIND_UDPv4;
+    eprosima::fastrtps::rtps::IPLocator::setIPv4(l, address);
+    return l;
+  };
+  qos.transport().use_builtin_transports = false;
+  auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+  // LOCALHOST: nothing leaves the machine; the other ranges use every interface
+  if (loopback_only) udp->interfaceWhiteList.emplace_back("127.0.0.1");
+  // the initial peers are tried at this many participant ids: ids skipped for dead
+  // processes' ports (below) must stay within reach
+  udp->maxInitialPeersRange = 64;
+  qos.transport().user_transports.push_back(udp);
+  // large frames between processes of one host go through shared memory
+  auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
+  shm->segment_size(8 * 1024 * 1024);
+  qos.transport().user_transports.push_back(shm);
+  auto& peers = qos.wire_protocol().builtin.initialPeersList;
+  if (d.range == DiscoveryRange::kLocalhost) peers.push_back(peer_locator("127.0.0.1"));
+  if (d.range == DiscoveryRange::kSubnet) {
+    // an explicit initial peers list replaces Fast DDS's default multicast announcement:
+    // put it back, so SUBNET still discovers by multicast
+    eprosima::fastrtps::rtps::Locator_t m = peer_locator("239.255.0.1");
+    m.port = static_cast<std::uint32_t>(7400 + 250 * o.domain_id);
+    peers.push_back(m);
   }
+  // LOCALHOST and OFF announce to these peers only, never to a multicast group (multicast
+  // sent by others, e.g. a default-configured client on the same network, is still heard)
+  for (const auto& a : d.static_peers) peers.push_back(peer_locator(a));
   DomainParticipant* p = nullptr;
-  if (o.loopback_only) {
+  {
     remove_orphaned_shm_ports();
     // another process may take the same id between the check and the bind: try the next
     for (int attempt = 0, id = 0; attempt < 5 && p == nullptr; ++attempt, ++id) {

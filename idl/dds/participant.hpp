@@ -6,15 +6,40 @@
 #include <fastdds/dds/topic/TypeSupport.hpp>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace cell_dds {
+
+// Discovery as ROS 2 configures it (REP-2021 / Jazzy's variables):
+//   LOCALHOST  UDP on 127.0.0.1 only, peers found by unicast on this host (the default: without
+//              DDS-Security, a cell reachable from the network can be driven by anyone);
+//   SUBNET     every interface, multicast discovery (ROS 2's default);
+//   OFF        no automatic discovery at all: only the static peers.
+// Static peers (addresses, unicast) are contacted in every range; with LOCALHOST they make
+// the participant use every interface for them, multicast staying off.
+enum class DiscoveryRange { kLocalhost, kSubnet, kOff };
+struct Discovery {
+  DiscoveryRange range = DiscoveryRange::kLocalhost;
+  std::vector<std::string> static_peers;  // IPv4 addresses
+};
+const char* to_string(DiscoveryRange r);
+
+// ROS_AUTOMATIC_DISCOVERY_RANGE (LOCALHOST | SUBNET | OFF | SYSTEM_DEFAULT = SUBNET),
+// ROS_STATIC_PEERS ("a.b.c.d;e.f.g.h"), the legacy ROS_LOCALHOST_ONLY=1 (LOCALHOST, as Jazzy
+// does). Null pointers are unset variables. Throws std::invalid_argument naming the variable.
+Discovery parse_discovery(const char* range, const char* static_peers, const char* localhost_only);
+// The same from this process's environment.
+Discovery discovery_from_env();
+// The command line's --discovery-range / --static-peers (empty: not given) over the
+// environment's variables. Throws std::invalid_argument naming the flag or the variable.
+Discovery discovery_from(const std::string& range_flag, const std::string& peers_flag);
 
 struct ParticipantOptions {
   int domain_id = 0;
   std::string name = "cell";
-  // Loopback only by default: a CI machine must not send discovery traffic to other hosts.
-  // With false, every interface is used (sim and servo on different hosts).
-  bool loopback_only = true;
+  // LOCALHOST unless the caller says otherwise (the services take the ROS 2 variables and
+  // their --discovery-range / --static-peers flags): a CI machine sends nothing to other hosts.
+  Discovery discovery;
   // Deliver between entities of one process through the real transport, not a shortcut,
   // so a test with two participants in one process exercises what two processes would.
   bool intraprocess = true;

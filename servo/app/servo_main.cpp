@@ -162,6 +162,11 @@ int main(int argc, char** argv) {
   run->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)");
   run->add_option("--gain", gain, "constant gain");
   run->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
+  std::string discovery_range, static_peers;
+  const char* range_help = "LOCALHOST | SUBNET | OFF (default: $ROS_AUTOMATIC_DISCOVERY_RANGE, or LOCALHOST)";
+  const char* peers_help = "semicolon-separated IPv4 addresses to discover by unicast (default: $ROS_STATIC_PEERS)";
+  run->add_option("--discovery-range", discovery_range, range_help);
+  run->add_option("--static-peers", static_peers, peers_help);
   run->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
   run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
   run->add_option("--projector", projector_file,
@@ -173,6 +178,8 @@ int main(int argc, char** argv) {
   std::string view_out;
   auto* vw = app.add_subcommand("view", "live view of the camera with the decoded ids (window, or PNGs headless)");
   vw->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
+  vw->add_option("--discovery-range", discovery_range, range_help);
+  vw->add_option("--static-peers", static_peers, peers_help);
   vw->add_option("-o,--output", view_out, "write a PNG sequence here instead of opening a window");
   vw->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
   vw->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
@@ -187,6 +194,7 @@ int main(int argc, char** argv) {
   try {
     if (*vw) {
       view.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      view.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       view.output = view_out;
       return servo::run_viewer(view);
     }
@@ -210,6 +218,7 @@ int main(int argc, char** argv) {
         svc.config.law.gain = {gain, gain, 0};
       }
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       return servo::run_servo_service(svc);

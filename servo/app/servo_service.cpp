@@ -114,6 +114,7 @@ class ServoService {
     cell_dds::ParticipantOptions po;
     po.domain_id = o.domain_id;
     po.name = "servo";
+    po.discovery = o.discovery;
     participant_ = cell_dds::make_participant(po);
     auto& p = *participant_;
     using cell_dds::Stream;

@@ -44,6 +44,7 @@ int run_viewer(const ViewOptions& o) {
   cell_dds::ParticipantOptions po;
   po.domain_id = o.domain_id;
   po.name = "servo_view";
+  po.discovery = o.discovery;
   auto p = cell_dds::make_participant(po);
   using cell_dds::Stream;
   cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(

@@ -250,6 +250,11 @@ int main(int argc, char** argv) {
   sv->add_option("scenario", scenario, "scenario YAML file")->required();
   sv->add_option("--mode", mode, "lockstep | realtime")->capture_default_str();
   sv->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
+  std::string discovery_range, static_peers;
+  sv->add_option("--discovery-range", discovery_range,
+                 "LOCALHOST | SUBNET | OFF (default: $ROS_AUTOMATIC_DISCOVERY_RANGE, or LOCALHOST)");
+  sv->add_option("--static-peers", static_peers,
+                 "semicolon-separated IPv4 addresses to discover by unicast (default: $ROS_STATIC_PEERS)");
   sv->add_option("--watchdog-ms", svc.watchdog_ms, "stop the robot after this long without a valid twist")
       ->capture_default_str();
   sv->add_option("--republish-ms", svc.republish_ms, "lockstep: send an unanswered frame again after this long")
@@ -296,6 +301,7 @@ int main(int argc, char** argv) {
       within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
       svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       svc.trace_dir = svc_trace;
       return cellsim::run_sim_service(svc);
     }

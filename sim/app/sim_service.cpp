@@ -94,6 +94,7 @@ class SimService {
     cell_dds::ParticipantOptions po;
     po.domain_id = o.domain_id;
     po.name = "cellsim";
+    po.discovery = o.discovery;
     participant_ = cell_dds::make_participant(po);
     auto& p = *participant_;
     using cell_dds::Stream;

@@ -23,6 +23,10 @@ class Process {
     if (pid_ < 0) throw std::runtime_error("fork failed");
     if (pid_ == 0) {
       setenv("ROS_DOMAIN_ID", std::to_string(domain).c_str(), 1);
+      // tests talk over loopback only, whatever the caller's ROS 2 environment says
+      setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST", 1);
+      unsetenv("ROS_STATIC_PEERS");
+      unsetenv("ROS_LOCALHOST_ONLY");
       const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       if (fd >= 0) {
         dup2(fd, 1);

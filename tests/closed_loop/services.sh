@@ -15,6 +15,9 @@ claim_domain() {
 }
 
 start_services() {
+  # tests talk over loopback only, whatever the caller's ROS 2 environment says
+  export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+  unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY
   local bin="$1" src="$2" sim_args="$3"
   claim_domain
   export ROS_DOMAIN_ID="$cell_domain"

@@ -18,11 +18,12 @@ rmw_dds_common::msg::dds_::Gid_ NodeAnnouncement::gid_of(const eprosima::fastrtp
 
 NodeAnnouncement::NodeAnnouncement(eprosima::fastdds::dds::DomainParticipant& participant, const std::string& node_name,
                                    const std::vector<eprosima::fastrtps::rtps::GUID_t>& readers,
-                                   const std::vector<eprosima::fastrtps::rtps::GUID_t>& writers) {
+                                   const std::vector<eprosima::fastrtps::rtps::GUID_t>& writers,
+                                   const std::string& node_namespace) {
   writer_ = std::make_unique<Writer<rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_PubSubType>>(
       participant, kRosDiscoveryTopic, writer_qos(Stream::kLatched));
   rmw_dds_common::msg::dds_::NodeEntitiesInfo_ node;
-  node.node_namespace("/");
+  node.node_namespace(node_namespace);
   node.node_name(node_name);
   for (const auto& r : readers) node.reader_gid_seq().push_back(gid_of(r));
   for (const auto& w : writers) node.writer_gid_seq().push_back(gid_of(w));

@@ -22,7 +22,8 @@ class NodeAnnouncement {
  public:
   NodeAnnouncement(eprosima::fastdds::dds::DomainParticipant& participant, const std::string& node_name,
                    const std::vector<eprosima::fastrtps::rtps::GUID_t>& readers,
-                   const std::vector<eprosima::fastrtps::rtps::GUID_t>& writers);
+                   const std::vector<eprosima::fastrtps::rtps::GUID_t>& writers,
+                   const std::string& node_namespace = "/");
 
   static rmw_dds_common::msg::dds_::Gid_ gid_of(const eprosima::fastrtps::rtps::GUID_t& guid);
 

@@ -1,5 +1,7 @@
 #include "dds/topics.hpp"
 
+#include <stdexcept>
+
 #include <cmath>
 
 namespace cell_dds {
@@ -51,5 +53,38 @@ std::uint64_t frame_of(const builtin_interfaces::msg::dds_::Time_& t, double dt_
 }
 
 double seconds(const builtin_interfaces::msg::dds_::Time_& t) { return t.sec() + 1e-9 * t.nanosec(); }
+
+std::string namespaced(const std::string& ns, const char* topic) {
+  const std::string t = topic;
+  if (ns.empty() || t.rfind("rt/", 0) != 0) return t;
+  return "rt/" + ns + "/" + t.substr(3);
+}
+
+std::string checked_namespace(const std::string& raw) {
+  std::string ns = raw;
+  if (!ns.empty() && ns.front() == '/') ns.erase(ns.begin());
+  const auto bad = [&](const char* why) {
+    std::string shown;
+    for (char c : raw.substr(0, 64)) shown += (c >= 0x20 && c < 0x7f) ? c : '?';
+    return std::invalid_argument("--namespace '" + shown + "': " + why);
+  };
+  if (ns.size() > 64) throw bad("longer than 64 characters");
+  if (ns.empty()) return ns;
+  bool start = true;
+  for (char c : ns) {
+    if (c == '/') {
+      if (start) throw bad("an empty segment");
+      start = true;
+      continue;
+    }
+    const bool letter = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
+    const bool digit = c >= '0' && c <= '9';
+    if (!letter && !digit) throw bad("only letters, digits, '_' and '/' between segments");
+    if (start && digit) throw bad("a segment starts with a digit");
+    start = false;
+  }
+  if (start) throw bad("ends with '/'");
+  return ns;
+}
 
 }  // namespace cell_dds

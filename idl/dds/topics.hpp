@@ -24,6 +24,15 @@ inline constexpr const char* kJointStatesTopic = "rt/joint_states";
 inline constexpr const char* kTfTopic = "rt/tf";
 inline constexpr const char* kRobotDescriptionTopic = "rt/robot_description";
 
+// A cell's topic under a ROS 2 namespace: "rt/camera/image_raw" in namespace "cell2" is
+// "rt/cell2/camera/image_raw" (ROS 2's /cell2/camera/image_raw). An empty namespace leaves
+// the name as it is.
+std::string namespaced(const std::string& ns, const char* topic);
+// Checks a --namespace value as ROS 2 names are checked: segments of letters, digits and
+// underscores, not starting with a digit, joined by '/', at most 64 characters; a leading
+// '/' is dropped. Throws std::invalid_argument (one line) otherwise.
+std::string checked_namespace(const std::string& ns);
+
 inline constexpr const char* kCameraFrame = "camera_optical";
 inline constexpr const char* kWorldFrame = "world";
 

@@ -21,6 +21,7 @@
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/app/servo_view.hpp"
 #include "dds/participant.hpp"
+#include "dds/topics.hpp"
 
 namespace {
 
@@ -167,6 +168,9 @@ int main(int argc, char** argv) {
   const char* peers_help = "semicolon-separated IPv4 addresses to discover by unicast (default: $ROS_STATIC_PEERS)";
   run->add_option("--discovery-range", discovery_range, range_help);
   run->add_option("--static-peers", static_peers, peers_help);
+  std::string ns;
+  const char* ns_help = "the cell's ROS 2 namespace: its topics become rt/NAME/... (several cells on one domain)";
+  run->add_option("--namespace", ns, ns_help);
   run->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
   run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
   run->add_option("--projector", projector_file,
@@ -180,6 +184,7 @@ int main(int argc, char** argv) {
   vw->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
   vw->add_option("--discovery-range", discovery_range, range_help);
   vw->add_option("--static-peers", static_peers, peers_help);
+  vw->add_option("--namespace", ns, ns_help);
   vw->add_option("-o,--output", view_out, "write a PNG sequence here instead of opening a window");
   vw->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
   vw->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
@@ -195,6 +200,7 @@ int main(int argc, char** argv) {
     if (*vw) {
       view.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       view.discovery = cell_dds::discovery_from(discovery_range, static_peers);
+      view.ns = cell_dds::checked_namespace(ns);
       view.output = view_out;
       return servo::run_viewer(view);
     }
@@ -219,6 +225,7 @@ int main(int argc, char** argv) {
       }
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
+      svc.ns = cell_dds::checked_namespace(ns);
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       return servo::run_servo_service(svc);

@@ -119,34 +119,34 @@ class ServoService {
     auto& p = *participant_;
     using cell_dds::Stream;
     twist_ = std::make_unique<cell_dds::Writer<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
-        p, cell_dds::kTwistTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kTwistTopic), cell_dds::writer_qos(Stream::kFrame));
     spots_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::DecodedSpots_PubSubType>>(
-        p, cell_dds::kSpotsTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kSpotsTopic), cell_dds::writer_qos(Stream::kFrame));
     status_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
-        p, cell_dds::kStatusTopic, cell_dds::writer_qos(Stream::kLatched));
+        p, topic(cell_dds::kStatusTopic), cell_dds::writer_qos(Stream::kLatched));
     image_in_ = std::make_unique<cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType>>(
-        p, cell_dds::kImageTopic, cell_dds::reader_qos(Stream::kFrame),
+        p, topic(cell_dds::kImageTopic), cell_dds::reader_qos(Stream::kFrame),
         [this](Image_&& i) { in_.push(in_.images, std::move(i), Inbox::kMaxImages); });
     info_in_ = std::make_unique<cell_dds::Reader<sensor_msgs::msg::dds_::CameraInfo_PubSubType>>(
-        p, cell_dds::kCameraInfoTopic, cell_dds::reader_qos(Stream::kLatched), [this](CameraInfo_&& c) {
+        p, topic(cell_dds::kCameraInfoTopic), cell_dds::reader_qos(Stream::kLatched), [this](CameraInfo_&& c) {
           std::lock_guard<std::mutex> l(in_.m);
           in_.info = std::move(c);
           in_.info_fresh = true;
         });
     pose_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
-        p, cell_dds::kCameraPoseTopic, cell_dds::reader_qos(Stream::kFrame),
+        p, topic(cell_dds::kCameraPoseTopic), cell_dds::reader_qos(Stream::kFrame),
         [this](PoseStamped_&& s) { in_.push(in_.poses, std::move(s), Inbox::kMaxFrameInfo); });
     sim_status_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>>(
-        p, cell_dds::kSimStatusTopic, cell_dds::reader_qos(Stream::kFrame),
+        p, topic(cell_dds::kSimStatusTopic), cell_dds::reader_qos(Stream::kFrame),
         [this](SimStatus_&& s) { in_.push(in_.sim_statuses, std::move(s), Inbox::kMaxFrameInfo); });
     control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-        p, cell_dds::kControlTopic, cell_dds::reader_qos(Stream::kCommand),
+        p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
         [this](SimControl_&& c) { in_.push(in_.commands, std::move(c), Inbox::kMaxCommands); });
     node_ = std::make_unique<cell_dds::NodeAnnouncement>(
         p, "servo",
         std::vector<eprosima::fastrtps::rtps::GUID_t>{image_in_->guid(), info_in_->guid(), pose_in_->guid(),
                                                       sim_status_in_->guid(), control_in_->guid()},
-        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_->guid(), spots_->guid(), status_->guid()});
+        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_->guid(), spots_->guid(), status_->guid()}, o.ns.empty() ? std::string("/") : "/" + o.ns);
   }
 
   int run() {
@@ -167,7 +167,7 @@ class ServoService {
         in_.info_fresh = false;
         const std::string why = machine_->on_camera_info(to_info(*in_.info));
         if (!why.empty()) {
-          std::fprintf(stderr, "servo: %s: %s\n", cell_dds::kCameraInfoTopic, why.c_str());
+          std::fprintf(stderr, "servo: %s: %s\n", topic(cell_dds::kCameraInfoTopic).c_str(), why.c_str());
         }
       }
       if (in_.images.empty()) {
@@ -279,6 +279,7 @@ class ServoService {
     spots_->write(m);
   }
 
+  std::string topic(const char* t) const { return cell_dds::namespaced(o_.ns, t); }
   ServiceOptions o_;
   std::unique_ptr<ServoStateMachine> machine_;
   Inbox in_;

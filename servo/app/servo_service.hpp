@@ -16,7 +16,8 @@ struct ServiceOptions {
   std::filesystem::path pattern;
   ServoConfig config;              // camera intrinsics come from rt/camera/camera_info
   int domain_id = 0;
-  cell_dds::Discovery discovery;  // the range and static peers (ROS 2's variables, or the flags)
+  cell_dds::Discovery discovery;
+  std::string ns;  // ROS 2 namespace of the cell's topics (--namespace); empty: none  // the range and static peers (ROS 2's variables, or the flags)
   double lost_ms = 500;            // no image for this long: zero twist and state LOST
   std::filesystem::path reference; // s*: loaded at start when it exists, saved after teaching
   bool autostart = false;          // servo as soon as a reference exists (no START needed)

@@ -41,6 +41,7 @@ int run_viewer(const ViewOptions& o) {
   std::condition_variable cv;
   std::optional<sensor_msgs::msg::dds_::Image_> image;
   std::map<StampKey, cell_msgs::msg::dds_::DecodedSpots_> spots;  // by stamp, a few kept
+  const auto topic = [&](const char* t) { return cell_dds::namespaced(o.ns, t); };
   cell_dds::ParticipantOptions po;
   po.domain_id = o.domain_id;
   po.name = "servo_view";
@@ -48,13 +49,13 @@ int run_viewer(const ViewOptions& o) {
   auto p = cell_dds::make_participant(po);
   using cell_dds::Stream;
   cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(
-      *p, cell_dds::kImageTopic, cell_dds::reader_qos(Stream::kFrame), [&](sensor_msgs::msg::dds_::Image_&& i) {
+      *p, topic(cell_dds::kImageTopic), cell_dds::reader_qos(Stream::kFrame), [&](sensor_msgs::msg::dds_::Image_&& i) {
         std::lock_guard<std::mutex> l(m);
         image = std::move(i);
         cv.notify_all();
       });
   cell_dds::Reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType> decoded(
-      *p, cell_dds::kSpotsTopic, cell_dds::reader_qos(Stream::kFrame), [&](cell_msgs::msg::dds_::DecodedSpots_&& s) {
+      *p, topic(cell_dds::kSpotsTopic), cell_dds::reader_qos(Stream::kFrame), [&](cell_msgs::msg::dds_::DecodedSpots_&& s) {
         std::lock_guard<std::mutex> l(m);
         spots[key(s.header().stamp())] = std::move(s);
         while (spots.size() > 8) spots.erase(spots.begin());
@@ -84,7 +85,7 @@ int run_viewer(const ViewOptions& o) {
     const std::string bad = ServoStateMachine::reject_reason(
         view, CameraInfoMsg{img.width(), img.height(), {}, {}});
     if (!bad.empty()) {
-      if (++rejected <= 5) std::fprintf(stderr, "servo view: %s: %s\n", cell_dds::kImageTopic, bad.c_str());
+      if (++rejected <= 5) std::fprintf(stderr, "servo view: %s: %s\n", topic(cell_dds::kImageTopic).c_str(), bad.c_str());
       lock.lock();
       continue;
     }

@@ -10,7 +10,8 @@ namespace servo {
 
 struct ViewOptions {
   int domain_id = 0;
-  cell_dds::Discovery discovery;  // the range and static peers (ROS 2's variables, or the flags)
+  cell_dds::Discovery discovery;
+  std::string ns;  // ROS 2 namespace of the cell's topics (--namespace); empty: none  // the range and static peers (ROS 2's variables, or the flags)
   std::filesystem::path output;  // PNG sequence here (headless); empty: a window if possible
   long frames = 0;               // stop after this many frames (0: until SIGINT / window closed)
   int every = 1;                 // keep one frame in `every`

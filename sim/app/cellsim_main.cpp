@@ -15,6 +15,7 @@
 #include "sim/app/decode_sweep.hpp"
 #include "sim/app/experiment.hpp"
 #include "servo/config/strict_yaml.hpp"
+#include "dds/topics.hpp"
 #include "sim/app/campaign.hpp"
 #include "sim/app/sim_service.hpp"
 #include "dds/participant.hpp"
@@ -255,6 +256,8 @@ int main(int argc, char** argv) {
                  "LOCALHOST | SUBNET | OFF (default: $ROS_AUTOMATIC_DISCOVERY_RANGE, or LOCALHOST)");
   sv->add_option("--static-peers", static_peers,
                  "semicolon-separated IPv4 addresses to discover by unicast (default: $ROS_STATIC_PEERS)");
+  std::string ns;
+  sv->add_option("--namespace", ns, "the cell's ROS 2 namespace: its topics become rt/NAME/... (several cells on one domain)");
   sv->add_option("--watchdog-ms", svc.watchdog_ms, "stop the robot after this long without a valid twist")
       ->capture_default_str();
   sv->add_option("--republish-ms", svc.republish_ms, "lockstep: send an unanswered frame again after this long")
@@ -302,6 +305,7 @@ int main(int argc, char** argv) {
       svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
+      svc.ns = cell_dds::checked_namespace(ns);
       svc.trace_dir = svc_trace;
       return cellsim::run_sim_service(svc);
     }

@@ -99,31 +99,31 @@ class SimService {
     auto& p = *participant_;
     using cell_dds::Stream;
     image_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(
-        p, cell_dds::kImageTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kImageTopic), cell_dds::writer_qos(Stream::kFrame));
     info_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>>(
-        p, cell_dds::kCameraInfoTopic, cell_dds::writer_qos(Stream::kLatched));
+        p, topic(cell_dds::kCameraInfoTopic), cell_dds::writer_qos(Stream::kLatched));
     pose_ = std::make_unique<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
-        p, cell_dds::kCameraPoseTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kCameraPoseTopic), cell_dds::writer_qos(Stream::kFrame));
     sim_status_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimStatus_PubSubType>>(
-        p, cell_dds::kSimStatusTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kSimStatusTopic), cell_dds::writer_qos(Stream::kFrame));
     truth_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>>(
-        p, cell_dds::kSpotTruthTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kSpotTruthTopic), cell_dds::writer_qos(Stream::kFrame));
     clock_ = std::make_unique<cell_dds::Writer<rosgraph_msgs::msg::dds_::Clock_PubSubType>>(
-        p, cell_dds::kClockTopic, cell_dds::writer_qos(Stream::kClock));
+        p, topic(cell_dds::kClockTopic), cell_dds::writer_qos(Stream::kClock));
     joints_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::JointState_PubSubType>>(
-        p, cell_dds::kJointStatesTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kJointStatesTopic), cell_dds::writer_qos(Stream::kFrame));
     tf_ = std::make_unique<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>>(
-        p, cell_dds::kTfTopic, cell_dds::writer_qos(Stream::kFrame));
+        p, topic(cell_dds::kTfTopic), cell_dds::writer_qos(Stream::kFrame));
     description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
-        p, cell_dds::kRobotDescriptionTopic, cell_dds::writer_qos(Stream::kLatched));
+        p, topic(cell_dds::kRobotDescriptionTopic), cell_dds::writer_qos(Stream::kLatched));
     twist_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
-        p, cell_dds::kTwistTopic, cell_dds::reader_qos(Stream::kFrame),
+        p, topic(cell_dds::kTwistTopic), cell_dds::reader_qos(Stream::kFrame),
         [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); });
     control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-        p, cell_dds::kControlTopic, cell_dds::reader_qos(Stream::kCommand),
+        p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
         [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); });
     status_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
-        p, cell_dds::kStatusTopic, cell_dds::reader_qos(Stream::kLatched), [this](ServoStatus_&& s) {
+        p, topic(cell_dds::kStatusTopic), cell_dds::reader_qos(Stream::kLatched), [this](ServoStatus_&& s) {
           {
             std::lock_guard<std::mutex> l(inbox_.m);
             inbox_.servo_seen = true;
@@ -133,13 +133,13 @@ class SimService {
         });
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-          p, cell_dds::kControlTopic, cell_dds::writer_qos(Stream::kCommand));
+          p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
     node_ = std::make_unique<cell_dds::NodeAnnouncement>(
         p, "cellsim",
         std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
         std::vector<eprosima::fastrtps::rtps::GUID_t>{image_->guid(), info_->guid(), pose_->guid(), sim_status_->guid(),
                                                       truth_->guid(), clock_->guid(), joints_->guid(), tf_->guid(),
-                                                      description_->guid()});
+                                                      description_->guid()}, o.ns.empty() ? std::string("/") : "/" + o.ns);
     publish_camera_info();
     publish_description();
     if (!o.trace_dir.empty()) {
@@ -401,6 +401,7 @@ class SimService {
     std::fflush(stdout);
   }
 
+  std::string topic(const char* t) const { return cell_dds::namespaced(o_.ns, t); }
   ServiceOptions o_;
   std::unique_ptr<sim::Cell> cell_;
   std::unique_ptr<sim::CellStateMachine> machine_;

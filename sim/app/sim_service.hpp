@@ -15,7 +15,8 @@ struct ServiceOptions {
   std::filesystem::path scenario;
   TimingMode mode = TimingMode::kLockstep;
   int domain_id = 0;
-  cell_dds::Discovery discovery;  // the range and static peers (ROS 2's variables, or the flags)
+  cell_dds::Discovery discovery;
+  std::string ns;  // ROS 2 namespace of the cell's topics (--namespace); empty: none  // the range and static peers (ROS 2's variables, or the flags)
   double watchdog_ms = 100;     // no valid twist for this long: the robot stops
   double republish_ms = 1000;   // lockstep: frame k sent again when unanswered this long
   bool autorun = false;         // teach, go to the initial pose and start on its own

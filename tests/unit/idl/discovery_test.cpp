@@ -68,3 +68,29 @@ TEST(Discovery, FlagsOverTheEnvironmentAndNameTheFlag) {
 
 }  // namespace
 }  // namespace cell_dds
+
+#include "dds/topics.hpp"
+
+namespace cell_dds {
+namespace {
+
+TEST(Namespace, TopicsGoUnderTheCellsNamespaceAsInRos2) {
+  EXPECT_EQ(namespaced("", kImageTopic), "rt/camera/image_raw");
+  EXPECT_EQ(namespaced("cell2", kImageTopic), "rt/cell2/camera/image_raw");
+  EXPECT_EQ(namespaced("line_a/cell2", kTwistTopic), "rt/line_a/cell2/servo/cmd_twist");
+  EXPECT_EQ(checked_namespace("/cell2"), "cell2");
+  EXPECT_EQ(checked_namespace(""), "");
+  for (const char* bad : {"2cell", "cell 2", "cell//2", "cell/", "cell-2", "cell\n"}) {
+    try {
+      checked_namespace(bad);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("--namespace '", 0), 0u) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+  EXPECT_THROW(checked_namespace(std::string(65, 'a')), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace cell_dds

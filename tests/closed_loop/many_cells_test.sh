@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Three cells on one DDS domain, each under its own ROS 2 namespace (--namespace cellN: its
+# topics are rt/cellN/...): three cellsim and three servo processes at once, each pair
+# converging on its own scenario, none hearing another's twists (issue 11, item 4).
+set -u
+bin="$1"; src="$2"
+source "$(dirname "$0")/services.sh"
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY
+claim_domain
+export ROS_DOMAIN_ID="$cell_domain"
+tmp=$(mktemp -d)
+pids=()
+trap 'kill -INT "${pids[@]}" 2>/dev/null; sleep 1; kill -KILL "${pids[@]}" 2>/dev/null; rm -rf "$tmp"' EXIT
+scenarios=(plane ham plane)
+zhat=(0.9 0.6 0.9)
+sims=()
+for i in 0 1 2; do
+  ns="cell$((i + 1))"
+  "$bin/servo" run --namespace "$ns" --pattern "$src/servo/pattern/data/marray_20x20_k3_w3.txt" --z-hat "${zhat[$i]}" \
+    > "$tmp/servo_$ns.log" 2>&1 &
+  pids+=($!)
+  "$bin/cellsim" serve "$src/sim/scenarios/${scenarios[$i]}.yaml" --namespace "$ns" --autorun --exit-on-converged \
+    --max-frames 1500 > "$tmp/sim_$ns.log" 2>&1 &
+  sims+=($!)
+  pids+=($!)
+done
+status=0
+for i in 0 1 2; do
+  ns="cell$((i + 1))"
+  wait "${sims[$i]}"; rc=$?
+  summary=$(grep "twists applied" "$tmp/sim_$ns.log")
+  final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/sim_$ns.log")
+  mm=$(awk '{print $3}' <<<"$final"); deg=$(awk '{print $5}' <<<"$final")
+  if [ "$rc" -ne 0 ] || [ -z "$mm" ] || ! awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'; then
+    echo "FAIL: $ns (${scenarios[$i]}) did not converge (exit $rc, $final)"; tail -3 "$tmp/sim_$ns.log" "$tmp/servo_$ns.log"
+    status=1
+  fi
+  # another cell's twists would arrive for frames this cell never sent
+  grep -q " 0 wrong frame, 0 stale" <<<"$summary" || { echo "FAIL: $ns heard twists not meant for it: $summary"; status=1; }
+  echo "$ns (${scenarios[$i]}): $final"
+done
+exit $status

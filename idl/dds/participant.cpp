@@ -217,7 +217,8 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
   DomainParticipantQos qos = PARTICIPANT_QOS_DEFAULT;
   qos.name(o.name);
   const Discovery& d = o.discovery;
-  const bool loopback_only = d.range == DiscoveryRange::kLocalhost && d.static_peers.empty();
+  // nothing leaves the machine unless the range or a static peer asks for it
+  const bool loopback_only = d.range != DiscoveryRange::kSubnet && d.static_peers.empty();
   const auto peer_locator = [](const std::string& address) {
     eprosima::fastrtps::rtps::Locator_t l;
     l.kind = LOCATOR_KIND_UDPv4;
@@ -248,6 +249,13 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
   // LOCALHOST and OFF announce to these peers only, never to a multicast group (multicast
   // sent by others, e.g. a default-configured client on the same network, is still heard)
   for (const auto& a : d.static_peers) peers.push_back(peer_locator(a));
+  if (peers.empty()) {
+    // OFF with no static peer: an empty list would make Fast DDS announce to its default
+    // multicast group; one loopback port nobody listens on keeps the participant silent
+    eprosima::fastrtps::rtps::Locator_t nowhere = peer_locator("127.0.0.1");
+    nowhere.port = 9;  // discard
+    peers.push_back(nowhere);
+  }
   DomainParticipant* p = nullptr;
   {
     remove_orphaned_shm_ports();

@@ -109,6 +109,64 @@ Discovery discovery_from(const std::string& range_flag, const std::string& peers
   return d;
 }
 
+Security security_from_env() {
+  Security s;
+  const char* enable = std::getenv("ROS_SECURITY_ENABLE");
+  if (enable && *enable) {
+    const std::string v = enable;
+    if (v == "true") s.enabled = true;
+    else if (v != "false") throw std::invalid_argument("ROS_SECURITY_ENABLE='" + v.substr(0, 40) + "': expected true or false");
+  }
+  const char* strategy = std::getenv("ROS_SECURITY_STRATEGY");
+  if (strategy && *strategy) {
+    const std::string v = strategy;
+    if (v == "Enforce") s.enforce = true;
+    else if (v == "Permissive") s.enforce = false;
+    else throw std::invalid_argument("ROS_SECURITY_STRATEGY='" + v.substr(0, 40) + "': expected Enforce or Permissive");
+  }
+  if (const char* k = std::getenv("ROS_SECURITY_KEYSTORE")) s.keystore = k;
+  if (const char* e = std::getenv("ROS_SECURITY_ENCLAVE_OVERRIDE")) s.enclave_override = e;
+  if (s.enabled && s.keystore.empty())
+    throw std::invalid_argument("ROS_SECURITY_ENABLE=true but ROS_SECURITY_KEYSTORE is not set");
+  return s;
+}
+
+namespace {
+// The enclave's six files as Fast DDS's built-in plugins take them; false (Permissive) when
+// the enclave is missing, throws naming the file otherwise.
+bool add_security(DomainParticipantQos& qos, const Security& sec, const std::string& enclave_name) {
+  std::string enclave = sec.enclave_override.empty() ? enclave_name : sec.enclave_override;
+  while (!enclave.empty() && enclave.front() == '/') enclave.erase(enclave.begin());
+  if (enclave.empty() || enclave.find("..") != std::string::npos)
+    throw std::invalid_argument("security enclave '" + enclave + "': not an enclave name");
+  const std::filesystem::path dir = std::filesystem::path(sec.keystore) / "enclaves" / enclave;
+  const char* files[] = {"identity_ca.cert.pem", "cert.pem", "key.pem", "permissions_ca.cert.pem", "governance.p7s",
+                         "permissions.p7s"};
+  for (const char* f : files) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(dir / f, ec) && access((dir / f).c_str(), R_OK) == 0) continue;
+    if (!sec.enforce) {
+      std::fprintf(stderr, "%s: missing: running WITHOUT security (ROS_SECURITY_STRATEGY=Permissive)\n",
+                   (dir / f).c_str());
+      return false;
+    }
+    throw std::invalid_argument((dir / f).string() + ": missing or unreadable (ROS_SECURITY_STRATEGY=Enforce)");
+  }
+  auto& props = qos.properties().properties();
+  const auto file = [&](const char* f) { return "file://" + std::filesystem::absolute(dir / f).string(); };
+  props.emplace_back("dds.sec.auth.plugin", "builtin.PKI-DH");
+  props.emplace_back("dds.sec.auth.builtin.PKI-DH.identity_ca", file("identity_ca.cert.pem"));
+  props.emplace_back("dds.sec.auth.builtin.PKI-DH.identity_certificate", file("cert.pem"));
+  props.emplace_back("dds.sec.auth.builtin.PKI-DH.private_key", file("key.pem"));
+  props.emplace_back("dds.sec.access.plugin", "builtin.Access-Permissions");
+  props.emplace_back("dds.sec.access.builtin.Access-Permissions.permissions_ca", file("permissions_ca.cert.pem"));
+  props.emplace_back("dds.sec.access.builtin.Access-Permissions.governance", file("governance.p7s"));
+  props.emplace_back("dds.sec.access.builtin.Access-Permissions.permissions", file("permissions.p7s"));
+  props.emplace_back("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
+  return true;
+}
+}  // namespace
+
 void ParticipantDeleter::operator()(DomainParticipant* p) const {
   if (p == nullptr) return;
   p->delete_contained_entities();
@@ -256,6 +314,7 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     nowhere.port = 9;  // discard
     peers.push_back(nowhere);
   }
+  const bool secured = o.security.enabled && add_security(qos, o.security, o.enclave.empty() ? o.name : o.enclave);
   DomainParticipant* p = nullptr;
   {
     remove_orphaned_shm_ports();
@@ -272,7 +331,10 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
   }
   if (p == nullptr)
-    throw std::runtime_error("cannot create a DDS participant '" + o.name + "' on domain " + std::to_string(o.domain_id));
+    throw std::runtime_error("cannot create a DDS participant '" + o.name + "' on domain " + std::to_string(o.domain_id) +
+                             (secured ? " (check the enclave: a certificate or permissions that do not verify against "
+                                        "the keystore's CA, or have expired)"
+                                      : ""));
   return ParticipantPtr(p);
 }
 

@@ -34,9 +34,24 @@ Discovery discovery_from_env();
 // environment's variables. Throws std::invalid_argument naming the flag or the variable.
 Discovery discovery_from(const std::string& range_flag, const std::string& peers_flag);
 
+// DDS-Security as ROS 2 (SROS2) configures it: ROS_SECURITY_ENABLE=true,
+// ROS_SECURITY_STRATEGY=Enforce (a missing enclave is an error) or Permissive (run without
+// security when the enclave is missing), ROS_SECURITY_KEYSTORE=DIR (bin/keystore), and the
+// enclave DIR/enclaves/<name> (ROS_SECURITY_ENCLAVE_OVERRIDE, or the process's own name).
+struct Security {
+  bool enabled = false;
+  bool enforce = true;
+  std::string keystore;
+  std::string enclave_override;
+};
+// From the environment; throws std::invalid_argument naming the variable.
+Security security_from_env();
+
 struct ParticipantOptions {
   int domain_id = 0;
   std::string name = "cell";
+  Security security;    // off unless the caller takes it from the environment
+  std::string enclave;  // the enclave's name (default: `name`)
   // LOCALHOST unless the caller says otherwise (the services take the ROS 2 variables and
   // their --discovery-range / --static-peers flags): a CI machine sends nothing to other hosts.
   Discovery discovery;

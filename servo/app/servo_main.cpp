@@ -201,6 +201,7 @@ int main(int argc, char** argv) {
       view.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       view.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       view.ns = cell_dds::checked_namespace(ns);
+      view.security = cell_dds::security_from_env();
       view.output = view_out;
       return servo::run_viewer(view);
     }
@@ -226,6 +227,7 @@ int main(int argc, char** argv) {
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       svc.ns = cell_dds::checked_namespace(ns);
+      svc.security = cell_dds::security_from_env();
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       return servo::run_servo_service(svc);

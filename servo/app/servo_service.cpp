@@ -115,6 +115,8 @@ class ServoService {
     po.domain_id = o.domain_id;
     po.name = "servo";
     po.discovery = o.discovery;
+    po.security = o.security;
+    po.enclave = "servo";
     participant_ = cell_dds::make_participant(po);
     auto& p = *participant_;
     using cell_dds::Stream;

@@ -17,6 +17,7 @@ struct ServiceOptions {
   ServoConfig config;              // camera intrinsics come from rt/camera/camera_info
   int domain_id = 0;
   cell_dds::Discovery discovery;
+  cell_dds::Security security;  // ROS 2's ROS_SECURITY_* variables
   std::string ns;  // ROS 2 namespace of the cell's topics (--namespace); empty: none  // the range and static peers (ROS 2's variables, or the flags)
   double lost_ms = 500;            // no image for this long: zero twist and state LOST
   std::filesystem::path reference; // s*: loaded at start when it exists, saved after teaching

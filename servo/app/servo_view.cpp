@@ -46,6 +46,8 @@ int run_viewer(const ViewOptions& o) {
   po.domain_id = o.domain_id;
   po.name = "servo_view";
   po.discovery = o.discovery;
+  po.security = o.security;
+  po.enclave = "viewer";
   auto p = cell_dds::make_participant(po);
   using cell_dds::Stream;
   cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(

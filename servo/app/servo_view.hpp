@@ -11,6 +11,7 @@ namespace servo {
 struct ViewOptions {
   int domain_id = 0;
   cell_dds::Discovery discovery;
+  cell_dds::Security security;  // ROS 2's ROS_SECURITY_* variables
   std::string ns;  // ROS 2 namespace of the cell's topics (--namespace); empty: none  // the range and static peers (ROS 2's variables, or the flags)
   std::filesystem::path output;  // PNG sequence here (headless); empty: a window if possible
   long frames = 0;               // stop after this many frames (0: until SIGINT / window closed)

@@ -306,6 +306,7 @@ int main(int argc, char** argv) {
       svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
       svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       svc.ns = cell_dds::checked_namespace(ns);
+      svc.security = cell_dds::security_from_env();
       svc.trace_dir = svc_trace;
       return cellsim::run_sim_service(svc);
     }

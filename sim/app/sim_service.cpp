@@ -95,6 +95,8 @@ class SimService {
     po.domain_id = o.domain_id;
     po.name = "cellsim";
     po.discovery = o.discovery;
+    po.security = o.security;
+    po.enclave = "cellsim";
     participant_ = cell_dds::make_participant(po);
     auto& p = *participant_;
     using cell_dds::Stream;

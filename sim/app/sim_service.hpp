@@ -16,6 +16,7 @@ struct ServiceOptions {
   TimingMode mode = TimingMode::kLockstep;
   int domain_id = 0;
   cell_dds::Discovery discovery;
+  cell_dds::Security security;  // ROS 2's ROS_SECURITY_* variables
   std::string ns;  // ROS 2 namespace of the cell's topics (--namespace); empty: none  // the range and static peers (ROS 2's variables, or the flags)
   double watchdog_ms = 100;     // no valid twist for this long: the robot stops
   double republish_ms = 1000;   // lockstep: frame k sent again when unanswered this long

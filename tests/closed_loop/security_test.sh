@@ -4,7 +4,7 @@
 # robot does not move); the viewer's enclave may not publish; a servo whose certificate comes
 # from another CA is never admitted.
 set -u
-bin="$1"; src="$2"; client="$3"
+bin="$1"; src="$2"; client="$3"; cyclone="${4:-}"
 source "$(dirname "$0")/services.sh"
 source "$src/tests/cli/lib.sh"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
@@ -20,15 +20,25 @@ pattern="$src/servo/pattern/data/marray_20x20_k3_w3.txt"
 secure=(env ROS_SECURITY_KEYSTORE="$tmp/ks" ROS_SECURITY_ENABLE=true ROS_SECURITY_STRATEGY=Enforce)
 stop() { kill -INT "${pids[@]}" 2>/dev/null; wait "${pids[@]}" 2>/dev/null; pids=(); }
 
-# 1. secured, the loop converges
+# 1. secured, the loop converges; an unauthenticated Cyclone DDS reader (loopback only) on
+#    the same domain meanwhile receives nothing
 "${secure[@]}" "$bin/servo" run --pattern "$pattern" --z-hat 0.9 > "$tmp/servo1.log" 2>&1 &
 pids+=($!)
+if [ -n "$cyclone" ]; then
+  CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>40</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain></CycloneDDS>' \
+    timeout 30 "$cyclone" "$ROS_DOMAIN_ID" 12 > "$tmp/cyclone.log" 2>&1 &
+  eavesdropper=$!
+fi
 "${secure[@]}" timeout 120 "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --exit-on-converged \
   --max-frames 800 > "$tmp/sim1.log" 2>&1 || fail "secured run: cellsim exit $? ($(tail -1 "$tmp/sim1.log"))"
 final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/sim1.log")
 awk -v m="$(awk '{print $3}' <<<"$final")" -v d="$(awk '{print $5}' <<<"$final")" 'BEGIN{exit !(m < 1 && d < 0.1)}' ||
   fail "secured run did not converge: $final"
 grep -o "loop rate [0-9]* iterations/s" "$tmp/sim1.log"
+if [ -n "$cyclone" ]; then
+  wait "$eavesdropper" && fail "an unauthenticated Cyclone DDS client was served by the secured cell"
+  grep -q "matched 0 of the 2\|: 0 images" "$tmp/cyclone.log" || fail "the unauthenticated client saw the cell: $(tail -1 "$tmp/cyclone.log")"
+fi
 stop
 
 # 2. an unauthenticated client's commands never reach the secured cell

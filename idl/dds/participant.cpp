@@ -11,6 +11,8 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <fastdds/dds/log/Log.hpp>
+#include <mutex>
 #include <mutex>
 #include <set>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
@@ -132,6 +134,52 @@ Security security_from_env() {
 }
 
 namespace {
+
+// Fast DDS's log, as one plain line per entry ("fastdds: ERROR category: message"); while a
+// participant is being created its errors are held instead, so that a refused participant
+// (a certificate that does not verify, has expired...) is reported in one line with the reason.
+class OneLineLog : public eprosima::fastdds::dds::LogConsumer {
+ public:
+  void Consume(const eprosima::fastdds::dds::Log::Entry& e) override {
+    std::lock_guard<std::mutex> lock(m_);
+    std::string message = e.message;
+    for (char& c : message)
+      if (c == '\n' || c == '\r') c = ' ';
+    const char* kind = e.kind == eprosima::fastdds::dds::Log::Kind::Error ? "ERROR" : "warning";
+    const std::string category = e.context.category ? e.context.category : "";
+    if (holding_) {
+      if (held_.empty() && e.kind == eprosima::fastdds::dds::Log::Kind::Error && !message.empty()) held_ = category + ": " + message;
+      return;
+    }
+    std::fprintf(stderr, "fastdds: %s %s: %s\n", kind, category.c_str(), message.c_str());
+  }
+  void hold(bool on) {
+    std::lock_guard<std::mutex> lock(m_);
+    holding_ = on;
+    if (on) held_.clear();
+  }
+  std::string held() {
+    std::lock_guard<std::mutex> lock(m_);
+    return held_;
+  }
+
+ private:
+  std::mutex m_;
+  bool holding_ = false;
+  std::string held_;
+};
+
+OneLineLog& one_line_log() {
+  static OneLineLog* log = [] {
+    auto consumer = std::make_unique<OneLineLog>();
+    OneLineLog* raw = consumer.get();
+    eprosima::fastdds::dds::Log::ClearConsumers();
+    eprosima::fastdds::dds::Log::RegisterConsumer(std::move(consumer));
+    return raw;
+  }();
+  return *log;
+}
+
 // The enclave's six files as Fast DDS's built-in plugins take them; false (Permissive) when
 // the enclave is missing, throws naming the file otherwise.
 bool add_security(DomainParticipantQos& qos, const Security& sec, const std::string& enclave_name) {
@@ -315,6 +363,8 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     peers.push_back(nowhere);
   }
   const bool secured = o.security.enabled && add_security(qos, o.security, o.enclave.empty() ? o.name : o.enclave);
+  OneLineLog& log = one_line_log();
+  log.hold(true);
   DomainParticipant* p = nullptr;
   {
     remove_orphaned_shm_ports();
@@ -330,8 +380,12 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     qos.wire_protocol().participant_id = -1;  // Fast DDS's own choice
     p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
   }
+  eprosima::fastdds::dds::Log::Flush();
+  const std::string reason = log.held();
+  log.hold(false);
   if (p == nullptr)
     throw std::runtime_error("cannot create a DDS participant '" + o.name + "' on domain " + std::to_string(o.domain_id) +
+                             (reason.empty() ? std::string() : ": " + reason) +
                              (secured ? " (check the enclave: a certificate or permissions that do not verify against "
                                         "the keystore's CA, or have expired)"
                                       : ""));

@@ -59,7 +59,7 @@ stop
 # 3. the viewer's enclave may read, not publish: a servo run under it is refused its twist writer
 one_line_error "viewer publishing" "cannot create a DDS writer for rt/servo/cmd_twist" \
   sh -c "ROS_SECURITY_ENCLAVE_OVERRIDE=viewer ROS_SECURITY_KEYSTORE='$tmp/ks' ROS_SECURITY_ENABLE=true \
-         '$bin/servo' run --pattern '$pattern' 2>&1 >/dev/null | grep -v '^.\[' >&2; exit 1"
+         '$bin/servo' run --pattern '$pattern' 2>&1 >/dev/null | grep -v '^fastdds: ' >&2; exit 1"
 
 # 4. a servo certified by another CA is not admitted: the cell never starts teaching
 env ROS_SECURITY_KEYSTORE="$tmp/other" ROS_SECURITY_ENABLE=true "$bin/servo" run --pattern "$pattern" \
@@ -74,4 +74,9 @@ stop
 one_line_error "missing enclave" "enclaves/nobody/identity_ca.cert.pem: missing" \
   env ROS_SECURITY_ENCLAVE_OVERRIDE=nobody ROS_SECURITY_KEYSTORE="$tmp/ks" ROS_SECURITY_ENABLE=true \
   "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml"
+# 6. a certificate the CA did not sign: one line
+cp -r "$tmp/ks" "$tmp/forged"
+cp "$tmp/other/enclaves/cellsim/cert.pem" "$tmp/forged/enclaves/cellsim/cert.pem"
+one_line_error "foreign certificate" "cannot create a DDS participant 'cellsim'" \
+  env ROS_SECURITY_KEYSTORE="$tmp/forged" ROS_SECURITY_ENABLE=true "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml"
 echo "security: secured loop converged; unauthenticated client, viewer writer and foreign CA refused"

@@ -33,9 +33,7 @@ export ROS_DISCOVERY_SERVER="127.0.0.1:$port"
 pids+=($!)
 timeout 120 "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --exit-on-converged --max-frames 800 \
   > "$tmp/sim.log" 2>&1; rc=$?
-final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/sim.log")
-mm=$(awk '{print $3}' <<<"$final"); deg=$(awk '{print $5}' <<<"$final")
-if [ "$rc" -ne 0 ] || [ -z "$mm" ] || ! awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'; then
+if [ "$rc" -ne 0 ] || ! converged_at_goal "$tmp/sim.log"; then
   echo "FAIL: no convergence through the discovery server (exit $rc, $final)"; tail -3 "$tmp/sim.log" "$tmp/servo.log" "$tmp/server.log"
   exit 1
 fi

@@ -30,14 +30,16 @@ for i in 0 1 2; do
   ns="cell$((i + 1))"
   wait "${sims[$i]}"; rc=$?
   summary=$(grep "twists applied" "$tmp/sim_$ns.log")
-  final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/sim_$ns.log")
-  mm=$(awk '{print $3}' <<<"$final"); deg=$(awk '{print $5}' <<<"$final")
-  if [ "$rc" -ne 0 ] || [ -z "$mm" ] || ! awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'; then
+  if [ "$rc" -ne 0 ] || ! converged_at_goal "$tmp/sim_$ns.log"; then
     echo "FAIL: $ns (${scenarios[$i]}) did not converge (exit $rc, $final)"; tail -3 "$tmp/sim_$ns.log" "$tmp/servo_$ns.log"
     status=1
   fi
-  # another cell's twists would arrive for frames this cell never sent
-  grep -q " 0 wrong frame, 0 stale" <<<"$summary" || { echo "FAIL: $ns heard twists not meant for it: $summary"; status=1; }
+  # another cell's twists would arrive by the hundred, for frames this cell never awaited (a
+  # TEACH resent under load may leave one or two stale answers of its own)
+  stale=$(grep -o '[0-9]* stale' <<<"$summary" | awk '{print $1}')
+  if ! grep -q " 0 wrong frame," <<<"$summary" || [ "${stale:-999}" -gt 3 ]; then
+    echo "FAIL: $ns heard twists not meant for it: $summary"; status=1
+  fi
   echo "$ns (${scenarios[$i]}): $final"
 done
 exit $status

@@ -31,9 +31,7 @@ if [ -n "$cyclone" ]; then
 fi
 "${secure[@]}" timeout 120 "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --exit-on-converged \
   --max-frames 800 > "$tmp/sim1.log" 2>&1 || fail "secured run: cellsim exit $? ($(tail -1 "$tmp/sim1.log"))"
-final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/sim1.log")
-awk -v m="$(awk '{print $3}' <<<"$final")" -v d="$(awk '{print $5}' <<<"$final")" 'BEGIN{exit !(m < 1 && d < 0.1)}' ||
-  fail "secured run did not converge: $final"
+converged_at_goal "$tmp/sim1.log" || fail "secured run did not converge: $final"
 grep -o "loop rate [0-9]* iterations/s" "$tmp/sim1.log"
 if [ -n "$cyclone" ]; then
   wait "$eavesdropper" && fail "an unauthenticated Cyclone DDS client was served by the secured cell"

@@ -29,3 +29,13 @@ start_services() {
   "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" $sim_args > "$tmp/sim.log" 2>&1 &
   sim=$!
 }
+
+# converged_at_goal SIM_LOG: true when cellsim's summary says the camera ended under 1 mm and
+# 0.1 deg from the desired pose; sets `final` to that part of the summary
+converged_at_goal() {
+  final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$1")
+  local mm deg
+  mm=$(awk '{print $3}' <<<"$final"); deg=$(awk '{print $5}' <<<"$final")
+  [ -n "$mm" ] && awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'
+}
+

@@ -59,9 +59,7 @@ if ! ip netns exec "$b" timeout 150 "$client" "$ROS_DOMAIN_ID" 120 > "$tmp/clien
 fi
 for _ in $(seq 1 1200); do kill -0 "$sim" 2>/dev/null || break; sleep 0.1; done
 wait "$sim"; rc=$?; sim=""
-final=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/sim.log")
-mm=$(awk '{print $3}' <<<"$final"); deg=$(awk '{print $5}' <<<"$final")
-if [ "$rc" -ne 0 ] || [ -z "$mm" ] || ! awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'; then
+if [ "$rc" -ne 0 ] || ! converged_at_goal "$tmp/sim.log"; then
   echo "FAIL ($mode): cellsim did not converge across the two namespaces (exit $rc, $final)"
   tail -3 "$tmp/sim.log" "$tmp/servo.log"; exit 1
 fi

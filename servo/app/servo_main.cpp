@@ -3,8 +3,10 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <cstdio>
 #include <fstream>
@@ -105,35 +107,109 @@ cv::Mat read_rgb(const std::string& path) {
   return rgb;
 }
 
-int run_decode(const std::string& image, const std::string& pattern_file, const std::string& json_out,
-               const std::string& overlay_out, bool tolerant, int min_votes) {
+// The images named: files, and the image files of folders (sorted), at most 100 000.
+std::vector<std::filesystem::path> image_list(const std::vector<std::string>& args) {
+  static const std::set<std::string> kinds = {".png", ".jpg", ".jpeg", ".bmp", ".ppm", ".pnm", ".pgm"};
+  std::vector<std::filesystem::path> out;
+  for (const auto& a : args) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(a, ec)) {
+      std::vector<std::filesystem::path> in_dir;
+      for (const auto& e : std::filesystem::directory_iterator(a, ec)) {
+        std::string ext = e.path().extension().string();
+        for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        if (e.is_regular_file(ec) && kinds.count(ext)) in_dir.push_back(e.path());
+      }
+      if (in_dir.empty()) throw std::runtime_error(a + ": no image files (png, jpg, bmp, ppm, pgm) in this folder");
+      std::sort(in_dir.begin(), in_dir.end());
+      out.insert(out.end(), in_dir.begin(), in_dir.end());
+    } else {
+      out.emplace_back(a);
+    }
+    if (out.size() > 100000) throw std::runtime_error("more than 100 000 images");
+  }
+  return out;
+}
+
+double median_of(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+// Decodes every image with one warm decoder: each image's time_ms is a warm decode (the
+// first image is decoded once before its timed run); prints one line per image and, for
+// several, the median and maximum per-frame time (the first image excluded). A bad image is
+// one line and the others still go; the exit code says whether all went.
+int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const std::string& json_out,
+               const std::string& json_dir, const std::string& overlay_out, bool tolerant, int min_votes) {
   const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
   vision::DecoderOptions options;
   options.tolerance.enabled = tolerant;
   options.min_votes = min_votes;
   const vision::SpotDecoder decoder(pattern::WindowTable(marray, {3, 3}), options);
-  const cv::Mat rgb = read_rgb(image);
-  const auto t0 = std::chrono::steady_clock::now();
-  const vision::DecodeResult r = decoder.decode(rgb);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  if (!json_out.empty()) {
-    nlohmann::json j;
-    j["spots"] = nlohmann::json::array();
-    for (const auto& d : r.decoded) j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}});
-    j["detected"] = r.detected.size();
-    j["decoded"] = r.decoded.size();
-    j["time_ms"] = ms;
-    std::ofstream f(json_out);
-    if (!f) throw std::runtime_error(json_out + ": cannot write");
-    f << j.dump(1) << "\n";
+  const std::vector<std::filesystem::path> images = image_list(args);
+  if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty()))
+    throw std::runtime_error("--json and --overlay take one image; for several, --json-dir DIR");
+  if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
+  std::vector<double> times;
+  std::set<std::string> written;
+  bool warm = false;
+  int failed = 0;
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const std::string image = images[i].string();
+    cv::Mat rgb;
+    try {
+      rgb = read_rgb(image);
+    } catch (const std::exception& e) {
+      std::string what = e.what();
+      for (char& ch : what)
+        if (ch == '\n' || ch == '\r') ch = ' ';
+      std::fprintf(stderr, "servo: %s\n", what.c_str());
+      ++failed;
+      continue;
+    }
+    if (!warm) {
+      decoder.decode(rgb);  // the first decode allocates; every time below is a warm one
+      warm = true;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const vision::DecodeResult r = decoder.decode(rgb);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    times.push_back(ms);
+    std::string json_file = json_out;
+    if (!json_dir.empty()) {
+      std::string stem = images[i].stem().string();
+      for (int k = 2; written.count(stem); ++k) stem = images[i].stem().string() + "_" + std::to_string(k);
+      written.insert(stem);
+      json_file = (std::filesystem::path(json_dir) / (stem + ".json")).string();
+    }
+    if (!json_file.empty()) {
+      nlohmann::json j;
+      j["image"] = image;
+      j["spots"] = nlohmann::json::array();
+      for (const auto& d : r.decoded) j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}});
+      j["detected"] = r.detected.size();
+      j["decoded"] = r.decoded.size();
+      j["time_ms"] = ms;
+      std::ofstream f(json_file);
+      if (!f) throw std::runtime_error(json_file + ": cannot write");
+      f << j.dump(1) << "\n";
+    }
+    if (!overlay_out.empty()) {
+      cv::Mat bgr;
+      cv::cvtColor(vision::draw_overlay(rgb, r), bgr, cv::COLOR_RGB2BGR);
+      if (!cv::imwrite(overlay_out, bgr)) throw std::runtime_error(overlay_out + ": cannot write overlay");
+    }
+    std::printf("%s: %zu spots detected, %zu decoded in %.2f ms\n", image.c_str(), r.detected.size(), r.decoded.size(),
+                ms);
   }
-  if (!overlay_out.empty()) {
-    cv::Mat bgr;
-    cv::cvtColor(vision::draw_overlay(rgb, r), bgr, cv::COLOR_RGB2BGR);
-    if (!cv::imwrite(overlay_out, bgr)) throw std::runtime_error(overlay_out + ": cannot write overlay");
+  if (times.size() > 1) {
+    const std::vector<double> rest(times.begin() + 1, times.end());
+    std::printf("decode: %zu images, warm decoder per frame (first image excluded): median %.2f ms, max %.2f ms\n",
+                times.size(), median_of(rest), *std::max_element(rest.begin(), rest.end()));
   }
-  std::printf("%s: %zu spots detected, %zu decoded in %.2f ms\n", image.c_str(), r.detected.size(), r.decoded.size(), ms);
-  return 0;
+  if (failed > 0 && images.size() > 1) std::fprintf(stderr, "servo: %d of %zu images could not be read\n", failed, images.size());
+  return failed == 0 ? 0 : 1;
 }
 
 }  // namespace
@@ -141,13 +217,15 @@ int run_decode(const std::string& image, const std::string& pattern_file, const 
 int main(int argc, char** argv) {
   CLI::App app{"servo: structured-light visual-servoing controller"};
   app.require_subcommand(1);
-  std::string image, pattern_file, json_out, overlay_out;
+  std::string pattern_file, json_out, json_dir, overlay_out;
+  std::vector<std::string> images;
   bool tolerant = false;
   int min_votes = vision::DecoderOptions{}.min_votes;
-  auto* decode = app.add_subcommand("decode", "segment and decode the coded spots of one image");
-  decode->add_option("image", image, "image file (PNG, JPEG, ...)")->required();
+  auto* decode = app.add_subcommand("decode", "segment and decode the coded spots of images (files or folders)");
+  decode->add_option("images", images, "image files (PNG, JPEG, ...) or folders of them")->required();
   decode->add_option("--pattern", pattern_file, "pattern file")->required();
-  decode->add_option("--json", json_out, "decoded spots as JSON");
+  decode->add_option("--json", json_out, "decoded spots as JSON (one image)");
+  decode->add_option("--json-dir", json_dir, "one JSON per image, named after it, with its warm decoding time_ms");
   decode->add_option("--overlay", overlay_out, "image with the decoded ids drawn on it");
   decode->add_flag("--tolerant", tolerant, "error-tolerant window reading (beyond the paper)");
   decode->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
@@ -232,7 +310,7 @@ int main(int argc, char** argv) {
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       return servo::run_servo_service(svc);
     }
-    if (*decode) return run_decode(image, pattern_file, json_out, overlay_out, tolerant, min_votes);
+    if (*decode) return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes);
   } catch (const std::exception& e) {
     std::string what = e.what();
     for (char& ch : what)

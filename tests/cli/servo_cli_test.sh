@@ -64,4 +64,23 @@ one_line_error "z-hat nan" "--z-hat must be in" "$servo" run --pattern "$pattern
 one_line_error "gain huge" "--gain must be in" "$servo" run --pattern "$pattern" --gain 1e300
 one_line_error "watchdog" "--watchdog-ms must be in" "$cellsim" serve "$src/sim/scenarios/plane.yaml" --watchdog-ms -5
 one_line_error "republish nan" "--republish-ms must be in" "$cellsim" serve "$src/sim/scenarios/plane.yaml" --republish-ms nan
+# many images: a folder and a file, one JSON each with its warm time, the per-frame summary
+mkdir -p "$tmp/frames"
+"$cellsim" render "$src/sim/scenarios/plane.yaml" --pose initial -o "$tmp/frames/a.png" >/dev/null || fail "render a"
+"$cellsim" render "$src/sim/scenarios/ham.yaml" -o "$tmp/frames/b.png" >/dev/null || fail "render b"
+out=$("$servo" decode "$tmp/frames" "$tmp/plane.png" --pattern "$pattern" --json-dir "$tmp/json") || fail "decode many: $out"
+for f in a b plane; do
+  grep -q '"time_ms"' "$tmp/json/$f.json" || fail "no time_ms in $f.json"
+done
+grep -q '"decoded": 388' "$tmp/json/plane.json" || fail "plane decoded differently in a batch"
+grep -q "decode: 3 images, warm decoder per frame (first image excluded): median [0-9.]* ms, max [0-9.]* ms" <<<"$out" ||
+  fail "no per-frame summary: $out"
+# a bad image among good ones: its line, the others decoded, exit 1
+err=$("$servo" decode "$tmp/frames" "$tmp/bad.png" --pattern "$pattern" --json-dir "$tmp/json2" 2>&1 >/dev/null); rc=$?
+[ $rc -ne 0 ] || fail "a batch with a bad image exited 0"
+grep -q "bad.png" <<<"$err" || fail "the bad image was not named: $err"
+[ -s "$tmp/json2/a.json" ] && [ -s "$tmp/json2/b.json" ] || fail "the good images of the batch were not decoded"
+one_line_error "--json with several" "for several, --json-dir" "$servo" decode "$tmp/frames" --pattern "$pattern" --json "$tmp/x.json"
+mkdir -p "$tmp/empty_dir"
+one_line_error "empty folder" "no image files" "$servo" decode "$tmp/empty_dir" --pattern "$pattern"
 echo "servo CLI: all checks passed"

@@ -50,8 +50,18 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       const auto t0 = std::chrono::steady_clock::now();
       const vision::DecodeResult r = decoder.decode(img);
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      const int cols = cell.projector->pattern().cols;
+      const int cols = cell.projector->pattern().cols, rows_n = cell.projector->pattern().rows;
       for (const auto& t : truth) row.visible += t.visible;
+      // decodable: covered by a fully visible 3 x 3 window
+      std::vector<char> decodable(truth.size(), 0), right(truth.size(), 0);
+      const auto vis = [&](int rr, int cc) { return truth[static_cast<std::size_t>(rr) * cols + cc].visible; };
+      for (int r0 = 0; r0 + 3 <= rows_n; ++r0)
+        for (int c0 = 0; c0 + 3 <= cols; ++c0) {
+          bool all = true;
+          for (int i = 0; i < 9 && all; ++i) all = vis(r0 + i / 3, c0 + i % 3);
+          if (!all) continue;
+          for (int i = 0; i < 9; ++i) decodable[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
+        }
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       for (const auto& d : r.decoded) {
@@ -62,10 +72,16 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
           const double dist = std::hypot(t.uv.x() - d.u, t.uv.y() - d.v);
           if (dist < best) best = dist, nearest = &t;
         }
-        (void)cols;
         if (!nearest || nearest->row != d.row || nearest->col != d.col) ++row.wrong;
         else if (best > o.match_tolerance_px) ++row.mislocated;
-        else ++row.correct;
+        else {
+          ++row.correct;
+          right[static_cast<std::size_t>(d.row) * cols + d.col] = 1;
+        }
+      }
+      for (std::size_t i = 0; i < truth.size(); ++i) {
+        row.decodable += decodable[i];
+        row.correct_decodable += decodable[i] && right[i];
       }
       if (row.wrong > 0 && !o.out_dir.empty()) {
         std::lock_guard<std::mutex> lock(io);
@@ -85,9 +101,16 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   SweepSummary s;
   s.rows = rows;
   std::vector<double> ms;
-  double rate_sum = 0;
-  int rated = 0;
+  double rate_sum = 0, decodable_rate_sum = 0;
+  int rated = 0, rated_decodable = 0;
   for (const auto& r : rows) {
+    s.total_decodable += r.decodable;
+    s.total_correct += r.correct;
+    s.total_correct_decodable += r.correct_decodable;
+    if (r.decodable > 0) {
+      decodable_rate_sum += static_cast<double>(r.correct_decodable) / r.decodable;
+      ++rated_decodable;
+    }
     s.total_decoded += r.decoded;
     s.total_wrong += r.wrong;
     s.total_mislocated += r.mislocated;
@@ -101,6 +124,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     }
   }
   s.mean_rate = rated ? rate_sum / rated : 0;
+  s.mean_decodable_rate = rated_decodable ? decodable_rate_sum / rated_decodable : 0;
   std::sort(ms.begin(), ms.end());
   if (!ms.empty()) {
     s.median_ms = ms[ms.size() / 2];
@@ -108,12 +132,13 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   }
   if (!o.out_dir.empty()) {
     std::ofstream csv(o.out_dir / "sweep.csv");
-    csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,decode_ms\n";
+    csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
+           "decode_ms,decodable,correct_decodable\n";
     for (const auto& r : rows) {
       csv << r.pose << ',' << r.noise_sigma;
       for (double x : r.offset) csv << ',' << x;
       csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
-          << r.mislocated << ',' << r.decode_ms << '\n';
+          << r.mislocated << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable << '\n';
     }
   }
   return s;

@@ -29,13 +29,19 @@ struct SweepRow {
   // different id, or that id is not visible); mislocated: right id, centroid off by more than
   // the match tolerance
   int visible = 0, detected = 0, decoded = 0, correct = 0, wrong = 0, mislocated = 0;
+  // decodable: visible, and in some 3 x 3 window of the pattern whose nine spots are all
+  // visible (its id can be read from what the camera sees); correct_decodable: of those, the
+  // ones decoded right
+  int decodable = 0, correct_decodable = 0;
   double decode_ms = 0;
 };
 
 struct SweepSummary {
   std::vector<SweepRow> rows;
   int total_decoded = 0, total_wrong = 0, total_visible = 0, total_mislocated = 0;
+  int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   double mean_rate = 0, min_rate = 1;
+  double mean_decodable_rate = 0;  // mean over poses of correct_decodable / decodable
   double median_ms = 0, p99_ms = 0;
 };
 

@@ -22,4 +22,9 @@ printf 'v 0 0 0\nv 1 0 0\nf 1 2 7\n' > "$tmp/broken.obj"
 sed "s#\.\./\.\./meshes/plane.obj#$tmp/broken.obj#" "$src/sim/scenarios/plane.yaml" | sed "s#\.\./\.\./#$src/#" > "$tmp/badmesh.yaml"
 one_line_error "corrupt mesh" "broken.obj: line 3: face corner '7' refers to no vertex" "$cellsim" render "$tmp/badmesh.yaml" -o "$tmp/x.png"
 [ ! -e "$tmp/x.png" ] || fail "an image was written despite bad input"
+# decode-sweep: rates against the decodable spots and against all visible ones, per pose in the CSV
+out=$("$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 4 -o "$tmp/sweep") || fail "decode-sweep: $out"
+grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window): [0-9]* of [0-9]* identified" <<<"$out" ||
+  fail "no decodable rate: $out"
+head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable$" || fail "sweep.csv lacks the decodable columns"
 echo "cellsim render: all checks passed"

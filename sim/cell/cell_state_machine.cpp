@@ -95,52 +95,30 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       if (c.argument.empty() || c.argument.size() > 4096) return refuse("argument must be a scenario file path");
       for (const char ch : c.argument)
         if (static_cast<unsigned char>(ch) < 0x20) return refuse("path '" + shown(c.argument) + "' has control characters");
-      abandon_awaited();
-      running_ = false;
-      steps_ = 0;
-      current_.setZero();
+      stop_motion();
       loading_ = true;
       out_.load = std::filesystem::path(c.argument);
       return;
     }
     case static_cast<int>(CellCommand::kReset): {
-      Eigen::Isometry3d pose;
       try {
-        pose = resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument);
+        place_robot(resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument));
       } catch (const std::exception& e) {
         return refuse(e.what());
       }
-      try {
-        robot_->reset(pose);
-      } catch (const std::exception& e) {
-        return refuse(e.what());
-      }
-      abandon_awaited();
-      limits_ = 0;
-      running_ = false;
-      steps_ = 0;
-      current_.setZero();
       return;
     }
     case static_cast<int>(CellCommand::kTeach):
       try {
-        robot_->reset(scenario_.world_T_desired);
+        place_robot(scenario_.world_T_desired);
       } catch (const std::exception& e) {
         return refuse(e.what());
       }
-      abandon_awaited();
-      limits_ = 0;
-      running_ = false;
-      steps_ = 0;
-      current_.setZero();
       teach_requested_ = true;
       return;
     case static_cast<int>(CellCommand::kStart): running_ = true; return;
     case static_cast<int>(CellCommand::kPause):
-      abandon_awaited();
-      running_ = false;
-      steps_ = 0;
-      current_.setZero();
+      stop_motion();
       return;
     case static_cast<int>(CellCommand::kStep): {
       const std::uint64_t n = std::clamp<std::uint64_t>(c.steps, 1, kMaxSteps);
@@ -151,6 +129,22 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
     }
     default: return refuse("unknown command " + std::to_string(c.command));
   }
+}
+
+// Whatever was moving the robot is dropped: the awaited frame, the run, pending steps.
+void CellStateMachine::stop_motion() {
+  abandon_awaited();
+  running_ = false;
+  steps_ = 0;
+  current_.setZero();
+}
+
+// RESET and TEACH: the robot at the pose (it throws, and nothing changes, when it cannot be
+// there), stopped.
+void CellStateMachine::place_robot(const Eigen::Isometry3d& world_T_camera) {
+  robot_->reset(world_T_camera);
+  limits_ = 0;
+  stop_motion();
 }
 
 void CellStateMachine::abandon_awaited() {

@@ -153,6 +153,8 @@ class CellStateMachine {
   std::optional<std::uint64_t> frame_of(std::int64_t sec, std::uint32_t nanosec, std::string& why) const;
   bool move(const Vector6d& twist, double duration_s);
   void abandon_awaited();
+  void stop_motion();
+  void place_robot(const Eigen::Isometry3d& world_T_camera);
   FrameOrder order(bool teach, bool repeat) const;
   TraceRow row(const FrameOrder& frame, const Vector6d& twist, const std::optional<ServoReport>& st) const;
   std::optional<ServoReport> status_for(std::uint64_t frame) const;

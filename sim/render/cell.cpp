@@ -2,6 +2,7 @@
 
 #include "sim/scene/mesh_check.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -41,6 +42,9 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   rasterize(cell->triangles, cell->projector->projector_T_world(), scenario.projector.intrinsics, 0,
             cell->projector_depth);
   cell->spot_hits = cell->projector->cast_spots(cell->world);
+  for (const SpotHit& h : cell->spot_hits)
+    if (h.centre)
+      cell->farthest_spot_m = std::max(cell->farthest_spot_m, (h.centre->point_w - scenario.projector.world_T_projector.translation()).norm());
 
   // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it
   const Intrinsics& k = scenario.camera.intrinsics;

@@ -23,6 +23,7 @@ struct Cell {
   // static while the world is: the projector's view (its shadow map) and its spots' hits
   DepthBuffer projector_depth;
   std::vector<SpotHit> spot_hits;
+  double farthest_spot_m = 0;  // the farthest centre hit from the projector (bounds the blur)
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees
   // for each camera pixel, the z-buffer cell its ray passes through (-1: none): the lens is
   // fixed, so this is computed once instead of per pixel and frame

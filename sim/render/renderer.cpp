@@ -176,10 +176,7 @@ FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers&
     // only where spots can shine is the projector's depth ever read: the pattern's region,
     // widened by the farthest a blurred spot reaches
     const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
-    double farthest = 0;
-    for (const SpotHit& h : cell.spot_hits)
-      if (h.centre) farthest = std::max(farthest, (h.centre->point_w - proj.world_T_projector().translation()).norm());
-    const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(farthest + 0.5) + 4.0;
+    const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell.farthest_spot_m + 0.5) + 4.0;
     RasterClip clip{static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin,
                     static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin,
                     static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin,

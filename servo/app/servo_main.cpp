@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "servo/config/strict_yaml.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
@@ -131,6 +132,57 @@ std::vector<std::filesystem::path> image_list(const std::vector<std::string>& ar
   return out;
 }
 
+// What the epipolar check needs besides the image: the projector's calibration, the camera's
+// intrinsics, and the camera's pose for each image (one for all, or each image's sidecar JSON).
+struct EpipolarInputs {
+  std::optional<control::ProjectorModel> projector;
+  control::CameraIntrinsics camera;
+  std::optional<Eigen::Isometry3d> fixed_pose;
+};
+
+void check_finite(const std::string& what, const std::vector<double>& v, double limit) {
+  for (double x : v)
+    if (!(std::abs(x) <= limit)) throw std::runtime_error(what + ": values must be finite and within +-" + std::to_string(limit));
+}
+
+Eigen::Isometry3d pose_from(const std::string& what, const std::vector<double>& p, const std::vector<double>& q_xyzw) {
+  check_finite(what, p, 100);
+  check_finite(what, q_xyzw, 1.001);
+  const Eigen::Quaterniond q(q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]);
+  if (std::abs(q.norm() - 1.0) > 1e-3) throw std::runtime_error(what + ": the orientation must be a unit quaternion [x, y, z, w]");
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+  t.linear() = q.normalized().toRotationMatrix();
+  return t;
+}
+
+// The camera pose of `image` from its sidecar `<stem>.json` (what `cellsim render --truth`
+// writes): {"camera_pose": {"position_m": [x, y, z], "orientation_xyzw": [x, y, z, w]}}.
+Eigen::Isometry3d sidecar_pose(const std::filesystem::path& image) {
+  std::filesystem::path file = image;
+  file.replace_extension(".json");
+  const std::string name = file.string();
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(file, ec);
+  if (ec) throw std::runtime_error(image.string() + ": no camera pose (--camera-pose, or " + name + " with camera_pose)");
+  if (size > (16u << 20)) throw std::runtime_error(name + ": larger than 16 MiB");
+  std::ifstream in(file);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  try {
+    if (j.is_discarded()) throw std::runtime_error("not JSON");
+    const auto& c = j.at("camera_pose");
+    const auto p = c.at("position_m").get<std::vector<double>>();
+    const auto q = c.at("orientation_xyzw").get<std::vector<double>>();
+    if (p.size() != 3 || q.size() != 4) throw std::runtime_error("position_m needs 3 numbers, orientation_xyzw 4");
+    return pose_from(name + ": camera_pose", p, q);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(name + ": camera_pose {position_m: [x, y, z], orientation_xyzw: [x, y, z, w]} expected");
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    throw std::runtime_error(what.rfind(name, 0) == 0 ? what : name + ": " + what);
+  }
+}
+
 double median_of(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
@@ -141,8 +193,10 @@ double median_of(std::vector<double> v) {
 // several, the median and maximum per-frame time (the first image excluded). A bad image is
 // one line and the others still go; the exit code says whether all went.
 int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const std::string& json_out,
-               const std::string& json_dir, const std::string& overlay_out, bool tolerant, int min_votes) {
+               const std::string& json_dir, const std::string& overlay_out, bool tolerant, int min_votes,
+               const EpipolarInputs& epipolar) {
   const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
+  if (epipolar.projector) servo::check_projector_against_pattern(*epipolar.projector, marray, pattern_file);
   vision::DecoderOptions options;
   options.tolerance.enabled = tolerant;
   options.min_votes = min_votes;
@@ -168,12 +222,24 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
       ++failed;
       continue;
     }
+    std::optional<vision::EpipolarGeometry> geometry;
+    if (epipolar.projector) {
+      try {
+        const Eigen::Isometry3d pose = epipolar.fixed_pose ? *epipolar.fixed_pose : sidecar_pose(images[i]);
+        geometry.emplace(epipolar.camera, *epipolar.projector, pose, options.epipolar.tolerance_px);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "servo: %s\n", config::printable(e.what(), 300).c_str());
+        ++failed;
+        continue;
+      }
+    }
+    const vision::EpipolarGeometry* g = geometry ? &*geometry : nullptr;
     if (!warm) {
-      decoder.decode(rgb);  // the first decode allocates; every time below is a warm one
+      decoder.decode(rgb, g);  // the first decode allocates; every time below is a warm one
       warm = true;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const vision::DecodeResult r = decoder.decode(rgb);
+    const vision::DecodeResult r = decoder.decode(rgb, g);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     times.push_back(ms);
     std::string json_file = json_out;
@@ -230,6 +296,16 @@ int main(int argc, char** argv) {
   decode->add_flag("--tolerant", tolerant, "error-tolerant window reading (beyond the paper)");
   decode->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
       ->check(CLI::Range(1, 9))->capture_default_str();
+  std::string decode_projector;
+  std::vector<double> decode_camera, decode_pose;
+  decode->add_option("--projector", decode_projector,
+                     "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
+                     "epipolar lines; needs --camera and a camera pose");
+  decode->add_option("--camera", decode_camera, "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]")->expected(4, 9);
+  decode->add_option("--camera-pose", decode_pose,
+                     "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
+                     "<stem>.json camera_pose, as `cellsim render --truth` writes)")
+      ->expected(7);
   servo::ServiceOptions svc;
   std::string config_file, model, reference, projector_file;
   double z_hat = 0, gain = 0;
@@ -310,7 +386,29 @@ int main(int argc, char** argv) {
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       return servo::run_servo_service(svc);
     }
-    if (*decode) return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes);
+    if (*decode) {
+      EpipolarInputs epi;
+      if (!decode_projector.empty()) {
+        if (decode_camera.size() != 4 && decode_camera.size() != 9)
+          throw std::runtime_error("--projector needs --camera fx fy cx cy [k1 k2 p1 p2 k3]");
+        epi.projector = servo::load_projector_calibration(decode_projector);
+      }
+      if (!decode_camera.empty()) {
+        if (decode_camera.size() != 4 && decode_camera.size() != 9)
+          throw std::runtime_error("--camera: 4 numbers (fx fy cx cy) or 9 (and k1 k2 p1 p2 k3)");
+        check_finite("--camera", decode_camera, 1e6);
+        if (!(decode_camera[0] > 0 && decode_camera[1] > 0)) throw std::runtime_error("--camera: fx and fy must be > 0");
+        epi.camera = {decode_camera[0], decode_camera[1], decode_camera[2], decode_camera[3]};
+        for (std::size_t k = 4; k < decode_camera.size(); ++k) {
+          check_finite("--camera distortion", {decode_camera[k]}, 10);
+          epi.camera.distortion[k - 4] = decode_camera[k];
+        }
+      }
+      if (!decode_pose.empty())
+        epi.fixed_pose = pose_from("--camera-pose", {decode_pose[0], decode_pose[1], decode_pose[2]},
+                                   {decode_pose[3], decode_pose[4], decode_pose[5], decode_pose[6]});
+      return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes, epi);
+    }
   } catch (const std::exception& e) {
     std::string what = e.what();
     for (char& ch : what)

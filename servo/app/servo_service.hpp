@@ -8,6 +8,7 @@
 #include <string>
 
 #include "servo/pattern/marray.hpp"
+#include "servo/config/projector_calibration.hpp"
 #include "servo/pipeline/servo_pipeline.hpp"
 
 namespace servo {
@@ -31,18 +32,11 @@ int run_servo_service(const ServiceOptions& options);
 inline constexpr int kDecodableColours = 3;
 // Reads a pattern file for decoding: the window property and the colour count checked.
 pattern::MArray load_decodable_pattern(const std::filesystem::path& file);
-// A projector calibration is for one pattern: its rows and columns must match.
-void check_projector_against_pattern(const control::ProjectorModel& m, const pattern::MArray& marray,
-                                     const std::filesystem::path& pattern_file);
 
 // Reads a servo configuration (YAML: model, z_hat_m, gain, gain_adaptive [l0, linf, slope],
 // max_linear_mps, max_angular_dps, min_points, converge_mm, converge_deg, min_votes,
 // min_island, tolerant) over `config`. Throws std::runtime_error naming file and key.
 void load_servo_config(const std::filesystem::path& file, ServoConfig& config);
 
-// Reads the projector's calibration (YAML: fx, fy, cx, cy, spot_pitch_px, rows, cols,
-// position_m [x, y, z], orientation_xyzw [x, y, z, w] in the world): what triangulation needs
-// for the desired, current and mean models. `cellsim calibration` writes one from a scenario.
-control::ProjectorModel load_projector_calibration(const std::filesystem::path& file);
 
 }  // namespace servo

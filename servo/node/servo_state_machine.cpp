@@ -172,15 +172,15 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
                     const_cast<std::uint8_t*>(img.data), img.step);
   int detected = 0;
   std::vector<ImageSpot> spots;
+  const std::optional<Eigen::Isometry3d> pose = pose_for(img.stamp);
   try {
-    spots = pipeline_->locate(rgb, &detected);
+    spots = pipeline_->locate(rgb, pose, &detected);
   } catch (const std::exception& e) {
     ++rejected_;
     return reply(img.stamp, "rejected image: " + config::printable(e.what(), 200));
   }
   decoded_ = static_cast<std::uint32_t>(spots.size());
   const SimFrameStatus* sim = sim_status_for(img.stamp);
-  const std::optional<Eigen::Isometry3d> pose = pose_for(img.stamp);
   if (sim_status_seen_ && !sim) {
     ServoReply r = reply(img.stamp, "no simulator status for this frame: not answered");
     r.answer = false;

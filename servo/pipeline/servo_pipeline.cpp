@@ -5,8 +5,12 @@ namespace servo {
 ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
     : decoder_(std::move(table), config.decoder), config_(std::move(config)) {}
 
-std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, int* detected) const {
-  const vision::DecodeResult r = decoder_.decode(rgb);
+std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,
+                                             int* detected) const {
+  std::optional<vision::EpipolarGeometry> geometry;
+  if (wTc && config_.projector)
+    geometry.emplace(config_.camera, *config_.projector, *wTc, config_.decoder.epipolar.tolerance_px);
+  const vision::DecodeResult r = decoder_.decode(rgb, geometry ? &*geometry : nullptr);
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());

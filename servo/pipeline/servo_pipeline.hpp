@@ -44,8 +44,11 @@ class ServoPipeline {
  public:
   ServoPipeline(pattern::WindowTable table, ServoConfig config);
 
-  // Decodes an image into identified spots. Throws std::invalid_argument for a bad image.
-  std::vector<ImageSpot> locate(const cv::Mat& rgb, int* detected = nullptr) const;
+  // Decodes an image into identified spots. With a camera pose and the projector's
+  // calibration, the decoder also checks and propagates ids along the epipolar lines.
+  // Throws std::invalid_argument for a bad image.
+  std::vector<ImageSpot> locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& world_T_camera,
+                                int* detected = nullptr) const;
 
   // Features of located spots: normalised coordinates and, when a camera pose and the
   // projector's calibration are known, triangulated depths.

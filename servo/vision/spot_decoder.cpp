@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 namespace vision {
 namespace {
@@ -203,8 +204,20 @@ Neighbourhoods check_graph_consistency(const AdjacencyGraph& g) {
   return h;
 }
 
+EpipolarCheck::EpipolarCheck(const EpipolarGeometry& g, const std::vector<Spot>& spots) : geometry(g) {
+  xy.reserve(spots.size());
+  for (const Spot& s : spots) xy.push_back(g.normalise(s.u, s.v));
+}
+
+bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) const {
+  for (int i = 0; i < 9; ++i)
+    if (w[i] >= 0 && !confirms(w[i], {centre.row + i / 3 - 1, centre.col + i % 3 - 1})) return false;
+  return true;
+}
+
 std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
-                                        const pattern::WindowTable& table, const ToleranceOptions& tolerance) {
+                                        const pattern::WindowTable& table, const ToleranceOptions& tolerance,
+                                        const EpipolarCheck* check) {
   std::vector<WindowReading> out;
   const int k = table.array().colours;
   for (std::size_t s = 0; s < hoods.window.size(); ++s) {
@@ -222,16 +235,21 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
     }
     if (n_missing == 0) {
       if (auto id = table.find(colours.data())) {
-        out.push_back({static_cast<int>(s), *id, false});
-        continue;
+        // a valid code on the wrong lines is a misread window: rejected, then maybe repaired
+        if (!check || check->confirms(w, *id)) {
+          out.push_back({static_cast<int>(s), *id, false});
+          continue;
+        }
       }
     }
     if (!tolerance.enabled || n_missing > 1) continue;
-    // error-tolerant: exactly one pattern window within one symbol of what was read
+    // error-tolerant: exactly one pattern window within one symbol of what was read (and, with
+    // the epipolar check, on the epipolar lines)
     std::optional<pattern::SpotId> found;
     int matches = 0;
     const auto try_window = [&](std::array<std::uint8_t, 9> c) {
       if (auto id = table.find(c.data())) {
+        if (check && !check->confirms(w, *id)) return;
         if (!found || !(*found == *id)) ++matches;
         found = id;
       }
@@ -256,48 +274,130 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
   return out;
 }
 
-std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
-                                                    const std::vector<WindowReading>& readings, int min_votes) {
-  struct Votes {
+void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,
+                      std::vector<IdVote>& votes) {
+  for (const WindowReading& r : readings) {
+    const Window& w = hoods.window[r.centre];
+    for (int i = 0; i < 9; ++i)
+      if (w[i] >= 0)
+        votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}});
+  }
+}
+
+// how much a run's step may change from one spot to the next (fraction of the step)
+constexpr double kRunBend = 0.4;
+
+void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
+                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes) {
+  const int half = length / 2;
+  if (half < 1) return;
+  // the ids each spot may carry: its colour, on its epipolar line (a handful of the 400)
+  std::vector<std::vector<pattern::SpotId>> by_colour(static_cast<std::size_t>(pattern.colours));
+  for (int r = 0; r < pattern.rows; ++r)
+    for (int c = 0; c < pattern.cols; ++c) by_colour[pattern.at(r, c)].push_back({r, c});
+  std::vector<std::vector<pattern::SpotId>> candidates(spots.size());
+  const auto candidates_of = [&](int i) -> const std::vector<pattern::SpotId>& {
+    auto& out = candidates[i];
+    if (out.empty() && spots[i].colour >= 0 && spots[i].colour < pattern.colours)
+      for (const pattern::SpotId& id : by_colour[spots[i].colour])
+        if (check.confirms(i, id)) out.push_back(id);
+    return out;
+  };
+  std::vector<int> run(static_cast<std::size_t>(2 * half + 1));
+  for (const auto& [forward, back, dr, dc] : {std::tuple{kEast, kWest, 0, 1}, std::tuple{kSouth, kNorth, 1, 0}}) {
+    for (std::size_t s = 0; s < spots.size(); ++s) {
+      // the run centred on s, `half` links each way
+      run[half] = static_cast<int>(s);
+      bool whole = true;
+      for (int m = 1; m <= half && whole; ++m) {
+        run[half + m] = graph.next[run[half + m - 1]][forward];
+        run[half - m] = graph.next[run[half - m + 1]][back];
+        whole = run[half + m] >= 0 && run[half - m] >= 0;
+      }
+      if (!whole) continue;
+      // a run along one surface is smooth: each step close to the one before. At an object's
+      // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
+      bool smooth = true;
+      for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m) {
+        const Spot &a = spots[run[m - 1]], &b = spots[run[m]], &c = spots[run[m + 1]];
+        const double su = c.u - 2 * b.u + a.u, sv = c.v - 2 * b.v + a.v;
+        const double lu = c.u - b.u, lv = c.v - b.v, pu = b.u - a.u, pv = b.v - a.v;
+        smooth = su * su + sv * sv <= kRunBend * kRunBend * std::max(lu * lu + lv * lv, pu * pu + pv * pv);
+      }
+      if (!smooth) continue;
+      // the run read straight along the axis, or sheared by one id across it per step (a
+      // column seen obliquely links diagonal neighbours): a misread run that fits one way
+      // while the truth fits another is ambiguous, and dropped
+      int matches = 0;
+      pattern::SpotId found{};
+      int found_shear = 0;
+      for (const pattern::SpotId& a : candidates_of(static_cast<int>(s)))
+        for (int shear = -1; shear <= 1 && matches <= 1; ++shear) {
+          bool fits = true;
+          for (int m = -half; m <= half && fits; ++m) {
+            if (m == 0) continue;
+            const pattern::SpotId id{a.row + m * dr + shear * m * dc, a.col + m * dc + shear * m * dr};
+            fits = id.row >= 0 && id.col >= 0 && id.row < pattern.rows && id.col < pattern.cols &&
+                   pattern.at(id.row, id.col) == spots[run[half + m]].colour && check.confirms(run[half + m], id);
+          }
+          if (fits && ++matches == 1) found = a, found_shear = shear;
+        }
+      if (matches != 1) continue;
+      for (int m = -half; m <= half; ++m)
+        votes.push_back({run[half + m],
+                         {found.row + m * dr + found_shear * m * dc, found.col + m * dc + found_shear * m * dr}});
+    }
+  }
+}
+
+std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, const std::vector<IdVote>& votes,
+                                                int min_votes) {
+  struct Tally {
     pattern::SpotId id{-1, -1};
     int count = 0;
     bool conflict = false;
   };
-  std::vector<Votes> votes(spots.size());
-  for (const WindowReading& r : readings) {
-    const Window& w = hoods.window[r.centre];
-    for (int i = 0; i < 9; ++i) {
-      if (w[i] < 0) continue;
-      const pattern::SpotId id{r.id.row + i / 3 - 1, r.id.col + i % 3 - 1};
-      Votes& v = votes[w[i]];
-      if (v.count == 0) v.id = id;
-      else if (!(v.id == id)) v.conflict = true;
-      ++v.count;
-    }
+  std::vector<Tally> tally(spots.size());
+  int rows = 0, cols = 0;
+  for (const IdVote& v : votes) {
+    Tally& t = tally[v.spot];
+    if (t.count == 0) t.id = v.id;
+    else if (!(t.id == v.id)) t.conflict = true;
+    ++t.count;
+    rows = std::max(rows, v.id.row + 1), cols = std::max(cols, v.id.col + 1);
   }
   // an id claimed by two spots is kept by neither
-  int rows = 0, cols = 0;
-  for (const WindowReading& r : readings) rows = std::max(rows, r.id.row + 2), cols = std::max(cols, r.id.col + 2);
   std::vector<int> owners(static_cast<std::size_t>(rows) * cols, 0);
   const auto owner = [&](const pattern::SpotId& id) -> int& { return owners[static_cast<std::size_t>(id.row) * cols + id.col]; };
   for (std::size_t s = 0; s < spots.size(); ++s)
-    if (votes[s].count >= min_votes && !votes[s].conflict) ++owner(votes[s].id);
+    if (tally[s].count >= min_votes && !tally[s].conflict) ++owner(tally[s].id);
   std::vector<DecodedSpot> out;
   for (std::size_t s = 0; s < spots.size(); ++s) {
-    const Votes& v = votes[s];
-    if (v.count < min_votes || v.conflict || owner(v.id) != 1) continue;
-    out.push_back({v.id.row, v.id.col, spots[s].u, spots[s].v, static_cast<int>(s)});
+    const Tally& t = tally[s];
+    if (t.count < min_votes || t.conflict || owner(t.id) != 1) continue;
+    out.push_back({t.id.row, t.id.col, spots[s].u, spots[s].v, static_cast<int>(s)});
   }
   return out;
 }
 
+std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
+                                                    const std::vector<WindowReading>& readings, int min_votes) {
+  std::vector<IdVote> votes;
+  votes.reserve(readings.size() * 9);
+  add_window_votes(hoods, readings, votes);
+  return check_vote_consistency(spots, votes, min_votes);
+}
+
 std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
-                                                  int spot_count, int min_island) {
+                                                  int spot_count, int min_island, bool sheared_links) {
   std::vector<int> at(static_cast<std::size_t>(spot_count), -1);  // spot -> index in decoded
   for (std::size_t i = 0; i < decoded.size(); ++i) at[decoded[i].spot] = static_cast<int>(i);
   static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
   const auto agrees = [&](const DecodedSpot& a, const DecodedSpot& b, int k) {
-    return b.row == a.row + kStep[k][0] && b.col == a.col + kStep[k][1];
+    const int dr = b.row - a.row - kStep[k][0], dc = b.col - a.col - kStep[k][1];
+    if (dr == 0 && dc == 0) return true;
+    // a sheared link: one step along k and one across it
+    return sheared_links && (kStep[k][0] == 0 ? (dc == 0 && std::abs(dr) == 1) : (dr == 0 && std::abs(dc) == 1));
   };
   // a link between two decoded spots whose ids disagree condemns both
   std::vector<bool> keep(decoded.size(), true);
@@ -333,31 +433,141 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   return out;
 }
 
+std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
+                                       const EpipolarCheck& check, const pattern::MArray& pattern,
+                                       std::vector<DecodedSpot> decoded, int min_sources) {
+  static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
+  std::vector<int> owner(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1);  // id -> spot
+  std::vector<int> at(spots.size(), -1);                                               // spot -> decoded
+  const auto slot = [&](int r, int c) -> int& { return owner[static_cast<std::size_t>(r) * pattern.cols + c]; };
+  for (std::size_t i = 0; i < decoded.size(); ++i) {
+    at[decoded[i].spot] = static_cast<int>(i);
+    slot(decoded[i].row, decoded[i].col) = decoded[i].spot;
+  }
+  const auto spot_at = [&](int r, int c) {
+    return r < 0 || c < 0 || r >= pattern.rows || c >= pattern.cols ? -1 : slot(r, c);
+  };
+  const auto continues_lattice = [&](const DecodedSpot& from, int j, int k) {
+    const int dr = kStep[k][0], dc = kStep[k][1];
+    // reference steps in k: behind the source, then beside it (either side)
+    const std::array<std::pair<int, int>, 3> refs{{{spot_at(from.row - dr, from.col - dc), from.spot},
+                                                  {spot_at(from.row + dc, from.col + dr),
+                                                   spot_at(from.row + dc + dr, from.col + dr + dc)},
+                                                  {spot_at(from.row - dc, from.col - dr),
+                                                   spot_at(from.row - dc + dr, from.col - dr + dc)}}};
+    for (const auto& [a, b] : refs) {
+      if (a < 0 || b < 0) continue;
+      const double vu = spots[b].u - spots[a].u, vv = spots[b].v - spots[a].v;
+      const double eu = spots[j].u - spots[from.spot].u - vu, ev = spots[j].v - spots[from.spot].v - vv;
+      return eu * eu + ev * ev <= 0.35 * 0.35 * (vu * vu + vv * vv);
+    }
+    return false;  // nothing to compare with: not propagated
+  };
+  // The spot linked beyond j, if any, must go on with the lattice and the pattern: at an
+  // object's edge, the spot that sits where the lattice goes on belongs to the surface behind,
+  // and the one beyond it follows that surface's spacing, not this one's.
+  const auto beyond_agrees = [&](const DecodedSpot& from, int j, int k, const pattern::SpotId& id) {
+    const int b = graph.next[j][k];
+    if (b < 0) return true;
+    const pattern::SpotId next{id.row + kStep[k][0], id.col + kStep[k][1]};
+    if (at[b] >= 0) return decoded[at[b]].row == next.row && decoded[at[b]].col == next.col;
+    if (next.row < 0 || next.col < 0 || next.row >= pattern.rows || next.col >= pattern.cols) return false;
+    if (pattern.at(next.row, next.col) != spots[b].colour) return false;
+    const double vu = spots[j].u - spots[from.spot].u, vv = spots[j].v - spots[from.spot].v;
+    const double eu = spots[b].u - spots[j].u - vu, ev = spots[b].v - spots[j].v - vv;
+    return eu * eu + ev * ev <= 0.35 * 0.35 * (vu * vu + vv * vv);
+  };
+  // In rounds: an undecoded spot takes an id when at least `min_sources` decoded spots linked
+  // to it propose the same id (and none proposes another).
+  struct Proposal {
+    pattern::SpotId id{-1, -1};
+    int sources = 0;
+    bool conflict = false;
+  };
+  std::vector<Proposal> proposals(spots.size());
+  for (bool grew = true; grew;) {
+    grew = false;
+    std::fill(proposals.begin(), proposals.end(), Proposal{});
+    for (const DecodedSpot& from : decoded)
+      for (int k = 0; k < 4; ++k) {
+        const int j = graph.next[from.spot][k];
+        if (j < 0 || at[j] >= 0 || spots[j].truncated) continue;
+        const pattern::SpotId id{from.row + kStep[k][0], from.col + kStep[k][1]};
+        Proposal& p = proposals[j];
+        if (!continues_lattice(from, j, k)) continue;  // j is not where this source's lattice goes
+        if (!beyond_agrees(from, j, k, id)) continue;
+        if (p.sources > 0 && !(p.id == id)) p.conflict = true;
+        p.id = id;
+        ++p.sources;
+      }
+    for (std::size_t j = 0; j < spots.size(); ++j) {
+      const Proposal& p = proposals[j];
+      if (p.conflict || p.sources < min_sources) continue;
+      const int r = p.id.row, c = p.id.col;
+      if (r < 0 || c < 0 || r >= pattern.rows || c >= pattern.cols || slot(r, c) >= 0) continue;
+      if (pattern.at(r, c) != spots[j].colour || !check.confirms(static_cast<int>(j), p.id)) continue;
+      // the id must be the only one around it that fits the spot
+      bool unique = true;
+      for (int dr = -1; dr <= 1 && unique; ++dr)
+        for (int dc = -1; dc <= 1 && unique; ++dc) {
+          const int rr = r + dr, cc = c + dc;
+          if ((dr == 0 && dc == 0) || rr < 0 || cc < 0 || rr >= pattern.rows || cc >= pattern.cols) continue;
+          if (slot(rr, cc) >= 0) continue;  // that id is another spot's already
+          unique = !(pattern.at(rr, cc) == spots[j].colour && check.confirms(static_cast<int>(j), {rr, cc}));
+        }
+      if (!unique) continue;
+      at[j] = static_cast<int>(decoded.size());
+      slot(r, c) = static_cast<int>(j);
+      decoded.push_back({r, c, spots[j].u, spots[j].v, static_cast<int>(j)});
+      grew = true;
+    }
+  }
+  return decoded;
+}
+
 SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
     : table_(std::move(table)), options_(options) {
   options_.segmentation.colours = table_.array().colours;
 }
 
-DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots) const {
+DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;
   r.detected = std::move(spots);
   const AdjacencyGraph graph = build_adjacency(r.detected);
   const Neighbourhoods hoods = check_graph_consistency(graph);
-  const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance);
-  r.readings = static_cast<int>(readings.size());
-  r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes);
-  if (options_.min_island > 0)
-    r.decoded = check_island_consistency(graph, std::move(r.decoded), static_cast<int>(r.detected.size()),
-                                         options_.min_island);
+  const int n = static_cast<int>(r.detected.size());
+  if (geometry) {
+    const EpipolarOptions& e = options_.epipolar;
+    const EpipolarCheck check(*geometry, r.detected);
+    ToleranceOptions tolerance = options_.tolerance;
+    tolerance.enabled = tolerance.enabled || e.tolerant;
+    const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, tolerance, &check);
+    r.readings = static_cast<int>(readings.size());
+    std::vector<IdVote> votes;
+    add_window_votes(hoods, readings, votes);
+    if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes);
+    r.decoded = check_vote_consistency(r.detected, votes, e.min_votes);
+    r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+    if (e.propagate) {
+      r.decoded = propagate_ids(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources);
+      r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+    }
+  } else {
+    const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance);
+    r.readings = static_cast<int>(readings.size());
+    r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes);
+    if (options_.min_island > 0)
+      r.decoded = check_island_consistency(graph, std::move(r.decoded), n, options_.min_island);
+  }
   // a spot cut by the image border helps decode its neighbours, but its centroid is not
   // where its centre is: it is not reported
   std::erase_if(r.decoded, [&](const DecodedSpot& d) { return r.detected[d.spot].truncated; });
   return r;
 }
 
-DecodeResult SpotDecoder::decode(const cv::Mat& rgb) const {
+DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry) const {
   Segmentation seg = segment_spots(rgb, options_.segmentation, &scratch_);
-  DecodeResult r = decode_spots(std::move(seg.spots));
+  DecodeResult r = decode_spots(std::move(seg.spots), geometry);
   r.rejected_blobs = seg.rejected;
   return r;
 }

@@ -3,6 +3,10 @@
 //   2. check_graph_consistency:    corner neighbours must agree (NW = W of N = N of W, ...)
 //   3. read_windows:               each complete 8-neighbourhood looked up in the window table
 //   4. check_decoding_consistency: every window a spot takes part in must name it the same
+// and, beyond the paper:
+//   5. check_island_consistency:   linked decoded spots must carry ids one step apart
+//   6. propagate_ids:              with the frame's epipolar geometry, ids spread to linked
+//                                  neighbours whose colour and epipolar line agree
 // SpotDecoder runs them in order.
 #pragma once
 
@@ -10,6 +14,7 @@
 #include <vector>
 
 #include "servo/pattern/window_table.hpp"
+#include "servo/vision/epipolar.hpp"
 #include "servo/vision/segmentation.hpp"
 #include "servo/vision/spot.hpp"
 
@@ -30,17 +35,53 @@ struct WindowReading {
   bool corrected = false;       // read by the error-tolerant mode
 };
 
+// The detected spots against the frame's epipolar geometry (see epipolar.hpp).
+struct EpipolarCheck {
+  EpipolarCheck(const EpipolarGeometry& geometry, const std::vector<Spot>& spots);
+  // spot `spot` may carry `id`
+  bool confirms(int spot, const pattern::SpotId& id) const { return geometry.consistent(xy[spot], id); }
+  // every spot of window `w` may carry the id the window's centre `centre` implies for it
+  bool confirms(const Window& w, const pattern::SpotId& centre) const;
+
+  const EpipolarGeometry& geometry;
+  std::vector<Eigen::Vector2d> xy;  // normalised coordinates of every spot
+};
+
 struct ToleranceOptions {
   bool enabled = false;  // beyond the paper: accept a window with one missing neighbour or one
                          // wrong colour when exactly one pattern window fits it
 };
 
-// Step 3.
+// Step 3. With an epipolar check, a reading is kept only when every spot of its window lies on
+// the epipolar line of the id it implies, and an error-tolerant reading is kept when exactly one
+// of the pattern windows within one symbol of it passes that check (a repair).
 std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
-                                        const pattern::WindowTable& table, const ToleranceOptions& tolerance = {});
+                                        const pattern::WindowTable& table, const ToleranceOptions& tolerance = {},
+                                        const EpipolarCheck* check = nullptr);
 
-// Step 4. Each reading votes for the id of its centre and of its 8 neighbours; a spot is kept
-// when all its votes agree (and it has at least `min_votes`), and no other spot has its id.
+// One reading's claim on one spot.
+struct IdVote {
+  int spot = 0;
+  pattern::SpotId id;
+};
+// Each window reading votes for the id of its centre and of its 8 neighbours.
+void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,
+                      std::vector<IdVote>& votes);
+
+// Step 3b, beyond the paper, with the frame's epipolar geometry: a run of `length` spots
+// linked along a row (east-west) or a column (north-south) is read as a 1 x length segment.
+// It names its spots when exactly one place in the pattern has the run's colours along that
+// axis with every spot of the run on its id's epipolar line. Unlike a 3 x 3 window, a segment
+// needs no links across the other axis: it reads rows whose columns are sheared out of true
+// (a surface seen obliquely, a cylinder near its silhouette) and runs along an object's edge.
+void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
+                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes);
+
+// Step 4. A spot is kept when all its votes agree (and it has at least `min_votes`), and no
+// other spot has its id.
+std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, const std::vector<IdVote>& votes,
+                                                int min_votes);
+// Step 4 over window readings (the paper's step).
 std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
                                                     const std::vector<WindowReading>& readings, int min_votes);
 
@@ -49,8 +90,43 @@ std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spo
 // Spots are then grouped into islands (linked, id-consistent); islands smaller than
 // `min_island` are dropped: a misread region (a sheared grid read with the wrong columns, a
 // window that happens to form a valid code) is a small island, a correctly read surface is not.
+// `sheared_links`: a link whose ids are one step along it and one across also agrees (a
+// column read obliquely); used with the epipolar check, whose readings need no such link.
 std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
-                                                  int spot_count, int min_island);
+                                                  int spot_count, int min_island, bool sheared_links = false);
+
+// Step 6, beyond the paper. From every identified spot, an undecoded spot linked to it in
+// direction k takes the id X one step away in k when the pattern has the spot's colour at X,
+// the spot lies on X's epipolar line, no other spot has X, and no other neighbour of the
+// source's id would fit the spot as well (colour and epipolar line): a link that skipped a
+// missing spot or crossed a sheared column would otherwise pass an id on shifted by one.
+// Breadth first from the decoded spots. This names spots whose windows are cut by the
+// object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
+std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
+                                       const EpipolarCheck& check, const pattern::MArray& pattern,
+                                       std::vector<DecodedSpot> decoded, int min_sources = 2);
+
+// How the decoder uses a frame's epipolar geometry, when it is given one.
+struct EpipolarOptions {
+  double tolerance_px = 3.0;  // centroid error on curved surfaces is ~1 px; calibration adds to it
+  // The epipolar lines of one frame often run along the pattern's rows: they tell the row, not
+  // the column, so a window misread one column over still passes. Votes and islands stay.
+  int min_votes = 3;
+  int min_island = 12;
+  // Step 3b; 0 turns it off (the default). Segments identify far more spots on curved objects
+  // (the ham: 50 -> 70 % of the readable spots) but let rare wrong ids through at depth edges:
+  // a spot on the surface behind can sit where the lattice goes on, on the same epipolar line,
+  // with the colour the pattern has there (7 in 200 ham poses, docs/decoding.md).
+  int segment_length = 0;
+  // Error-tolerant windows, confirmed epipolarly. Off: on the ham the confirmation still lets
+  // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.
+  bool tolerant = false;
+  bool propagate = true;   // step 6
+  // decoded neighbours that must propose the same id: at an object's edge the spot beyond
+  // (on the surface behind) can sit where the lattice goes on, on the same epipolar line, so
+  // one source is not enough; two linked sources rarely both agree on a spot behind an edge
+  int min_sources = 2;
+};
 
 struct DecoderOptions {
   SegmentationParams segmentation;
@@ -62,6 +138,7 @@ struct DecoderOptions {
   // (docs/decoding.md); the cost is the pattern's corners and their neighbours.
   int min_votes = 3;
   int min_island = 12;  // step 5; 0 turns it off (the paper's decoder)
+  EpipolarOptions epipolar;  // used when decode() is given the frame's geometry
 };
 
 struct DecodeResult {
@@ -76,8 +153,10 @@ class SpotDecoder {
  public:
   SpotDecoder(pattern::WindowTable table, DecoderOptions options = {});
   // Throws std::invalid_argument for an empty or non-RGB8 image (see segment_spots).
-  DecodeResult decode(const cv::Mat& rgb) const;
-  DecodeResult decode_spots(std::vector<Spot> spots) const;
+  // `geometry` (optional): the frame's camera-projector geometry, for the epipolar steps.
+  DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr) const;
+  DecodeResult decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry = nullptr) const;
+  const DecoderOptions& options() const { return options_; }
   const pattern::WindowTable& table() const { return table_; }
 
  private:

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "servo/config/projector_calibration.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/pattern/window_table.hpp"
 #include "sim/app/decode_sweep.hpp"
@@ -80,6 +81,8 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
         s["u"] = t.uv.x();
         s["v"] = t.uv.y();
         s["depth_m"] = t.depth_m;
+        s["blur_px"] = t.blur_px;
+        s["resolved"] = t.resolved;
       }
       j["spots"].push_back(s);
     }
@@ -94,6 +97,8 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
 
 int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) {
   const auto cell = sim::build_cell(sim::load_scenario(scenario_file));
+  if (o.projector)
+    servo::check_projector_against_pattern(*o.projector, cell->projector->pattern(), cell->scenario.projector.pattern);
   if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
   const auto t0 = std::chrono::steady_clock::now();
   const cellsim::SweepSummary s = cellsim::run_decode_sweep(*cell, o);
@@ -101,12 +106,18 @@ int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) 
   std::printf("%s: %d poses (noise sigma", cell->scenario.name.c_str(), o.poses);
   for (double n : o.noise_sigmas) std::printf(" %.1f", n);
   std::printf(") in %.1f s\n", secs);
-  std::printf("  decoded %d of %d visible (mean rate %.1f %%, worst pose %.1f %%), wrong ids %d, mislocated %d\n",
+  std::printf("  decoded %d of %d visible (mean rate %.1f %%, worst pose %.1f %%), wrong ids %d, mislocated %d, "
+              "partial %d (the named spot's light, its centre elsewhere or hidden)\n",
               s.total_decoded, s.total_visible, 100 * s.mean_rate, 100 * s.min_rate, s.total_wrong,
-              s.total_mislocated);
+              s.total_mislocated, s.total_partial);
   std::printf("  against the decodable spots (visible, in a fully visible 3 x 3 window): %d of %d identified "
               "(mean rate %.1f %%); against all visible: %d of %d\n",
               s.total_correct_decodable, s.total_decodable, 100 * s.mean_decodable_rate, s.total_correct,
+              s.total_visible);
+  std::printf("  against the readable spots (resolved: not washed out by the projector's defocus; in a fully "
+              "resolved 3 x 3 window): %d of %d identified (mean rate %.1f %%); %d of the %d visible spots are "
+              "resolved\n",
+              s.total_correct_readable, s.total_readable, 100 * s.mean_readable_rate, s.total_resolved,
               s.total_visible);
   std::printf("  decode time median %.2f ms, p99 %.2f ms\n", s.median_ms, s.p99_ms);
   if (!o.out_dir.empty()) std::printf("  per-pose table: %s\n", (o.out_dir / "sweep.csv").c_str());
@@ -210,6 +221,24 @@ int main(int argc, char** argv) {
   ds->add_option("--min-island", sweep.decoder.min_island, "smallest island of decoded spots kept (0: off)")
       ->capture_default_str();
   ds->add_flag("--tolerant", tolerant, "error-tolerant window reading");
+  std::string sweep_projector;
+  ds->add_option("--projector", sweep_projector,
+                 "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
+                 "epipolar lines");
+  ds->add_option("--epipolar-px", sweep.decoder.epipolar.tolerance_px,
+                 "with --projector: how far (px) a spot may lie from its id's epipolar line")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 100.0));
+  ds->add_option("--segment-length", sweep.decoder.epipolar.segment_length,
+                 "with --projector: spots in a 1 x N segment reading (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 15));
+  ds->add_option("--propagate-sources", sweep.decoder.epipolar.min_sources,
+                 "with --projector: decoded neighbours that must propose the same id")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 4));
+  bool no_propagate = false;
+  ds->add_flag("--no-propagate", no_propagate, "with --projector: do not propagate ids to linked neighbours");
   ds->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
   ds->add_option("-o,--output", sweep_dir, "folder for sweep.csv and overlays of poses with wrong ids");
   LawFlags law;
@@ -349,6 +378,8 @@ int main(int argc, char** argv) {
     if (*ds) {
       sweep.decoder.tolerance.enabled = tolerant;
       sweep.out_dir = sweep_dir;
+      sweep.decoder.epipolar.propagate = !no_propagate;
+      if (!sweep_projector.empty()) sweep.projector = servo::load_projector_calibration(sweep_projector);
       return run_decode_sweep(scenario, sweep);
     }
   } catch (const std::exception& e) {

@@ -15,6 +15,11 @@
 
 namespace cellsim {
 
+namespace {
+// a decoded blob this close to where some of the named spot's light lands is that light
+constexpr double kPartialPx = 4.0;
+}  // namespace
+
 SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const sim::Scenario& sc = cell.scenario;
   std::array<double, 6> range{};
@@ -30,8 +35,19 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     rows[k].noise_sigma = o.noise_sigmas[static_cast<std::size_t>(k) % o.noise_sigmas.size()];
     for (int i = 0; i < 6; ++i) rows[k].offset[i] = std::uniform_real_distribution<double>(-range[i], range[i])(rng);
   }
+  const control::CameraIntrinsics camera{sc.camera.intrinsics.fx, sc.camera.intrinsics.fy, sc.camera.intrinsics.cx,
+                                        sc.camera.intrinsics.cy, sc.camera.distortion};
   std::atomic<int> next{0};
   std::mutex io;
+  struct WrongId {
+    int pose, row, col;
+    double u, v;
+    int nearest_row, nearest_col;
+    double nearest_px;
+    bool named_visible;
+    double named_px;  // from the decoded position to where the named spot's centre projects
+  };
+  std::vector<WrongId> wrong_ids;
   int failure_images = 0;
   const auto work = [&] {
     sim::RenderScratch scratch;
@@ -48,20 +64,29 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
                                       &sensor);
       const auto truth = sim::compute_truth(cell, wTc);
       const auto t0 = std::chrono::steady_clock::now();
-      const vision::DecodeResult r = decoder.decode(img);
+      std::optional<vision::EpipolarGeometry> geometry;
+      if (o.projector) geometry.emplace(camera, *o.projector, wTc, o.decoder.epipolar.tolerance_px);
+      const vision::DecodeResult r = decoder.decode(img, geometry ? &*geometry : nullptr);
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       const int cols = cell.projector->pattern().cols, rows_n = cell.projector->pattern().rows;
       for (const auto& t : truth) row.visible += t.visible;
       // decodable: covered by a fully visible 3 x 3 window
-      std::vector<char> decodable(truth.size(), 0), right(truth.size(), 0);
-      const auto vis = [&](int rr, int cc) { return truth[static_cast<std::size_t>(rr) * cols + cc].visible; };
-      for (int r0 = 0; r0 + 3 <= rows_n; ++r0)
-        for (int c0 = 0; c0 + 3 <= cols; ++c0) {
-          bool all = true;
-          for (int i = 0; i < 9 && all; ++i) all = vis(r0 + i / 3, c0 + i % 3);
-          if (!all) continue;
-          for (int i = 0; i < 9; ++i) decodable[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
-        }
+      for (const auto& t : truth) row.resolved += t.resolved;
+      std::vector<char> right(truth.size(), 0);
+      // the spots covered by a 3 x 3 window all of whose spots pass `seen`
+      const auto in_full_window = [&](auto seen) {
+        std::vector<char> covered(truth.size(), 0);
+        for (int r0 = 0; r0 + 3 <= rows_n; ++r0)
+          for (int c0 = 0; c0 + 3 <= cols; ++c0) {
+            bool all = true;
+            for (int i = 0; i < 9 && all; ++i) all = seen(truth[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3]);
+            if (!all) continue;
+            for (int i = 0; i < 9; ++i) covered[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
+          }
+        return covered;
+      };
+      const std::vector<char> decodable = in_full_window([](const sim::SpotTruth& t) { return t.visible; });
+      const std::vector<char> readable = in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       for (const auto& d : r.decoded) {
@@ -72,8 +97,19 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
           const double dist = std::hypot(t.uv.x() - d.u, t.uv.y() - d.v);
           if (dist < best) best = dist, nearest = &t;
         }
-        if (!nearest || nearest->row != d.row || nearest->col != d.col) ++row.wrong;
-        else if (best > o.match_tolerance_px) ++row.mislocated;
+        const sim::SpotTruth& named = truth[static_cast<std::size_t>(d.row) * cols + d.col];
+        const bool named_light = std::any_of(named.light_px.begin(), named.light_px.end(), [&](const auto& p) {
+          return std::hypot(p.x() - d.u, p.y() - d.v) <= kPartialPx;
+        });
+        if ((!nearest || nearest->row != d.row || nearest->col != d.col) && named_light) {
+          ++row.partial;
+        } else if (!nearest || nearest->row != d.row || nearest->col != d.col) {
+          ++row.wrong;
+          WrongId w{k, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
+                    nearest ? best : -1, named.visible, std::hypot(named.uv.x() - d.u, named.uv.y() - d.v)};
+          std::lock_guard<std::mutex> lock(io);
+          wrong_ids.push_back(w);
+        } else if (best > o.match_tolerance_px) ++row.mislocated;
         else {
           ++row.correct;
           right[static_cast<std::size_t>(d.row) * cols + d.col] = 1;
@@ -82,6 +118,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       for (std::size_t i = 0; i < truth.size(); ++i) {
         row.decodable += decodable[i];
         row.correct_decodable += decodable[i] && right[i];
+        row.readable += readable[i];
+        row.correct_readable += readable[i] && right[i];
       }
       if (row.wrong > 0 && !o.out_dir.empty()) {
         std::lock_guard<std::mutex> lock(io);
@@ -89,6 +127,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
           cv::Mat bgr;
           cv::cvtColor(vision::draw_overlay(img, r), bgr, cv::COLOR_RGB2BGR);
           cv::imwrite((o.out_dir / ("wrong_pose_" + std::to_string(k) + ".png")).string(), bgr);
+          cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);  // the frame itself, to decode again
+          cv::imwrite((o.out_dir / ("wrong_pose_" + std::to_string(k) + "_frame.png")).string(), bgr);
         }
       }
     }
@@ -101,12 +141,19 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   SweepSummary s;
   s.rows = rows;
   std::vector<double> ms;
-  double rate_sum = 0, decodable_rate_sum = 0;
-  int rated = 0, rated_decodable = 0;
+  double rate_sum = 0, decodable_rate_sum = 0, readable_rate_sum = 0;
+  int rated = 0, rated_decodable = 0, rated_readable = 0;
   for (const auto& r : rows) {
     s.total_decodable += r.decodable;
     s.total_correct += r.correct;
     s.total_correct_decodable += r.correct_decodable;
+    s.total_resolved += r.resolved;
+    s.total_readable += r.readable;
+    s.total_correct_readable += r.correct_readable;
+    if (r.readable > 0) {
+      readable_rate_sum += static_cast<double>(r.correct_readable) / r.readable;
+      ++rated_readable;
+    }
     if (r.decodable > 0) {
       decodable_rate_sum += static_cast<double>(r.correct_decodable) / r.decodable;
       ++rated_decodable;
@@ -114,6 +161,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     s.total_decoded += r.decoded;
     s.total_wrong += r.wrong;
     s.total_mislocated += r.mislocated;
+    s.total_partial += r.partial;
     s.total_visible += r.visible;
     ms.push_back(r.decode_ms);
     if (r.visible > 0) {
@@ -125,20 +173,32 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   }
   s.mean_rate = rated ? rate_sum / rated : 0;
   s.mean_decodable_rate = rated_decodable ? decodable_rate_sum / rated_decodable : 0;
+  s.mean_readable_rate = rated_readable ? readable_rate_sum / rated_readable : 0;
   std::sort(ms.begin(), ms.end());
   if (!ms.empty()) {
     s.median_ms = ms[ms.size() / 2];
     s.p99_ms = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
   }
   if (!o.out_dir.empty()) {
+    // every wrong id, to look at: what was named, what is there
+    std::sort(wrong_ids.begin(), wrong_ids.end(), [](const WrongId& a, const WrongId& b) { return a.pose < b.pose; });
+    std::ofstream w(o.out_dir / "wrong_ids.csv");
+    w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px\n";
+    for (const WrongId& x : wrong_ids)
+      w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
+        << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << '\n';
+  }
+  if (!o.out_dir.empty()) {
     std::ofstream csv(o.out_dir / "sweep.csv");
     csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
-           "decode_ms,decodable,correct_decodable\n";
+           "partial,"
+           "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable\n";
     for (const auto& r : rows) {
       csv << r.pose << ',' << r.noise_sigma;
       for (double x : r.offset) csv << ',' << x;
       csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
-          << r.mislocated << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable << '\n';
+          << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable << ','
+          << r.resolved << ',' << r.readable << ',' << r.correct_readable << '\n';
     }
   }
   return s;

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,9 @@ struct SweepOptions {
   std::uint64_t seed = 1;
   std::vector<double> noise_sigmas{0.5, 1.5, 3.0, 6.0};
   vision::DecoderOptions decoder;
+  // the projector's calibration: the decoder then checks ids against the epipolar geometry of
+  // each pose (the camera's intrinsics are the scenario's, its pose the true one)
+  std::optional<control::ProjectorModel> projector;
   double match_tolerance_px = 2.0;
   std::filesystem::path out_dir;   // sweep.csv (and failure overlays) go here when set
   int threads = 2;
@@ -28,20 +32,27 @@ struct SweepRow {
   // wrong: the id names another spot (the visible spot nearest the decoded position has a
   // different id, or that id is not visible); mislocated: right id, centroid off by more than
   // the match tolerance
-  int visible = 0, detected = 0, decoded = 0, correct = 0, wrong = 0, mislocated = 0;
+  // partial: the named spot's centre is hidden but the decoded blob is its light (a spot split
+  // by a depth edge, or cut by an occluding contour): the right id, its centroid not the centre
+  int visible = 0, detected = 0, decoded = 0, correct = 0, wrong = 0, mislocated = 0, partial = 0;
   // decodable: visible, and in some 3 x 3 window of the pattern whose nine spots are all
   // visible (its id can be read from what the camera sees); correct_decodable: of those, the
   // ones decoded right
   int decodable = 0, correct_decodable = 0;
+  // resolved: visible and not washed out by the projector's defocus (SpotTruth::resolved);
+  // readable: resolved, in some 3 x 3 window whose nine spots are all resolved
+  int resolved = 0, readable = 0, correct_readable = 0;
   double decode_ms = 0;
 };
 
 struct SweepSummary {
   std::vector<SweepRow> rows;
-  int total_decoded = 0, total_wrong = 0, total_visible = 0, total_mislocated = 0;
+  int total_decoded = 0, total_wrong = 0, total_visible = 0, total_mislocated = 0, total_partial = 0;
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
+  int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
   double mean_rate = 0, min_rate = 1;
   double mean_decodable_rate = 0;  // mean over poses of correct_decodable / decodable
+  double mean_readable_rate = 0;   // mean over poses of correct_readable / readable
   double median_ms = 0, p99_ms = 0;
 };
 

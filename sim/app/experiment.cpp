@@ -28,7 +28,7 @@ std::vector<servo::ImageSpot> observe(const sim::Cell& cell, const servo::ServoP
     if (detected) *detected = 0;
     return spots;
   }
-  return pipeline.locate(sim::render_image(cell, wTc, seed, &scratch, nullptr, &links), detected);
+  return pipeline.locate(sim::render_image(cell, wTc, seed, &scratch, nullptr, &links), wTc, detected);
 }
 
 }  // namespace

@@ -351,6 +351,14 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   return image;
 }
 
+bool spot_resolved(double blur_px, const ProjectorSpec& spec) {
+  // two neighbours as Gaussians of the disc's spread and the blur, one pitch apart: the light
+  // midway is 2 exp(-p^2 / 8 s^2) of a peak; it falls below 40 % when s < p / 3.6
+  const double r = spec.spot_radius_px;
+  const double spread = std::sqrt(blur_px * blur_px + 0.25 * r * r);
+  return spread < spec.spot_pitch_px / 3.6;
+}
+
 std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera, const LinkPoses* links) {
   ArmFrameBuffers buffers;
   const FrameScene scene = pose_scene(cell, links, buffers, false);
@@ -360,6 +368,7 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
   const Intrinsics& k = cell.scenario.camera.intrinsics;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
   const Eigen::Vector3d C = world_T_camera.translation();
+  const Eigen::Isometry3d p_T_w = cell.projector->projector_T_world();
   std::vector<SpotTruth> truth(pat.cells.size());
   for (int r = 0; r < pat.rows; ++r)
     for (int c = 0; c < pat.cols; ++c) {
@@ -374,8 +383,14 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
     t.point_w = h.centre->point_w;
     const Eigen::Vector3d X_c = c_T_w * t.point_w;
     t.depth_m = X_c.z();
+    for (const auto& rim : h.rim)
+      if (rim) {
+        const Eigen::Vector3d R_c = c_T_w * rim->point_w;
+        if (R_c.z() > 1e-3) t.light_px.push_back(cell.camera->project(R_c));
+      }
     if (X_c.z() <= 1e-3) continue;
     t.uv = cell.camera->project(X_c);
+    t.light_px.push_back(t.uv);
     const bool inside = t.uv.x() >= -0.5 && t.uv.y() >= -0.5 && t.uv.x() < k.width - 0.5 && t.uv.y() < k.height - 0.5;
     const bool facing = h.centre->normal_w.dot(C - t.point_w) > 0;
     if (!inside || !facing) continue;
@@ -387,6 +402,8 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
       t.hidden_by_arm = true;
     }
     if (!t.visible) continue;
+    t.blur_px = cell.projector->defocus_sigma_px((p_T_w * t.point_w).z());
+    t.resolved = spot_resolved(t.blur_px, cell.projector->spec());
     for (const auto& rim : h.rim)
       if (rim && rim->object == h.centre->object) {
         const Eigen::Vector3d R_c = c_T_w * rim->point_w;

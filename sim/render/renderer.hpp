@@ -78,7 +78,20 @@ struct SpotTruth {
   double depth_m = 0;              // Z of the centre hit in the camera frame
   Eigen::Vector3d point_w{0, 0, 0};
   std::vector<Eigen::Vector2d> footprint_px;  // projected rim hits on the same object
+  // The projector's defocus blur where the spot lands (sigma, projector pixels), and whether
+  // that blur leaves it a spot: far outside the focus range neighbouring spots wash into one
+  // another (the light between two of them stays above 40 % of their peak), and no decoder
+  // can tell them apart however well it sees.
+  double blur_px = 0;
+  bool resolved = false;  // visible, and not washed out
+  // Where any of the spot's light lands in the image, seen or not: the centre and the rim
+  // hits on every object. A spot split by a depth edge, or whose centre is hidden, still
+  // shows part of its light: a decoder naming that part names the right spot.
+  std::vector<Eigen::Vector2d> light_px;
 };
+
+// Whether a spot blurred by `blur_px` (projector pixels) still stands apart from its neighbours.
+bool spot_resolved(double blur_px, const ProjectorSpec& spec);
 
 // One entry per pattern spot, row-major. Visibility from a Bullet ray from the camera to
 // the spot's centre hit.

@@ -1,0 +1,20 @@
+// The projector's calibration file, as `cellsim calibration` writes it and the servo reads it.
+#pragma once
+
+#include <filesystem>
+
+#include "servo/control/triangulation.hpp"
+#include "servo/pattern/marray.hpp"
+
+namespace servo {
+
+// Reads the projector's calibration (YAML: fx, fy, cx, cy, spot_pitch_px, rows, cols,
+// position_m [x, y, z], orientation_xyzw [x, y, z, w] in the world): what triangulation and
+// the decoder's epipolar check need. Throws std::runtime_error naming the file and the key.
+control::ProjectorModel load_projector_calibration(const std::filesystem::path& file);
+
+// A projector calibration is for one pattern: its rows and columns must match.
+void check_projector_against_pattern(const control::ProjectorModel& m, const pattern::MArray& marray,
+                                     const std::filesystem::path& pattern_file);
+
+}  // namespace servo

@@ -329,8 +329,11 @@ int main(int argc, char** argv) {
   run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
   run->add_option("--projector", projector_file,
                   "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
-                  "desired, current and mean models");
+                  "desired, current and mean models, and decoding with the epipolar check");
   run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
+  bool no_epipolar = false;
+  run->add_flag("--no-epipolar", no_epipolar,
+                "with --projector: triangulate only; decode without the epipolar check and propagation");
 
   servo::ViewOptions view;
   std::string view_out;
@@ -384,6 +387,7 @@ int main(int argc, char** argv) {
       svc.security = cell_dds::security_from_env();
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
+      svc.config.decoder.epipolar.enabled = !no_epipolar;
       return servo::run_servo_service(svc);
     }
     if (*decode) {

@@ -8,7 +8,7 @@ ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
 std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,
                                              int* detected) const {
   std::optional<vision::EpipolarGeometry> geometry;
-  if (wTc && config_.projector)
+  if (wTc && config_.projector && config_.decoder.epipolar.enabled)
     geometry.emplace(config_.camera, *config_.projector, *wTc, config_.decoder.epipolar.tolerance_px);
   const vision::DecodeResult r = decoder_.decode(rgb, geometry ? &*geometry : nullptr);
   if (detected) *detected = static_cast<int>(r.detected.size());

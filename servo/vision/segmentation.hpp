@@ -7,6 +7,7 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -36,7 +37,12 @@ struct Segmentation {
 // Per-frame buffers, reused from call to call when the caller keeps one (allocating and
 // first-touching ~4 MB of images per frame costs as much as half the segmentation).
 struct SegmentationScratch {
-  cv::Mat channels[3], hi, lo, chroma, level, mask;
+  cv::Mat lo, chroma, level, mask;
+  struct RowRun {
+    int v, xl, xr;
+  };
+  std::vector<RowRun> row_runs;
+  std::vector<int> row_start, parent, blob_of;
 };
 
 // Throws std::invalid_argument when the image is empty or not 8-bit, 3-channel.

@@ -82,9 +82,11 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
     });
     if (bj < 0) continue;
     nn_dist[i] = std::sqrt(best);
-    const double a = 4.0 * std::atan2(spots[bj].v - spots[i].v, spots[bj].u - spots[i].u);
-    sx += std::cos(a);
-    sy += std::sin(a);
+    // (cos 4a, sin 4a) as the fourth power of the unit vector (x + iy): no trigonometry
+    const double x = (spots[bj].u - spots[i].u) / nn_dist[i], y = (spots[bj].v - spots[i].v) / nn_dist[i];
+    const double c2 = x * x - y * y, s2 = 2 * x * y;
+    sx += c2 * c2 - s2 * s2;
+    sy += 2 * c2 * s2;
   }
   g.grid_angle_rad = std::atan2(sy, sx) / 4.0;
   const double spacing = median(nn_dist);
@@ -97,28 +99,29 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
   std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
   struct Candidate {
     int j;
-    double du, dv, d;
+    double du, dv, d2;  // squared distance: the square root only for the few in a cone
   };
   std::vector<Candidate> around;  // one spot's neighbours within reach, gathered once for both passes
   const double row_cos = std::cos(35.0 * kPi / 180.0);
   const double col_cos = std::cos(45.0 * kPi / 180.0);
+  const double row_cos2 = row_cos * row_cos, col_cos2 = col_cos * col_cos;
   const double ce = std::cos(g.grid_angle_rad), se = std::sin(g.grid_angle_rad);
   for (std::size_t i = 0; i < n; ++i) {
-    const double reach = 4.0 * std::max(nn_dist[i], 0.5 * spacing);
+    const double reach = 3.5 * std::max(nn_dist[i], 0.5 * spacing);
     const double reach2 = reach * reach;
     around.clear();
     near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
-      if (j == static_cast<int>(i)) return;
       const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
       const double d2 = du * du + dv * dv;
-      if (d2 <= reach2 && d2 > 1e-18) around.push_back({j, du, dv, std::sqrt(d2)});
+      if (d2 <= reach2 && d2 > 1e-18) around.push_back({j, du, dv, d2});  // (j == i has d2 = 0)
     });
-    // rows
-    std::array<double, 2> best{1e18, 1e18};
+    // rows: cos >= row_cos, i.e. dot >= 0 and dot^2 >= row_cos^2 d^2
+    std::array<double, 2> best{1e300, 1e300};
     for (const Candidate& c : around) {
-      const double cosine = (c.du * ce + c.dv * se) / c.d;
-      if (cosine >= row_cos && c.d < best[0]) best[0] = c.d, cand[i][kEast] = c.j;
-      if (-cosine >= row_cos && c.d < best[1]) best[1] = c.d, cand[i][kWest] = c.j;
+      const double dot = c.du * ce + c.dv * se;
+      if (dot * dot < row_cos2 * c.d2) continue;
+      const int side = dot > 0 ? 0 : 1;
+      if (c.d2 < best[side]) best[side] = c.d2, cand[i][side == 0 ? kEast : kWest] = c.j;
     }
     // this spot's row direction, from its east and west candidates when it has them
     double ru = ce, rv = se;
@@ -136,14 +139,16 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
     }
     // columns
     const double pu = -rv, pv = ru;  // the perpendicular, pointing south (image y down)
-    best = {1e18, 1e18};
+    best = {1e300, 1e300};
     for (const Candidate& c : around) {
-      const double cosine = (c.du * pu + c.dv * pv) / c.d;
-      if (std::abs(cosine) < col_cos) continue;
+      const double dot = c.du * pu + c.dv * pv;
+      if (dot * dot < col_cos2 * c.d2) continue;
+      const double d = std::sqrt(c.d2);
+      const double cosine = std::min(1.0, std::abs(dot) / d);
       // ~ d (1 + 2 angle): sqrt(2 (1 - cos)) is the angle to within 4 % below 45 deg, sans acos
-      const double score = c.d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - std::min(1.0, std::abs(cosine)))));
-      if (cosine > 0 && score < best[0]) best[0] = score, cand[i][kSouth] = c.j;
-      if (cosine < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
+      const double score = d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - cosine)));
+      if (dot > 0 && score < best[0]) best[0] = score, cand[i][kSouth] = c.j;
+      if (dot < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
     }
   }
   std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
@@ -283,6 +288,9 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
         votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}});
   }
 }
+
+// how far (fraction of a lattice step) a propagated spot may be from where the lattice puts it
+constexpr double kLatticeSlack = 0.25;
 
 // how much a run's step may change from one spot to the next (fraction of the step)
 constexpr double kRunBend = 0.4;
@@ -459,7 +467,7 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
       if (a < 0 || b < 0) continue;
       const double vu = spots[b].u - spots[a].u, vv = spots[b].v - spots[a].v;
       const double eu = spots[j].u - spots[from.spot].u - vu, ev = spots[j].v - spots[from.spot].v - vv;
-      return eu * eu + ev * ev <= 0.35 * 0.35 * (vu * vu + vv * vv);
+      return eu * eu + ev * ev <= kLatticeSlack * kLatticeSlack * (vu * vu + vv * vv);
     }
     return false;  // nothing to compare with: not propagated
   };
@@ -475,10 +483,11 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
     if (pattern.at(next.row, next.col) != spots[b].colour) return false;
     const double vu = spots[j].u - spots[from.spot].u, vv = spots[j].v - spots[from.spot].v;
     const double eu = spots[b].u - spots[j].u - vu, ev = spots[b].v - spots[j].v - vv;
-    return eu * eu + ev * ev <= 0.35 * 0.35 * (vu * vu + vv * vv);
+    return eu * eu + ev * ev <= kLatticeSlack * kLatticeSlack * (vu * vu + vv * vv);
   };
-  // In rounds: an undecoded spot takes an id when at least `min_sources` decoded spots linked
-  // to it propose the same id (and none proposes another).
+  // In rounds: an undecoded spot takes an id when at least `min_sources` decoded spots around
+  // it (one of them linked) propose the same id (and none proposes another).
+  const Neighbourhoods hoods = check_graph_consistency(graph);
   struct Proposal {
     pattern::SpotId id{-1, -1};
     int sources = 0;
@@ -500,6 +509,20 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
         p.id = id;
         ++p.sources;
       }
+    // decoded diagonal neighbours (corners that both paths round agree on) second a proposal:
+    // a spot beyond a decoded edge has its one linked source and two corners
+    for (std::size_t j = 0; j < spots.size(); ++j) {
+      Proposal& p = proposals[j];
+      if (p.sources == 0 || p.conflict) continue;
+      for (const int i : {0, 2, 6, 8}) {
+        const int q = hoods.window[j][i];
+        if (q < 0 || at[q] < 0) continue;
+        const DecodedSpot& d = decoded[at[q]];
+        const pattern::SpotId id{d.row - (i / 3 - 1), d.col - (i % 3 - 1)};
+        if (!(p.id == id)) p.conflict = true;
+        ++p.sources;
+      }
+    }
     for (std::size_t j = 0; j < spots.size(); ++j) {
       const Proposal& p = proposals[j];
       if (p.conflict || p.sources < min_sources) continue;

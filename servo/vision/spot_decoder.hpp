@@ -104,10 +104,12 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const EpipolarCheck& check, const pattern::MArray& pattern,
-                                       std::vector<DecodedSpot> decoded, int min_sources = 2);
+                                       std::vector<DecodedSpot> decoded, int min_sources = 3);
 
 // How the decoder uses a frame's epipolar geometry, when it is given one.
 struct EpipolarOptions {
+  // false: the decoder ignores the calibration (it still serves triangulation)
+  bool enabled = true;
   double tolerance_px = 3.0;  // centroid error on curved surfaces is ~1 px; calibration adds to it
   // The epipolar lines of one frame often run along the pattern's rows: they tell the row, not
   // the column, so a window misread one column over still passes. Votes and islands stay.
@@ -122,10 +124,12 @@ struct EpipolarOptions {
   // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.
   bool tolerant = false;
   bool propagate = true;   // step 6
-  // decoded neighbours that must propose the same id: at an object's edge the spot beyond
-  // (on the surface behind) can sit where the lattice goes on, on the same epipolar line, so
-  // one source is not enough; two linked sources rarely both agree on a spot behind an edge
-  int min_sources = 2;
+  // decoded neighbours (linked, or corners of its window) that must propose the same id: at an
+  // object's edge the spot beyond (on the surface behind) can sit where the lattice goes on,
+  // on the same epipolar line, so one source is not enough. Three: a spot beyond a decoded edge
+  // has its linked source and two corners; two let 17 wrong ids through in 1000 ham poses
+  // (a spot's sliver cut by the ham's silhouette), three none
+  int min_sources = 3;
 };
 
 struct DecoderOptions {

@@ -131,8 +131,12 @@ struct LawFlags {
   std::vector<double> adaptive;  // l0 linf slope
   double converge_mm = 1e3 * control::ControlLawParams{}.convergence_translation_m;
   double converge_deg = control::ControlLawParams{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
+  bool epipolar = false;
 
   void add(CLI::App* c) {
+    c->add_flag("--epipolar", epipolar,
+                "decode with the projector's calibration (epipolar check and propagation), as `servo run "
+                "--projector` does");
     c->add_option("--model", model, "desired-constant-depth | desired | current | mean")->capture_default_str();
     c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the mean depth of the lit spots "
                                     "at the desired pose, from the simulator (the paper's runs pass 0.9 or 0.6)");
@@ -149,6 +153,7 @@ struct LawFlags {
     cfg.law.gain = adaptive.size() == 3 ? control::Gain{adaptive[0], adaptive[1], adaptive[2]} : control::Gain{gain, gain, 0};
     cfg.law.convergence_translation_m = converge_mm / 1e3;
     cfg.law.convergence_rotation_rad = converge_deg * 3.14159265358979323846 / 180;
+    cfg.decoder.epipolar.enabled = epipolar;
   }
 };
 

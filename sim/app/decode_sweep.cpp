@@ -98,9 +98,16 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
           if (dist < best) best = dist, nearest = &t;
         }
         const sim::SpotTruth& named = truth[static_cast<std::size_t>(d.row) * cols + d.col];
-        const bool named_light = std::any_of(named.light_px.begin(), named.light_px.end(), [&](const auto& p) {
-          return std::hypot(p.x() - d.u, p.y() - d.v) <= kPartialPx;
-        });
+        // inside (or within kPartialPx of) the outline of the named spot's light: a blob cut
+        // by an edge has its centroid inside the footprint, far from the centre and the rim
+        bool named_light = false;
+        if (!named.light_px.empty()) {
+          std::vector<cv::Point2f> pts, hull;
+          for (const auto& p : named.light_px) pts.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+          cv::convexHull(pts, hull);
+          named_light = cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(d.u), static_cast<float>(d.v)), true) >=
+                        -kPartialPx;
+        }
         if ((!nearest || nearest->row != d.row || nearest->col != d.col) && named_light) {
           ++row.partial;
         } else if (!nearest || nearest->row != d.row || nearest->col != d.col) {

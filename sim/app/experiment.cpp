@@ -56,6 +56,9 @@ servo::ServoConfig servo_config_for(const sim::Cell& cell) {
   pm.cols = cell.projector->pattern().cols;
   pm.world_T_projector = p.world_T_projector;
   c.projector = pm;
+  // the projector's calibration is there for triangulation; decoding with it is an option
+  // (`cellsim experiment --epipolar`), so runs compare with a servo started without --projector
+  c.decoder.epipolar.enabled = false;
   c.law.max_linear_mps = cell.scenario.robot.max_linear_mps;
   c.law.max_angular_radps = cell.scenario.robot.max_angular_radps;
   return c;

@@ -26,5 +26,6 @@ one_line_error "corrupt mesh" "broken.obj: line 3: face corner '7' refers to no 
 out=$("$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 4 -o "$tmp/sweep") || fail "decode-sweep: $out"
 grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no decodable rate: $out"
-head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable$" || fail "sweep.csv lacks the decodable columns"
+head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable$" ||
+  fail "sweep.csv lacks the decodable columns"
 echo "cellsim render: all checks passed"

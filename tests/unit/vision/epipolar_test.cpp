@@ -1,0 +1,219 @@
+// The decoder's epipolar steps (issue 12): the check itself, the rejection of a window that
+// reads a valid but wrong code, and the propagation of ids to linked neighbours, on frames the
+// simulator renders (its truth is the oracle; the decoder never sees it).
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "servo/vision/epipolar.hpp"
+#include "servo/vision/spot_decoder.hpp"
+#include "sim/render/renderer.hpp"
+
+namespace {
+
+std::string scenario(const char* name) { return std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + name + ".yaml"; }
+
+// What `cellsim calibration` writes, exact.
+control::ProjectorModel calibration_of(const sim::Cell& cell) {
+  const sim::ProjectorSpec& p = cell.projector->spec();
+  control::ProjectorModel m;
+  m.fx = p.intrinsics.fx, m.fy = p.intrinsics.fy, m.cx = p.intrinsics.cx, m.cy = p.intrinsics.cy;
+  m.spot_pitch_px = p.spot_pitch_px;
+  m.rows = cell.projector->pattern().rows;
+  m.cols = cell.projector->pattern().cols;
+  m.world_T_projector = p.world_T_projector;
+  return m;
+}
+
+control::CameraIntrinsics intrinsics_of(const sim::Cell& cell) {
+  const sim::CameraSpec& c = cell.scenario.camera;
+  return {c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy, c.distortion};
+}
+
+struct Frame {
+  std::unique_ptr<sim::Cell> cell;
+  Eigen::Isometry3d wTc;
+  cv::Mat rgb;
+  std::vector<sim::SpotTruth> truth;
+};
+
+Frame render(const char* name, bool initial) {
+  Frame f;
+  f.cell = sim::build_cell(sim::load_scenario(scenario(name)));
+  f.wTc = initial ? f.cell->scenario.world_T_initial() : f.cell->scenario.world_T_desired;
+  f.rgb = sim::render_image(*f.cell, f.wTc, sim::frame_seed(f.cell->scenario.seed, 0));
+  f.truth = sim::compute_truth(*f.cell, f.wTc);
+  return f;
+}
+
+// the id of the visible spot within 2 px of (u, v), or none
+std::optional<pattern::SpotId> truth_at(const Frame& f, double u, double v) {
+  for (const auto& t : f.truth)
+    if (t.visible && std::hypot(t.uv.x() - u, t.uv.y() - v) < 2.0) return pattern::SpotId{t.row, t.col};
+  return std::nullopt;
+}
+
+TEST(EpipolarGeometry, TheTrueIdLiesOnItsLineAndItsNeighboursAcrossTheLinesDoNot) {
+  const Frame f = render("plane", false);
+  const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
+  int checked = 0, neighbours_off = 0, neighbours = 0;
+  for (const auto& t : f.truth) {
+    if (!t.visible) continue;
+    const Eigen::Vector2d xy = g.normalise(t.uv.x(), t.uv.y());
+    EXPECT_LT(g.residual_px(xy, {t.row, t.col}), 0.05) << t.row << "," << t.col;
+    ++checked;
+    for (int dr : {-1, 1}) {  // the next row's id is on another line
+      if (t.row + dr < 0 || t.row + dr >= 20) continue;
+      ++neighbours;
+      neighbours_off += !g.consistent(xy, {t.row + dr, t.col});
+    }
+  }
+  EXPECT_GT(checked, 350);
+  EXPECT_GT(neighbours_off, neighbours * 9 / 10);
+  // outside the pattern, and NaN coordinates, never pass
+  EXPECT_FALSE(g.consistent({0, 0}, {-1, 0}));
+  EXPECT_FALSE(g.consistent({0, 0}, {0, 20}));
+  EXPECT_FALSE(g.consistent({std::nan(""), 0}, {5, 5}));
+}
+
+TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
+  // camera at the origin looking along +Z; projector 0.3 m to its side, looking the same way
+  control::ProjectorModel p;
+  p.world_T_projector = Eigen::Isometry3d::Identity();
+  p.world_T_projector.translation() = Eigen::Vector3d(0.3, 0, 0);
+  const control::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
+  const vision::EpipolarGeometry g(cam, p, Eigen::Isometry3d::Identity(), 3.0);
+  const Eigen::Vector3d o(0.3, 0, 0), b = p.spot_ray(7, 12);
+  const auto image_of = [](const Eigen::Vector3d& x) { return Eigen::Vector2d(x.x() / x.z(), x.y() / x.z()); };
+  const Eigen::Vector3d in_front = o + 1.0 * b;
+  EXPECT_LT(g.residual_px(image_of(in_front), {7, 12}), 1e-6);
+  EXPECT_FALSE(g.consistent(image_of(in_front), {8, 12}));
+  // a point on the projector ray's backward extension (t < 0; here also behind the camera)
+  // is on both lines, so its image lies on the epipolar line, yet no light of spot (7, 12)
+  // can be seen there
+  const Eigen::Vector3d x_back = o - 0.5 * b;
+  ASSERT_LT(x_back.z(), 0);
+  const Eigen::Vector2d xy_back = image_of(x_back);
+  EXPECT_LT(std::abs(Eigen::Vector3d(xy_back.x(), xy_back.y(), 1).dot(o.cross(b))) /
+                std::hypot(o.cross(b).x(), o.cross(b).y()) * 800, 1e-6);
+  EXPECT_FALSE(g.consistent(xy_back, {7, 12}));
+}
+
+// Recolour the 9 spots of one decoded window with the colours of another window of the
+// pattern: the window then reads as a valid code, with a wrong id.
+TEST(EpipolarDecoding, AWindowThatReadsAValidButWrongCodeComesOutUnidentifiedOrRight) {
+  const Frame f = render("plane", false);
+  const pattern::MArray& pat = f.cell->projector->pattern();
+  const pattern::WindowTable table(pat, {3, 3});
+  const vision::SpotDecoder decoder(table);
+  const vision::DecodeResult clean = decoder.decode(f.rgb);
+  std::vector<vision::Spot> spots = clean.detected;
+  const vision::AdjacencyGraph graph = vision::build_adjacency(spots);
+  const vision::Neighbourhoods hoods = vision::check_graph_consistency(graph);
+  // a full window near the centre of the image, and the pattern window (r0, c0) to imitate
+  int centre = -1;
+  for (std::size_t s = 0; s < spots.size() && centre < 0; ++s) {
+    const auto id = truth_at(f, spots[s].u, spots[s].v);
+    bool full = true;
+    for (int k : hoods.window[s]) full = full && k >= 0;
+    if (full && id && id->row == 10 && id->col == 10) centre = static_cast<int>(s);
+  }
+  ASSERT_GE(centre, 0);
+  const pattern::SpotId fake{4, 15};  // far away, on other epipolar lines
+  for (int i = 0; i < 9; ++i)
+    spots[hoods.window[centre][i]].colour = pat.at(fake.row + i / 3 - 1, fake.col + i % 3 - 1);
+
+  // without the check the tampered window is read as the fake id: the temptation is real
+  const auto plain = vision::read_windows(spots, hoods, table);
+  const auto read_as_fake = [&](const std::vector<vision::WindowReading>& readings) {
+    for (const auto& r : readings)
+      if (r.centre == centre && r.id == fake) return true;
+    return false;
+  };
+  ASSERT_TRUE(read_as_fake(plain));
+
+  // with it, the reading is rejected, even in error-tolerant mode ...
+  const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
+  const vision::EpipolarCheck check(g, spots);
+  EXPECT_FALSE(read_as_fake(vision::read_windows(spots, hoods, table, {}, &check)));
+  EXPECT_FALSE(read_as_fake(vision::read_windows(spots, hoods, table, vision::ToleranceOptions{true}, &check)));
+  // ... and every spot the full decoder names (with votes as low as 1) is named right
+  for (int min_votes : {1, 3}) {
+    vision::DecoderOptions o;
+    o.epipolar.min_votes = min_votes;
+    o.epipolar.min_island = 1;
+    o.epipolar.tolerant = true;
+    const vision::SpotDecoder d(table, o);
+    const vision::DecodeResult r = d.decode_spots(spots, &g);
+    int wrong = 0;
+    for (const auto& s : r.decoded) {
+      const auto id = truth_at(f, s.u, s.v);
+      wrong += !id || !(*id == pattern::SpotId{s.row, s.col});
+    }
+    EXPECT_EQ(wrong, 0) << "min_votes " << min_votes;
+    EXPECT_GT(r.decoded.size(), 300u);
+  }
+}
+
+TEST(EpipolarDecoding, IdsPropagateToNeighboursOnlyWhenThreeSourcesColourAndLineAgree) {
+  const Frame f = render("plane", false);
+  const pattern::MArray& pat = f.cell->projector->pattern();
+  const std::vector<vision::Spot>& spots = vision::SpotDecoder(pattern::WindowTable(pat, {3, 3})).decode(f.rgb).detected;
+  const vision::AdjacencyGraph graph = vision::build_adjacency(spots);
+  const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
+  const vision::EpipolarCheck check(g, spots);
+  // seeds: the true ids of rows 8..11, columns 6..13 (a decoded island); everything else is
+  // undecoded and must be reached by propagation
+  std::vector<vision::DecodedSpot> seeds;
+  std::map<int, pattern::SpotId> truth;
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    if (const auto id = truth_at(f, spots[s].u, spots[s].v)) {
+      truth[static_cast<int>(s)] = *id;
+      if (id->row >= 8 && id->row <= 11 && id->col >= 6 && id->col <= 13)
+        seeds.push_back({id->row, id->col, spots[s].u, spots[s].v, static_cast<int>(s)});
+    }
+  ASSERT_EQ(seeds.size(), 32u);
+  const auto grown = vision::propagate_ids(spots, graph, check, pat, seeds, 3);
+  int wrong = 0;
+  for (const auto& d : grown) wrong += !(truth.at(d.spot) == pattern::SpotId{d.row, d.col});
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GT(grown.size(), 300u);  // from 32 seeds over the plane
+
+  // a spot whose colour disagrees with the pattern at the id it would take stays unnamed
+  std::vector<vision::Spot> recoloured = spots;
+  int victim = -1;
+  for (const auto& [s, id] : truth)
+    if (id.row == 12 && id.col == 9) victim = s;
+  ASSERT_GE(victim, 0);
+  recoloured[victim].colour = (recoloured[victim].colour + 1) % 3;
+  const vision::EpipolarCheck check2(g, recoloured);
+  for (const auto& d : vision::propagate_ids(recoloured, graph, check2, pat, seeds, 3)) EXPECT_NE(d.spot, victim);
+
+  // a lone decoded spot proposes at most one id to each neighbour: nothing grows from it
+  std::vector<vision::DecodedSpot> one{seeds.front()};
+  EXPECT_EQ(vision::propagate_ids(spots, graph, check, pat, one, 3).size(), 1u);
+  // two decoded rows: a spot above them has one linked source (whose step the row below
+  // confirms) and two corners, and the rows grow upwards (and on)
+  std::vector<vision::DecodedSpot> rows;
+  for (const auto& d : seeds)
+    if (d.row >= 10) rows.push_back(d);
+  const auto from_rows = vision::propagate_ids(spots, graph, check, pat, rows, 3);
+  EXPECT_TRUE(std::any_of(from_rows.begin(), from_rows.end(), [](const auto& d) { return d.row == 9; }));
+}
+
+TEST(EpipolarDecoding, CalibratedDecodingNamesMoreSpotsOnTheCylinderAndNoneWrong) {
+  for (const char* name : {"cylinder", "ham"}) {
+    const Frame f = render(name, true);
+    const vision::SpotDecoder decoder(pattern::WindowTable(f.cell->projector->pattern(), {3, 3}));
+    const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
+    const auto without = decoder.decode(f.rgb);
+    const auto with = decoder.decode(f.rgb, &g);
+    EXPECT_GT(with.decoded.size(), without.decoded.size()) << name;
+    for (const auto& d : with.decoded) {
+      const auto id = truth_at(f, d.u, d.v);
+      EXPECT_TRUE(id && *id == (pattern::SpotId{d.row, d.col})) << name << " " << d.row << "," << d.col;
+    }
+  }
+}
+
+}  // namespace

@@ -194,12 +194,13 @@ double median_of(std::vector<double> v) {
 // one line and the others still go; the exit code says whether all went.
 int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const std::string& json_out,
                const std::string& json_dir, const std::string& overlay_out, bool tolerant, int min_votes,
-               const EpipolarInputs& epipolar) {
+               const EpipolarInputs& epipolar, int segment_length) {
   const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
   if (epipolar.projector) servo::check_projector_against_pattern(*epipolar.projector, marray, pattern_file);
   vision::DecoderOptions options;
   options.tolerance.enabled = tolerant;
   options.min_votes = min_votes;
+  options.epipolar.segment_length = segment_length;
   const vision::SpotDecoder decoder(pattern::WindowTable(marray, {3, 3}), options);
   const std::vector<std::filesystem::path> images = image_list(args);
   if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty()))
@@ -297,6 +298,12 @@ int main(int argc, char** argv) {
   decode->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
       ->check(CLI::Range(1, 9))->capture_default_str();
   std::string decode_projector;
+  int segment_length = vision::EpipolarOptions{}.segment_length;
+  decode->add_option("--segment-length", segment_length,
+                     "with --projector: spots in a 1 x N row or column reading (0: off; more ids on curved "
+                     "objects, rare wrong ids at depth edges: docs/decoding.md)")
+      ->check(CLI::Range(0, 15))
+      ->capture_default_str();
   std::vector<double> decode_camera, decode_pose;
   decode->add_option("--projector", decode_projector,
                      "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
@@ -411,7 +418,7 @@ int main(int argc, char** argv) {
       if (!decode_pose.empty())
         epi.fixed_pose = pose_from("--camera-pose", {decode_pose[0], decode_pose[1], decode_pose[2]},
                                    {decode_pose[3], decode_pose[4], decode_pose[5], decode_pose[6]});
-      return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes, epi);
+      return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes, epi, segment_length);
     }
   } catch (const std::exception& e) {
     std::string what = e.what();

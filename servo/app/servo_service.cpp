@@ -313,7 +313,8 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
   try {
     const Reader top(file, config::load_yaml_file(file, "servo configuration"));
     top.only_keys({"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps", "min_points",
-                   "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant"});
+                   "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant", "epipolar_px",
+                   "segment_length", "propagate_sources"});
     constexpr double kDeg = 3.14159265358979323846 / 180;
     if (top.has("model")) {
       const Reader m = top.at("model");
@@ -343,6 +344,10 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     if (top.has("min_votes")) c.decoder.min_votes = top.at("min_votes").integer_in(1, 9);
     if (top.has("min_island")) c.decoder.min_island = top.at("min_island").integer_in(0, 4096);
     if (top.has("tolerant")) c.decoder.tolerance.enabled = top.at("tolerant").boolean();
+    // with a projector calibration (--projector): the epipolar steps (docs/decoding.md)
+    if (top.has("epipolar_px")) c.decoder.epipolar.tolerance_px = top.at("epipolar_px").in_range(0.01, 100);
+    if (top.has("segment_length")) c.decoder.epipolar.segment_length = top.at("segment_length").integer_in(0, 15);
+    if (top.has("propagate_sources")) c.decoder.epipolar.min_sources = top.at("propagate_sources").integer_in(1, 9);
   } catch (const config::ConfigError& e) {
     throw std::runtime_error(e.what());
   }

@@ -28,4 +28,16 @@ grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window):
   fail "no decodable rate: $out"
 head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable$" ||
   fail "sweep.csv lacks the decodable columns"
+grep -q "against the readable spots" <<<"$out" || fail "no readable rate: $out"
+[ -f "$tmp/sweep/wrong_ids.csv" ] || fail "no wrong_ids.csv"
+# with the projector's calibration: more spots identified, none wrong (the exit code says so)
+"$cellsim" calibration "$src/sim/scenarios/cylinder.yaml" -o "$tmp/cyl.yaml" >/dev/null || fail "calibration"
+count() { grep -o 'decoded [0-9]* of' <<<"$1" | cut -d' ' -f2; }
+plain=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6) || fail "sweep without calibration"
+cal=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6 --projector "$tmp/cyl.yaml") ||
+  fail "sweep with calibration (wrong ids?): $cal"
+[ "$(count "$cal")" -gt "$(count "$plain")" ] || fail "calibration decoded $(count "$cal"), without $(count "$plain")"
+grep -q "wrong ids 0," <<<"$cal" || fail "wrong ids with the calibration: $cal"
+printf 'fx: 1500\n' > "$tmp/badcal.yaml"
+one_line_error "sweep calibration" "fy: missing" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 1 --projector "$tmp/badcal.yaml"
 echo "cellsim render: all checks passed"

@@ -37,6 +37,9 @@ cfg 'min_votes: 10\n' "min_votes: must be an integer in 1..9"
 cfg 'min_island: 1e300\n' "min_island: must be an integer"
 cfg 'gain: [1, 2]\n' "gain: must be a number, got a list"
 cfg 'tolerant: maybe\n' "tolerant: must be true or false"
+cfg 'segment_length: 99\n' "segment_length: must be an integer in 0..15"
+cfg 'epipolar_px: .nan\n' "epipolar_px: must be a finite number"
+cfg 'propagate_sources: 0\n' "propagate_sources: must be an integer in 1..9"
 cfg 'gain: 0.5\ngain: 0.6\n' "gain: key given twice"
 cfg 'gain: "\\x01\\xff"\n' "gain: must be a number"
 cfg 'gain: [\n' "YAML syntax error"
@@ -83,4 +86,39 @@ grep -q "bad.png" <<<"$err" || fail "the bad image was not named: $err"
 one_line_error "--json with several" "for several, --json-dir" "$servo" decode "$tmp/frames" --pattern "$pattern" --json "$tmp/x.json"
 mkdir -p "$tmp/empty_dir"
 one_line_error "empty folder" "no image files" "$servo" decode "$tmp/empty_dir" --pattern "$pattern"
+
+# issue 12: decoding with the projector's calibration (the camera pose from the image's
+# <stem>.json, as `cellsim render --truth` writes it, or --camera-pose)
+"$cellsim" calibration "$src/sim/scenarios/cylinder.yaml" -o "$tmp/cyl_proj.yaml" >/dev/null || fail "calibration"
+mkdir -p "$tmp/cal"
+"$cellsim" render "$src/sim/scenarios/cylinder.yaml" --pose initial -o "$tmp/cal/cyl.png" --truth "$tmp/cal/cyl.json" >/dev/null ||
+  fail "render cylinder"
+cam=(--camera 800 800 319.5 239.5 -0.08 0.02 0 0 0)
+plain=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" | grep -o '[0-9]* decoded' | cut -d' ' -f1)
+calibrated=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" |
+  grep -o '[0-9]* decoded' | cut -d' ' -f1)
+[ -n "$plain" ] && [ -n "$calibrated" ] && [ "$calibrated" -gt "$plain" ] ||
+  fail "the calibration did not identify more spots: $plain without, $calibrated with"
+pose=$(/usr/bin/python3 -c "
+import json; c = json.load(open('$tmp/cal/cyl.json'))['camera_pose']; print(*c['position_m'], *c['orientation_xyzw'])")
+given=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose $pose |
+  grep -o '[0-9]* decoded' | cut -d' ' -f1)
+[ "$given" = "$calibrated" ] || fail "--camera-pose decoded $given, the sidecar pose $calibrated"
+one_line_error "projector without camera" "--projector needs --camera" \
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml"
+one_line_error "no pose" "no camera pose" \
+  "$servo" decode "$tmp/plane.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
+one_line_error "pose quaternion" "unit quaternion" \
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose 0 0 1 0 0 0 0.5
+one_line_error "pose 1e300" "finite" \
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose 1e300 0 1 0 0 0 1
+one_line_error "camera focal" "fx and fy must be > 0" \
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" --camera 0 800 319.5 239.5
+cp "$tmp/cal/cyl.png" "$tmp/cal/broken.png"
+printf '{"camera_pose": {"position_m": [0, 0]}}' > "$tmp/cal/broken.json"
+one_line_error "short sidecar" "broken.json" \
+  "$servo" decode "$tmp/cal/broken.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
+printf '{"camera_pose": ' > "$tmp/cal/broken.json"
+one_line_error "sidecar not JSON" "broken.json" \
+  "$servo" decode "$tmp/cal/broken.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
 echo "servo CLI: all checks passed"

@@ -191,8 +191,23 @@ struct DecoderTarget : Target {
     }
     // and sometimes an odd size
     if (rng() % 8 == 0) img = img(cv::Rect(0, 0, 1 + static_cast<int>(rng() % img.cols), 1 + static_cast<int>(rng() % img.rows))).clone();
+    // half the time with the frame's epipolar geometry, from a pose nudged off the true one
+    // (or a wild one): the calibrated steps see the same images
+    std::optional<vision::EpipolarGeometry> geometry;
+    if (rng() % 2) {
+      Eigen::Isometry3d wTc = cell->scenario.world_T_initial();
+      const double scale = rng() % 10 == 0 ? 1e3 : 0.02;
+      std::uniform_real_distribution<double> u(-1, 1);
+      wTc.translation() += scale * Eigen::Vector3d(u(rng), u(rng), u(rng));
+      const sim::CameraSpec& c = cell->scenario.camera;
+      control::ProjectorModel p;
+      p.world_T_projector = cell->projector->world_T_projector();
+      geometry.emplace(control::CameraIntrinsics{c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy,
+                                                 c.distortion},
+                       p, wTc, 0.5 + static_cast<double>(rng() % 100) / 10.0);
+    }
     try {
-      decoder.decode(img);
+      decoder.decode(img, geometry ? &*geometry : nullptr);
     } catch (const std::exception&) {
     }
   }

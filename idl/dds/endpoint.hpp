@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <functional>
 #include <stdexcept>
+#include <chrono>
 #include <string>
 
 #include "dds/participant.hpp"
@@ -58,6 +59,14 @@ class Writer {
   Writer& operator=(const Writer&) = delete;
 
   bool write(Data& sample) { return writer_->write(&sample); }
+  // Waits (bounded) until every matched reliable reader has acknowledged what was written: a
+  // process that writes its last word and exits would otherwise take it down with its writer.
+  bool flush(std::chrono::milliseconds limit) {
+    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(limit).count();
+    return writer_->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(
+               static_cast<int32_t>(ns / 1000000000), static_cast<uint32_t>(ns % 1000000000))) ==
+           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK;
+  }
   int matched() const {
     eprosima::fastdds::dds::PublicationMatchedStatus s;
     writer_->get_publication_matched_status(s);

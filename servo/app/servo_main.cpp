@@ -338,6 +338,11 @@ int main(int argc, char** argv) {
                   "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
                   "desired, current and mean models, and decoding with the epipolar check");
   run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
+  int points = -1;
+  run->add_option("--points", points,
+                  "servo on this many points, chosen at teaching for the best-conditioned interaction matrix "
+                  "(0: all)")
+      ->check(CLI::Range(0, 4096));
   bool no_epipolar = false;
   run->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
@@ -395,6 +400,7 @@ int main(int argc, char** argv) {
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       svc.config.decoder.epipolar.enabled = !no_epipolar;
+      if (points >= 0) svc.config.points = points;
       return servo::run_servo_service(svc);
     }
     if (*decode) {

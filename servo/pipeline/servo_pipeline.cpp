@@ -1,5 +1,7 @@
 #include "servo/pipeline/servo_pipeline.hpp"
 
+#include <algorithm>
+
 namespace servo {
 
 ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
@@ -33,6 +35,15 @@ std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpo
 
 int ServoPipeline::teach(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& wTc) {
   reference_ = features(spots, wTc);
+  selected_.clear();
+  if (config_.points > 0 && reference_.size() > static_cast<std::size_t>(config_.points)) {
+    // s = s* at the desired pose: the subset is chosen on the matrix the law will start from
+    // near convergence, and kept, so the features do not change from one iteration to the next
+    const auto at_goal = control::match_features(reference_, reference_);
+    for (const auto& p : control::best_conditioned_subset(at_goal, static_cast<std::size_t>(config_.points), config_.law))
+      selected_.emplace_back(p.row, p.col);
+    std::sort(selected_.begin(), selected_.end());
+  }
   return static_cast<int>(reference_.size());
 }
 
@@ -41,6 +52,15 @@ StepResult ServoPipeline::step(const std::vector<ImageSpot>& spots, const std::o
   r.decoded = static_cast<int>(spots.size());
   r.features = features(spots, wTc);
   r.matched = control::match_features(r.features, reference_);
+  if (config_.points > 0 && r.matched.size() > static_cast<std::size_t>(config_.points)) {
+    std::vector<control::MatchedPoint> kept;
+    for (const auto& m : r.matched)
+      if (std::binary_search(selected_.begin(), selected_.end(), std::pair{m.row, m.col})) kept.push_back(m);
+    // some chosen points are hidden or lost: choose again among those seen, this iteration
+    if (kept.size() < static_cast<std::size_t>(config_.points))
+      kept = control::best_conditioned_subset(r.matched, static_cast<std::size_t>(config_.points), config_.law);
+    r.matched = std::move(kept);
+  }
   r.control = control::compute_control(r.matched, config_.law);
   return r;
 }

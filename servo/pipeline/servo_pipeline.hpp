@@ -23,6 +23,9 @@ struct ServoConfig {
   control::CameraIntrinsics camera;
   // the calibrated projector: needed to triangulate depths (models desired, current, mean)
   std::optional<control::ProjectorModel> projector;
+  // Point selection (issue 13, item 5): > 0 servos on this many points, chosen at teaching
+  // for the best-conditioned interaction matrix (control::best_conditioned_subset); 0: all.
+  int points = 0;
 };
 
 // A spot located in the image with its identity: from the decoder, or from the simulator's
@@ -71,6 +74,7 @@ class ServoPipeline {
   vision::SpotDecoder decoder_;
   ServoConfig config_;
   std::vector<control::Feature> reference_;
+  std::vector<std::pair<int, int>> selected_;  // the (row, col) ids chosen at teaching, sorted
 };
 
 }  // namespace servo

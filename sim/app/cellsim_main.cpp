@@ -132,8 +132,14 @@ struct LawFlags {
   double converge_mm = 1e3 * control::ControlLawParams{}.convergence_translation_m;
   double converge_deg = control::ControlLawParams{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
   bool epipolar = false;
+  int points = 0;
 
   void add(CLI::App* c) {
+    c->add_option("--points", points,
+                  "servo on this many points, chosen at teaching for the best-conditioned interaction matrix "
+                  "(0: all)")
+        ->check(CLI::Range(0, 4096))
+        ->capture_default_str();
     c->add_flag("--epipolar", epipolar,
                 "decode with the projector's calibration (epipolar check and propagation), as `servo run "
                 "--projector` does");
@@ -154,6 +160,7 @@ struct LawFlags {
     cfg.law.convergence_translation_m = converge_mm / 1e3;
     cfg.law.convergence_rotation_rad = converge_deg * 3.14159265358979323846 / 180;
     cfg.decoder.epipolar.enabled = epipolar;
+    cfg.points = points;
   }
 };
 
@@ -281,6 +288,10 @@ int main(int argc, char** argv) {
   LawFlags camp_law;
   cp->add_option("--z-hat", camp_law.z_hat, "depth of desired-constant-depth (m)");
   cp->add_option("--gain", camp_law.gain, "constant gain")->capture_default_str();
+  cp->add_option("--points", camp_law.points, "servo on this many best-conditioned points (0: all)")
+      ->check(CLI::Range(0, 4096))
+      ->capture_default_str();
+  cp->add_flag("--epipolar", camp_law.epipolar, "decode with the projector's calibration");
 
   cellsim::ServiceOptions svc;
   std::string mode = "lockstep", svc_trace;

@@ -34,6 +34,27 @@ TEST(InProcessLoop, PlaneConvergesUnder1mmAnd0_1Deg) {
   EXPECT_LT(r.trace.back().error_norm, 0.01 * r.trace.front().error_norm);
 }
 
+// Issue 13, item 5: point selection. The plane converges on 8 best-conditioned points, the
+// law sees exactly those 8 at every iteration, and the run differs from the all-points one.
+TEST(InProcessLoop, PlaneConvergesOnEightBestConditionedPoints) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + "plane.yaml"));
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.servo.points = 8;
+  o.max_iterations = 600;
+  const auto r = cellsim::run_experiment(*cell, o);
+  EXPECT_TRUE(r.converged) << r.stop_reason;
+  EXPECT_LT(r.final_translation_error_m, 2e-3);
+  ASSERT_FALSE(r.trace.empty());
+  for (const auto& row : r.trace) {
+    EXPECT_EQ(row.matched, 8) << "t " << row.t_s;
+    EXPECT_GT(row.decoded, 300);
+  }
+  const auto all = run("plane", control::InteractionModel::kDesiredConstantDepth, 0.9, cellsim::FeatureSource::kDecoded, 600);
+  EXPECT_NE(all.trace.front().twist, r.trace.front().twist);
+}
+
 TEST(InProcessLoop, CylinderConvergesUnder1mmAnd0_1Deg) {
   const auto r = run("cylinder", control::InteractionModel::kDesiredConstantDepth, 0.6, cellsim::FeatureSource::kDecoded, 900);
   EXPECT_TRUE(r.converged) << r.stop_reason;

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -229,6 +231,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       if (r % o.shard_count == o.shard_index - 1) jobs.push_back({m, r, {}});
   std::atomic<std::size_t> next{0}, done{0};
   std::mutex io;
+  const auto started = std::chrono::steady_clock::now();  // for the estimate of the time left only
   const auto work = [&] {
     for (std::size_t j; (j = next++) < jobs.size();) {
       Job& job = jobs[j];
@@ -245,7 +248,10 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       job.result.trace.clear();  // keep memory flat: only the outcome matters here
       const std::size_t n = ++done;
       std::lock_guard<std::mutex> lock(io);
-      std::fprintf(stderr, "\rcampaign %s: %zu/%zu runs", sc.name.c_str(), n, jobs.size());
+      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      const double left = elapsed / static_cast<double>(n) * static_cast<double>(jobs.size() - n);
+      std::fprintf(stderr, "\rcampaign %s: %zu/%zu runs, %.0f s, about %.0f s left   ", sc.name.c_str(), n, jobs.size(),
+                   elapsed, left);
       if (n == jobs.size()) std::fprintf(stderr, "\n");
     }
   };
@@ -322,6 +328,16 @@ std::string merge_campaigns(const std::vector<std::filesystem::path>& dirs, cons
   const std::string md = summarize(merged, rows);
   write_campaign(out_dir, merged, rows, md);
   return md;
+}
+
+bool plot_campaign(const std::filesystem::path& dir, const std::string& title) {
+  const std::filesystem::path script = std::filesystem::path(CELL_SOURCE_DIR) / "bin" / "plot_campaign.py";
+  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + dir.string() + "' --title '" + title + "'";
+  if (std::system(cmd.c_str()) != 0) {
+    std::fprintf(stderr, "cellsim: plotting failed (%s); the table is in %s\n", cmd.c_str(), dir.c_str());
+    return false;
+  }
+  return true;
 }
 
 }  // namespace cellsim

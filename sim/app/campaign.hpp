@@ -36,4 +36,8 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& options);
 // are not the shards of one campaign, or one is missing or repeated.
 std::string merge_campaigns(const std::vector<std::filesystem::path>& shard_dirs, const std::filesystem::path& out_dir);
 
+// Runs bin/plot_campaign.py on a campaign folder (campaign.png: per model, the converged share,
+// the iterations, the final errors); false, with the reason on stderr, when it cannot.
+bool plot_campaign(const std::filesystem::path& dir, const std::string& title);
+
 }  // namespace cellsim

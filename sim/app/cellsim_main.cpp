@@ -292,6 +292,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 4096))
       ->capture_default_str();
   cp->add_flag("--epipolar", camp_law.epipolar, "decode with the projector's calibration");
+  bool camp_no_plot = false;
+  cp->add_flag("--no-plot", camp_no_plot, "do not draw campaign.png");
 
   cellsim::ServiceOptions svc;
   std::string mode = "lockstep", svc_trace;
@@ -364,6 +366,7 @@ int main(int argc, char** argv) {
       if (*merge) {
         std::vector<std::filesystem::path> dirs(merge_dirs.begin(), merge_dirs.end());
         std::printf("%s", cellsim::merge_campaigns(dirs, merge_out).c_str());
+        if (!camp_no_plot) cellsim::plot_campaign(merge_out, "merged campaign");
         return 0;
       }
       if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
@@ -388,6 +391,7 @@ int main(int argc, char** argv) {
       camp.out_dir = camp_dir;
       const auto table = cellsim::run_campaign(*cell, camp);
       std::printf("%s", table.c_str());
+      if (!camp_no_plot) cellsim::plot_campaign(camp_dir, cell->scenario.name + " campaign");
       return 0;
     }
     if (*render) return run_render(scenario, pose, out, truth, frame, observer);

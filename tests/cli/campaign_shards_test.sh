@@ -6,11 +6,15 @@ cellsim="$1"; src="$2"
 source "$(dirname "$0")/lib.sh"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 args=("$src/sim/scenarios/fig5.yaml" --features ideal --runs 5 --models desired,current --max-iterations 80 --threads 2)
-"$cellsim" campaign "${args[@]}" -o "$tmp/whole" >/dev/null 2>&1 || fail "unsharded campaign"
+progress=$("$cellsim" campaign "${args[@]}" -o "$tmp/whole" 2>&1 >/dev/null) || fail "unsharded campaign"
+# issue 13, item 6: progress with the time left, and the plot beside the table
+grep -q "10/10 runs, [0-9]* s, about 0 s left" <<<"$progress" || fail "no progress with the time left: $progress"
+[ -s "$tmp/whole/campaign.png" ] || fail "no campaign.png"
 "$cellsim" campaign "${args[@]}" --shard 1/2 -o "$tmp/a" >/dev/null 2>&1 || fail "shard 1/2"
 "$cellsim" campaign "${args[@]}" --shard 2/2 -o "$tmp/b" >/dev/null 2>&1 || fail "shard 2/2"
 [ "$(($(wc -l < "$tmp/a/campaign.csv") + $(wc -l < "$tmp/b/campaign.csv")))" -eq 12 ] || fail "the shards do not hold 10 runs between them"
 "$cellsim" campaign merge "$tmp/b" "$tmp/a" -o "$tmp/merged" >/dev/null || fail "merge"
+[ -s "$tmp/merged/campaign.png" ] || fail "no campaign.png for the merged campaign"
 cmp -s "$tmp/whole/campaign.csv" "$tmp/merged/campaign.csv" || fail "merged campaign.csv differs from the unsharded one"
 cmp -s "$tmp/whole/summary.md" "$tmp/merged/summary.md" || fail "merged summary.md differs from the unsharded one"
 

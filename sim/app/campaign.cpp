@@ -331,13 +331,7 @@ std::string merge_campaigns(const std::vector<std::filesystem::path>& dirs, cons
 }
 
 bool plot_campaign(const std::filesystem::path& dir, const std::string& title) {
-  const std::filesystem::path script = std::filesystem::path(CELL_SOURCE_DIR) / "bin" / "plot_campaign.py";
-  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + dir.string() + "' --title '" + title + "'";
-  if (std::system(cmd.c_str()) != 0) {
-    std::fprintf(stderr, "cellsim: plotting failed (%s); the table is in %s\n", cmd.c_str(), dir.c_str());
-    return false;
-  }
-  return true;
+  return run_plot_script("plot_campaign.py", dir, title);
 }
 
 }  // namespace cellsim

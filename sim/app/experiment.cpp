@@ -172,14 +172,18 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   return res;
 }
 
-bool plot_experiment(const std::filesystem::path& dir, const std::string& title) {
-  const std::filesystem::path script = std::filesystem::path(CELL_SOURCE_DIR) / "bin" / "plot_trace.py";
+bool run_plot_script(const std::string& script_name, const std::filesystem::path& dir, const std::string& title) {
+  const std::filesystem::path script = std::filesystem::path(CELL_SOURCE_DIR) / "bin" / script_name;
   const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + dir.string() + "' --title '" + title + "'";
   if (std::system(cmd.c_str()) != 0) {
-    std::fprintf(stderr, "cellsim: plotting failed (%s); the trace is in %s\n", cmd.c_str(), dir.c_str());
+    std::fprintf(stderr, "cellsim: plotting failed (%s); the tables are in %s\n", cmd.c_str(), dir.c_str());
     return false;
   }
   return true;
+}
+
+bool plot_experiment(const std::filesystem::path& dir, const std::string& title) {
+  return run_plot_script("plot_trace.py", dir, title);
 }
 
 }  // namespace cellsim

@@ -56,5 +56,7 @@ std::string to_string(FeatureSource s);
 // Runs bin/plot_trace.py on an experiment folder (velocities.png, error_norm.png); returns
 // false, with the reason on stderr, when plotting is not possible.
 bool plot_experiment(const std::filesystem::path& dir, const std::string& title);
+// Runs bin/SCRIPT_NAME DIR --title TITLE with Debian's python3 (matplotlib).
+bool run_plot_script(const std::string& script_name, const std::filesystem::path& dir, const std::string& title);
 
 }  // namespace cellsim

@@ -101,8 +101,8 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
   // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
   // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate
   // from their neighbours. The global Otsu level caps that local level, the floor bounds it.
-  cv::Mat &level = sc.level, &mask = sc.mask;
-  cv::dilate(chroma, level, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
+  cv::Mat &peak = sc.peak, &mask = sc.mask;
+  cv::dilate(chroma, peak, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
   // the local level of a local peak x: clamp(round(peak_ratio x), floor, Otsu), tabulated
   std::array<std::uint8_t, 256> level_of{};
   for (int x = 0; x < 256; ++x)
@@ -121,7 +121,7 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
   for (int v = 0; v < H; ++v) {
     row_start[v] = static_cast<int>(row_runs.size());
     const std::uint8_t* c = chroma.ptr<std::uint8_t>(v);
-    const std::uint8_t* lv = level.ptr<std::uint8_t>(v);
+    const std::uint8_t* lv = peak.ptr<std::uint8_t>(v);
     std::uint8_t* m = mask.ptr<std::uint8_t>(v);
     int open = -1;  // first pixel of the run being read, -1 outside a run
     const auto exact = [&](int a, int z) {

@@ -37,7 +37,7 @@ struct Segmentation {
 // Per-frame buffers, reused from call to call when the caller keeps one (allocating and
 // first-touching ~4 MB of images per frame costs as much as half the segmentation).
 struct SegmentationScratch {
-  cv::Mat lo, chroma, level, mask;
+  cv::Mat lo, chroma, peak, mask;  // peak: the brightest chroma around each pixel
   struct RowRun {
     int v, xl, xr;
   };

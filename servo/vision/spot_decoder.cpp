@@ -442,8 +442,9 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 }
 
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
-                                       const EpipolarCheck& check, const pattern::MArray& pattern,
-                                       std::vector<DecodedSpot> decoded, int min_sources) {
+                                       const Neighbourhoods& hoods, const EpipolarCheck& check,
+                                       const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
+                                       int min_sources) {
   static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
   std::vector<int> owner(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1);  // id -> spot
   std::vector<int> at(spots.size(), -1);                                               // spot -> decoded
@@ -487,7 +488,6 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
   };
   // In rounds: an undecoded spot takes an id when at least `min_sources` decoded spots around
   // it (one of them linked) propose the same id (and none proposes another).
-  const Neighbourhoods hoods = check_graph_consistency(graph);
   struct Proposal {
     pattern::SpotId id{-1, -1};
     int sources = 0;
@@ -572,7 +572,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     r.decoded = check_vote_consistency(r.detected, votes, e.min_votes);
     r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     if (e.propagate) {
-      r.decoded = propagate_ids(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources);
+      r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded),
+                                e.min_sources);
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     }
   } else {

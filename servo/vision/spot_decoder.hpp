@@ -103,8 +103,9 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // Breadth first from the decoded spots. This names spots whose windows are cut by the
 // object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
-                                       const EpipolarCheck& check, const pattern::MArray& pattern,
-                                       std::vector<DecodedSpot> decoded, int min_sources = 3);
+                                       const Neighbourhoods& hoods, const EpipolarCheck& check,
+                                       const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
+                                       int min_sources = 3);
 
 // How the decoder uses a frame's epipolar geometry, when it is given one.
 struct EpipolarOptions {

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "servo/vision/overlay.hpp"
+#include "sim/app/experiment.hpp"
 
 namespace cellsim {
 
@@ -35,8 +36,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     rows[k].noise_sigma = o.noise_sigmas[static_cast<std::size_t>(k) % o.noise_sigmas.size()];
     for (int i = 0; i < 6; ++i) rows[k].offset[i] = std::uniform_real_distribution<double>(-range[i], range[i])(rng);
   }
-  const control::CameraIntrinsics camera{sc.camera.intrinsics.fx, sc.camera.intrinsics.fy, sc.camera.intrinsics.cx,
-                                        sc.camera.intrinsics.cy, sc.camera.distortion};
+  const control::CameraIntrinsics camera = camera_intrinsics_of(cell);
   std::atomic<int> next{0};
   std::mutex io;
   struct WrongId {

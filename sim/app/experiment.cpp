@@ -41,10 +41,12 @@ FeatureSource parse_feature_source(const std::string& name) {
 
 std::string to_string(FeatureSource s) { return s == FeatureSource::kIdeal ? "ideal" : "decoded"; }
 
-servo::ServoConfig servo_config_for(const sim::Cell& cell) {
-  servo::ServoConfig c;
+control::CameraIntrinsics camera_intrinsics_of(const sim::Cell& cell) {
   const sim::CameraSpec& cam = cell.scenario.camera;
-  c.camera = {cam.intrinsics.fx, cam.intrinsics.fy, cam.intrinsics.cx, cam.intrinsics.cy, cam.distortion};
+  return {cam.intrinsics.fx, cam.intrinsics.fy, cam.intrinsics.cx, cam.intrinsics.cy, cam.distortion};
+}
+
+control::ProjectorModel projector_model_of(const sim::Cell& cell) {
   const sim::ProjectorSpec& p = cell.projector->spec();
   control::ProjectorModel pm;
   pm.fx = p.intrinsics.fx;
@@ -55,7 +57,13 @@ servo::ServoConfig servo_config_for(const sim::Cell& cell) {
   pm.rows = cell.projector->pattern().rows;
   pm.cols = cell.projector->pattern().cols;
   pm.world_T_projector = p.world_T_projector;
-  c.projector = pm;
+  return pm;
+}
+
+servo::ServoConfig servo_config_for(const sim::Cell& cell) {
+  servo::ServoConfig c;
+  c.camera = camera_intrinsics_of(cell);
+  c.projector = projector_model_of(cell);
   // the projector's calibration is there for triangulation; decoding with it is an option
   // (`cellsim experiment --epipolar`), so runs compare with a servo started without --projector
   c.decoder.epipolar.enabled = false;

@@ -44,6 +44,11 @@ struct ExperimentResult {
   std::vector<IterationRecord> trace;
 };
 
+// What calibration would give for a cell, exact: the camera's intrinsics and the projector's
+// model (what `cellsim calibration` writes).
+control::CameraIntrinsics camera_intrinsics_of(const sim::Cell& cell);
+control::ProjectorModel projector_model_of(const sim::Cell& cell);
+
 // The servo configuration a scenario implies: the camera's intrinsics and the projector's
 // calibration taken as exact.
 servo::ServoConfig servo_config_for(const sim::Cell& cell);

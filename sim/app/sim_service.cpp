@@ -28,6 +28,20 @@
 namespace cellsim {
 namespace {
 
+// A pose into the two shapes ROS gives it: (translation, rotation) of a transform, (position,
+// orientation) of a pose; both hold x y z and x y z w.
+template <typename Point, typename Quaternion>
+void fill_pose(Point& p, Quaternion& r, const Eigen::Isometry3d& t) {
+  const Eigen::Quaterniond q(t.rotation());
+  p.x(t.translation().x());
+  p.y(t.translation().y());
+  p.z(t.translation().z());
+  r.x(q.x());
+  r.y(q.y());
+  r.z(q.z());
+  r.w(q.w());
+}
+
 using Clock = std::chrono::steady_clock;
 using geometry_msgs::msg::dds_::TwistStamped_;
 using cell_msgs::msg::dds_::ServoStatus_;
@@ -268,14 +282,7 @@ class SimService {
     m.header().stamp(stamp);
     m.header().frame_id(parent);
     m.child_frame_id(child);
-    const Eigen::Quaterniond q(t.rotation());
-    m.transform().translation().x(t.translation().x());
-    m.transform().translation().y(t.translation().y());
-    m.transform().translation().z(t.translation().z());
-    m.transform().rotation().x(q.x());
-    m.transform().rotation().y(q.y());
-    m.transform().rotation().z(q.z());
-    m.transform().rotation().w(q.w());
+    fill_pose(m.transform().translation(), m.transform().rotation(), t);
     return m;
   }
 
@@ -340,14 +347,7 @@ class SimService {
     geometry_msgs::msg::dds_::PoseStamped_ pose;
     pose.header().stamp(stamp);
     pose.header().frame_id(cell_dds::kWorldFrame);
-    const Eigen::Quaterniond q(wTc.rotation());
-    pose.pose().position().x(wTc.translation().x());
-    pose.pose().position().y(wTc.translation().y());
-    pose.pose().position().z(wTc.translation().z());
-    pose.pose().orientation().x(q.x());
-    pose.pose().orientation().y(q.y());
-    pose.pose().orientation().z(q.z());
-    pose.pose().orientation().w(q.w());
+    fill_pose(pose.pose().position(), pose.pose().orientation(), wTc);
     pose_->write(pose);  // before the image: the servo may need it to triangulate
 
     publish_robot(stamp, f);

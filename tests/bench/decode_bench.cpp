@@ -12,6 +12,7 @@
 
 #include "bench/bench_scenes.hpp"
 #include "servo/vision/spot_decoder.hpp"
+#include "sim/app/experiment.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {
@@ -35,14 +36,8 @@ const Frame& frame(const std::string& scenario, int pattern_size = 20, double im
   const auto cell = sim::build_cell(s);
   f.rgb = sim::render_image(*cell, s.world_T_desired, 1);
   f.pattern = cell->projector->pattern();
-  const auto& k = s.camera.intrinsics;
-  f.camera = {k.fx, k.fy, k.cx, k.cy, s.camera.distortion};
-  const sim::ProjectorSpec& p = cell->projector->spec();
-  f.projector.fx = p.intrinsics.fx, f.projector.fy = p.intrinsics.fy;
-  f.projector.cx = p.intrinsics.cx, f.projector.cy = p.intrinsics.cy;
-  f.projector.spot_pitch_px = p.spot_pitch_px;
-  f.projector.rows = f.pattern.rows, f.projector.cols = f.pattern.cols;
-  f.projector.world_T_projector = p.world_T_projector;
+  f.camera = cellsim::camera_intrinsics_of(*cell);
+  f.projector = cellsim::projector_model_of(*cell);
   f.world_T_camera = s.world_T_desired;
   return f;
 }

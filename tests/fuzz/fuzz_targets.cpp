@@ -21,6 +21,7 @@
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/arm/arm_robot.hpp"
 #include "sim/cell/cell_state_machine.hpp"
+#include "sim/app/experiment.hpp"
 #include "sim/render/renderer.hpp"
 #include "sim/scene/mesh_check.hpp"
 #include "sim/scene/triangle_mesh.hpp"
@@ -199,12 +200,8 @@ struct DecoderTarget : Target {
       const double scale = rng() % 10 == 0 ? 1e3 : 0.02;
       std::uniform_real_distribution<double> u(-1, 1);
       wTc.translation() += scale * Eigen::Vector3d(u(rng), u(rng), u(rng));
-      const sim::CameraSpec& c = cell->scenario.camera;
-      control::ProjectorModel p;
-      p.world_T_projector = cell->projector->world_T_projector();
-      geometry.emplace(control::CameraIntrinsics{c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy,
-                                                 c.distortion},
-                       p, wTc, 0.5 + static_cast<double>(rng() % 100) / 10.0);
+      geometry.emplace(cellsim::camera_intrinsics_of(*cell), cellsim::projector_model_of(*cell), wTc,
+                       0.5 + static_cast<double>(rng() % 100) / 10.0);
     }
     try {
       decoder.decode(img, geometry ? &*geometry : nullptr);

@@ -7,28 +7,16 @@
 
 #include "servo/vision/epipolar.hpp"
 #include "servo/vision/spot_decoder.hpp"
+#include "sim/app/experiment.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {
 
 std::string scenario(const char* name) { return std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + name + ".yaml"; }
 
-// What `cellsim calibration` writes, exact.
-control::ProjectorModel calibration_of(const sim::Cell& cell) {
-  const sim::ProjectorSpec& p = cell.projector->spec();
-  control::ProjectorModel m;
-  m.fx = p.intrinsics.fx, m.fy = p.intrinsics.fy, m.cx = p.intrinsics.cx, m.cy = p.intrinsics.cy;
-  m.spot_pitch_px = p.spot_pitch_px;
-  m.rows = cell.projector->pattern().rows;
-  m.cols = cell.projector->pattern().cols;
-  m.world_T_projector = p.world_T_projector;
-  return m;
-}
-
-control::CameraIntrinsics intrinsics_of(const sim::Cell& cell) {
-  const sim::CameraSpec& c = cell.scenario.camera;
-  return {c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy, c.distortion};
-}
+// what `cellsim calibration` writes, exact, and the scenario's camera
+control::ProjectorModel calibration_of(const sim::Cell& cell) { return cellsim::projector_model_of(cell); }
+control::CameraIntrinsics intrinsics_of(const sim::Cell& cell) { return cellsim::camera_intrinsics_of(cell); }
 
 struct Frame {
   std::unique_ptr<sim::Cell> cell;
@@ -160,6 +148,7 @@ TEST(EpipolarDecoding, IdsPropagateToNeighboursOnlyWhenThreeSourcesColourAndLine
   const pattern::MArray& pat = f.cell->projector->pattern();
   const std::vector<vision::Spot>& spots = vision::SpotDecoder(pattern::WindowTable(pat, {3, 3})).decode(f.rgb).detected;
   const vision::AdjacencyGraph graph = vision::build_adjacency(spots);
+  const vision::Neighbourhoods hoods = vision::check_graph_consistency(graph);
   const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
   const vision::EpipolarCheck check(g, spots);
   // seeds: the true ids of rows 8..11, columns 6..13 (a decoded island); everything else is
@@ -173,7 +162,7 @@ TEST(EpipolarDecoding, IdsPropagateToNeighboursOnlyWhenThreeSourcesColourAndLine
         seeds.push_back({id->row, id->col, spots[s].u, spots[s].v, static_cast<int>(s)});
     }
   ASSERT_EQ(seeds.size(), 32u);
-  const auto grown = vision::propagate_ids(spots, graph, check, pat, seeds, 3);
+  const auto grown = vision::propagate_ids(spots, graph, hoods, check, pat, seeds, 3);
   int wrong = 0;
   for (const auto& d : grown) wrong += !(truth.at(d.spot) == pattern::SpotId{d.row, d.col});
   EXPECT_EQ(wrong, 0);
@@ -187,17 +176,17 @@ TEST(EpipolarDecoding, IdsPropagateToNeighboursOnlyWhenThreeSourcesColourAndLine
   ASSERT_GE(victim, 0);
   recoloured[victim].colour = (recoloured[victim].colour + 1) % 3;
   const vision::EpipolarCheck check2(g, recoloured);
-  for (const auto& d : vision::propagate_ids(recoloured, graph, check2, pat, seeds, 3)) EXPECT_NE(d.spot, victim);
+  for (const auto& d : vision::propagate_ids(recoloured, graph, hoods, check2, pat, seeds, 3)) EXPECT_NE(d.spot, victim);
 
   // a lone decoded spot proposes at most one id to each neighbour: nothing grows from it
   std::vector<vision::DecodedSpot> one{seeds.front()};
-  EXPECT_EQ(vision::propagate_ids(spots, graph, check, pat, one, 3).size(), 1u);
+  EXPECT_EQ(vision::propagate_ids(spots, graph, hoods, check, pat, one, 3).size(), 1u);
   // two decoded rows: a spot above them has one linked source (whose step the row below
   // confirms) and two corners, and the rows grow upwards (and on)
   std::vector<vision::DecodedSpot> rows;
   for (const auto& d : seeds)
     if (d.row >= 10) rows.push_back(d);
-  const auto from_rows = vision::propagate_ids(spots, graph, check, pat, rows, 3);
+  const auto from_rows = vision::propagate_ids(spots, graph, hoods, check, pat, rows, 3);
   EXPECT_TRUE(std::any_of(from_rows.begin(), from_rows.end(), [](const auto& d) { return d.row == 9; }));
 }
 

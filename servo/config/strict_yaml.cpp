@@ -113,6 +113,10 @@ void Reader::child_fail(const std::string& key, const std::string& what) const {
 std::string Reader::spelling() const { return quoted(node_); }
 
 void Reader::only_keys(std::initializer_list<const char*> allowed) const {
+  only_keys(std::vector<std::string>(allowed.begin(), allowed.end()));
+}
+
+void Reader::only_keys(const std::vector<std::string>& allowed) const {
   if (!node_.IsMap()) fail("must be a mapping, got " + quoted(node_));
   const std::set<std::string> ok(allowed.begin(), allowed.end());
   for (const auto& kv : node_) {

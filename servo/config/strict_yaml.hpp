@@ -43,6 +43,7 @@ class Reader {
 
   // Rejects keys not in `allowed`: a misspelt key must not be silently ignored.
   void only_keys(std::initializer_list<const char*> allowed) const;
+  void only_keys(const std::vector<std::string>& allowed) const;
   bool has(const char* key) const;
   Reader at(const char* key) const;       // throws when missing
   Reader at(std::size_t i) const;

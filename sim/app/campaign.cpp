@@ -37,21 +37,22 @@ namespace {
 struct CampaignRow {
   std::string line, model;
   int run = 0;
-  bool converged = false;
+  bool converged = false, diverged = false;
+  double error_rise = 0;
   int iterations = 0;
   double translation_mm = 0, rotation_deg = 0;
 };
 
 constexpr const char* kCsvHeader =
     "model,run,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,converged,iterations,final_translation_mm,final_rotation_deg,"
-    "decoded_initial,stop_reason";
+    "decoded_initial,diverged,error_rise,stop_reason";
 
 CampaignRow parse_row(const std::string& line, const std::string& where) {
   std::vector<std::string> f;
   std::size_t a = 0;
-  for (int i = 0; i < 13; ++i) {
+  for (int i = 0; i < 15; ++i) {
     const std::size_t b = line.find(',', a);
-    if (b == std::string::npos) throw std::invalid_argument(where + ": a row with fewer than 14 fields");
+    if (b == std::string::npos) throw std::invalid_argument(where + ": a row with fewer than 16 fields");
     f.push_back(line.substr(a, b - a));
     a = b + 1;
   }
@@ -64,6 +65,8 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
     r.iterations = std::stoi(f[9]);
     r.translation_mm = std::stod(f[10]);
     r.rotation_deg = std::stod(f[11]);
+    r.diverged = f[13] == "1";
+    r.error_rise = std::stod(f[14]);
   } catch (const std::exception&) {
     throw std::invalid_argument(where + ": a row with a malformed number: " + line.substr(0, 80));
   }
@@ -71,7 +74,7 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
 }
 
 struct CampaignMeta {
-  std::string scenario, source;
+  std::string scenario, source, conditions = "none";
   std::uint64_t seed = 0;
   int runs = 0, max_iterations = 0, redrawn = 0, visible_desired = 0, shard_index = 1, shard_count = 1;
   std::vector<std::string> models;
@@ -79,7 +82,7 @@ struct CampaignMeta {
 };
 
 bool same_campaign(const CampaignMeta& a, const CampaignMeta& b) {
-  return a.scenario == b.scenario && a.source == b.source && a.seed == b.seed && a.runs == b.runs &&
+  return a.scenario == b.scenario && a.source == b.source && a.conditions == b.conditions && a.seed == b.seed && a.runs == b.runs &&
          a.max_iterations == b.max_iterations && a.models == b.models && a.scale == b.scale &&
          a.shard_count == b.shard_count && a.redrawn == b.redrawn && a.visible_desired == b.visible_desired;
 }
@@ -99,6 +102,7 @@ CampaignMeta read_meta(const std::filesystem::path& file) {
     m.visible_desired = j.at("visible_desired").get<int>();
     m.models = j.at("models").get<std::vector<std::string>>();
     m.scale = j.at("scale").get<double>();
+    m.conditions = j.at("conditions").get<std::string>();
     m.shard_index = j.at("shard").at(0).get<int>();
     m.shard_count = j.at("shard").at(1).get<int>();
     if (m.runs < 1 || m.shard_count < 1 || m.shard_index < 1 || m.shard_index > m.shard_count || m.models.empty())
@@ -120,29 +124,45 @@ std::vector<CampaignRow> read_rows(const std::filesystem::path& file) {
   return rows;
 }
 
-std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& rows) {
-  std::ostringstream md;
-  md << "| model | converged | median iterations | median final error, converged runs (mm / deg) | worst final "
-        "error, converged runs (mm / deg) |\n"
-     << "|---|---|---|---|---|\n";
-  for (const std::string& model : meta.models) {
-    int converged = 0, total = 0;
-    std::vector<double> iters, terr, rerr;
+std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const std::vector<CampaignRow>& rows) {
+  std::vector<ModelStats> out;
+  for (const std::string& model : models) {
+    ModelStats m;
+    m.model = model;
+    std::vector<double> iters, terr, rerr, rise;
     for (const CampaignRow& r : rows) {
       if (r.model != model) continue;
-      ++total;
+      ++m.runs;
+      m.diverged += r.diverged;
+      rise.push_back(r.error_rise);
       if (!r.converged) continue;
-      ++converged;
+      ++m.converged;
       iters.push_back(r.iterations);
       terr.push_back(r.translation_mm);
       rerr.push_back(r.rotation_deg);
     }
-    const double worst_t = terr.empty() ? std::nan("") : *std::max_element(terr.begin(), terr.end());
-    const double worst_r = rerr.empty() ? std::nan("") : *std::max_element(rerr.begin(), rerr.end());
+    m.worst_translation_mm = terr.empty() ? std::nan("") : *std::max_element(terr.begin(), terr.end());
+    m.worst_rotation_deg = rerr.empty() ? std::nan("") : *std::max_element(rerr.begin(), rerr.end());
+    m.median_iterations = median(iters);
+    m.median_translation_mm = median(terr);
+    m.median_rotation_deg = median(rerr);
+    m.median_error_rise = median(rise);
+    out.push_back(m);
+  }
+  return out;
+}
+
+std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& rows) {
+  std::ostringstream md;
+  md << "| model | converged | diverged | median iterations | median final error, converged runs (mm / deg) | worst "
+        "final error, converged runs (mm / deg) | median rise of the error |\n"
+     << "|---|---|---|---|---|---|---|\n";
+  for (const ModelStats& m : stats_of(meta.models, rows)) {
     char line[320];
-    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %.0f | %.3f / %.4f | %.3f / %.4f |\n", model.c_str(),
-                  converged, total, total ? 100.0 * converged / total : 0.0, median(iters), median(terr), median(rerr),
-                  worst_t, worst_r);
+    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %d | %.0f | %.3f / %.4f | %.3f / %.4f | %.3f |\n",
+                  m.model.c_str(), m.converged, m.runs, m.runs ? 100.0 * m.converged / m.runs : 0.0, m.diverged,
+                  m.median_iterations, m.median_translation_mm, m.median_rotation_deg, m.worst_translation_mm,
+                  m.worst_rotation_deg, m.median_error_rise);
     md << line;
   }
   char note[260];
@@ -152,6 +172,7 @@ std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& 
                 meta.scenario.c_str(), meta.runs, static_cast<unsigned long long>(meta.seed), meta.redrawn,
                 meta.visible_desired, meta.source.c_str());
   md << note;
+  if (meta.conditions != "none") md << "errors and delays: " << meta.conditions << "\n";
   if (meta.shard_count > 1)
     md << "shard " << meta.shard_index << "/" << meta.shard_count << ": every " << meta.shard_count
        << "th initial pose from pose " << meta.shard_index - 1 << " (`cellsim campaign merge` combines the shards)\n";
@@ -175,12 +196,27 @@ void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, con
   j["visible_desired"] = m.visible_desired;
   j["models"] = m.models;
   j["scale"] = m.scale;
+  j["conditions"] = m.conditions;
   j["shard"] = {m.shard_index, m.shard_count};
   std::ofstream(dir / "campaign.json") << j.dump(1) << "\n";
   std::ofstream(dir / "summary.md") << md;
 }
 
 }  // namespace
+
+std::string describe(const sim::CalibrationErrors& e, const sim::Latency& l) {
+  std::ostringstream d;
+  d << std::setprecision(6);
+  const auto put = [&](const std::string& name, double v) {
+    if (v != 0) d << (d.tellp() > 0 ? " " : "") << name << '=' << v;
+  };
+  for (const auto& [name, v] : sim::error_values(e)) put(name, v);
+  if (e.any() && e.seed) put("error_seed", static_cast<double>(*e.seed));
+  put("acquisition_frames", l.acquisition_frames);
+  put("processing_frames", l.processing_frames);
+  put("actuation_s", l.actuation_s);
+  return d.tellp() > 0 ? d.str() : "none";
+}
 
 std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   const sim::Scenario& sc = cell.scenario;
@@ -244,6 +280,9 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       e.initial = sim::offset_pose(sc.world_T_desired, {off[0], off[1], off[2]}, {off[3], off[4], off[5]},
                                    sc.offset_frame_rotation_deg);
       e.noise_seed = o.seed * 1000003 + static_cast<std::uint64_t>(job.run);
+      e.errors = o.errors;
+      e.latency = o.latency;
+      e.divergence_ratio = o.divergence_ratio;
       job.result = run_experiment(cell, e);
       job.result.trace.clear();  // keep memory flat: only the outcome matters here
       const std::size_t n = ++done;
@@ -269,7 +308,8 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       line << std::setprecision(17) << control::to_string(o.models[m]) << ',' << job.run;
       for (double x : offsets[static_cast<std::size_t>(job.run)]) line << ',' << x;
       line << ',' << r.converged << ',' << r.iterations << ',' << 1e3 * r.final_translation_error_m << ','
-           << r.final_rotation_error_deg << ',' << r.decoded_initial << ",\"" << r.stop_reason << "\"";
+           << r.final_rotation_error_deg << ',' << r.decoded_initial << ',' << r.diverged << ',' << r.error_rise << ",\""
+           << r.stop_reason << "\"";
       rows.push_back(parse_row(line.str(), "campaign"));
     }
   CampaignMeta meta;
@@ -279,6 +319,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   for (const auto m : o.models) meta.models.push_back(control::to_string(m));
   meta.source = to_string(o.source);
   meta.scale = o.scale;
+  meta.conditions = describe(o.errors.value_or(sc.errors), o.latency.value_or(sc.latency));
   meta.max_iterations = o.max_iterations;
   meta.redrawn = redrawn;
   meta.visible_desired = visible_desired;
@@ -328,6 +369,11 @@ std::string merge_campaigns(const std::vector<std::filesystem::path>& dirs, cons
   const std::string md = summarize(merged, rows);
   write_campaign(out_dir, merged, rows, md);
   return md;
+}
+
+std::vector<ModelStats> campaign_stats(const std::filesystem::path& dir) {
+  const CampaignMeta meta = read_meta(dir / "campaign.json");
+  return stats_of(meta.models, read_rows(dir / "campaign.csv"));
 }
 
 bool plot_campaign(const std::filesystem::path& dir, const std::string& title) {

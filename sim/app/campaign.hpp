@@ -24,7 +24,16 @@ struct CampaignOptions {
   // pose; `merge_campaigns` combines the slices into the unsharded result
   int shard_index = 1, shard_count = 1;
   std::filesystem::path out_dir;
+  // errors and delays for every run (default: the scenario's); each run draws its own
+  // directions of the calibration errors from its seed
+  std::optional<sim::CalibrationErrors> errors;
+  std::optional<sim::Latency> latency;
+  double divergence_ratio = 0;  // as ExperimentOptions
 };
+
+// The errors and delays as campaign.json and the study tables name them:
+// "focal_pct=1 processing_frames=2" ("none" when all are zero).
+std::string describe(const sim::CalibrationErrors& errors, const sim::Latency& latency);
 
 // Returns the summary table as Markdown (also written to out_dir/summary.md).
 // Writes campaign.csv (one row per run, numbers to 17 digits), campaign.json (what was run)
@@ -35,6 +44,16 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& options);
 // summary.md as the unsharded run. Throws std::invalid_argument (one line) when the folders
 // are not the shards of one campaign, or one is missing or repeated.
 std::string merge_campaigns(const std::vector<std::filesystem::path>& shard_dirs, const std::filesystem::path& out_dir);
+
+// Per model, what a campaign folder's runs came to (the summary table's numbers).
+struct ModelStats {
+  std::string model;
+  int runs = 0, converged = 0, diverged = 0;
+  double median_iterations = 0, median_translation_mm = 0, median_rotation_deg = 0;  // converged runs
+  double worst_translation_mm = 0, worst_rotation_deg = 0;                           // converged runs
+  double median_error_rise = 0;                                                      // all runs
+};
+std::vector<ModelStats> campaign_stats(const std::filesystem::path& dir);
 
 // Runs bin/plot_campaign.py on a campaign folder (campaign.png: per model, the converged share,
 // the iterations, the final errors); false, with the reason on stderr, when it cannot.

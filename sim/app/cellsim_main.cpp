@@ -18,6 +18,8 @@
 #include "servo/config/strict_yaml.hpp"
 #include "dds/topics.hpp"
 #include "sim/app/campaign.hpp"
+#include "sim/app/divergence_search.hpp"
+#include "sim/app/study.hpp"
 #include "sim/app/sim_service.hpp"
 #include "dds/participant.hpp"
 #include "sim/geometry/se3.hpp"
@@ -164,6 +166,37 @@ struct LawFlags {
   }
 };
 
+// The errors a real cell has (issue 13): settings on top of the scenario's errors: and latency:.
+struct ConditionFlags {
+  std::vector<std::string> errors, latencies;
+  double divergence_ratio = 0;
+
+  void add(CLI::App* c) {
+    std::string names;
+    for (const auto& n : sim::error_names()) names += " " + n;
+    c->add_option("--error", errors,
+                  "a calibration error the servo is told (repeatable), NAME=VALUE; names:" + names +
+                      ", seed (of the drawn directions; default: the run's)");
+    c->add_option("--latency", latencies,
+                  "a delay of the loop (repeatable), NAME=VALUE; names: acquisition_frames processing_frames "
+                  "actuation_s");
+    c->add_option("--divergence-ratio", divergence_ratio,
+                  "stop as diverging when |e| exceeds this x its first value (0: never)")
+        ->check(CLI::Range(0.0, 1e6))
+        ->capture_default_str();
+  }
+  sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
+    sim::CalibrationErrors e = sc.errors;
+    for (const auto& a : errors) sim::set_error(e, a);
+    return e;
+  }
+  sim::Latency latency_for(const sim::Scenario& sc) const {
+    sim::Latency l = sc.latency;
+    for (const auto& a : latencies) sim::set_latency(l, a);
+    return l;
+  }
+};
+
 // Z-hat by default: the depth, at the desired pose, of the point the camera looks at.
 double desired_depth(const sim::Cell& cell) {
   const auto truth = sim::compute_truth(cell, cell.scenario.world_T_desired);
@@ -174,10 +207,63 @@ double desired_depth(const sim::Cell& cell) {
   return n ? sum / n : 1.0;
 }
 
-int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const std::string& source,
-                       int max_iterations, const std::string& initial, const std::string& out_dir, bool plot) {
+// What `campaign` and `study` share: the draw of initial poses, the models, the law, the
+// errors and delays.
+struct CampaignFlags {
+  cellsim::CampaignOptions o;
+  std::string models = "desired-constant-depth,desired,current,mean", source = "decoded", dir;
+  LawFlags law;
+  ConditionFlags conditions;
+  bool no_plot = false;
+
+  void add(CLI::App* c) {
+    c->add_option("--runs", o.runs, "initial poses per model")->capture_default_str()->check(CLI::Range(1, 1000000));
+    c->add_option("--models", models, "comma-separated models")->capture_default_str();
+    c->add_option("--seed", o.seed, "seed of the initial-pose draw")->capture_default_str();
+    c->add_option("--scale", o.scale, "initial offsets drawn in [-scale, scale] x the scenario's")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 100.0));
+    c->add_option("--max-iterations", o.max_iterations, "iteration cap per run")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000000));
+    c->add_option("--features", source, "decoded | ideal")->capture_default_str();
+    c->add_option("--threads", o.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 256));
+    c->add_option("-o,--output", dir, "output folder");
+    c->add_option("--z-hat", law.z_hat, "depth of desired-constant-depth (m)");
+    c->add_option("--gain", law.gain, "constant gain")->capture_default_str();
+    c->add_option("--points", law.points, "servo on this many best-conditioned points (0: all)")
+        ->check(CLI::Range(0, 4096))
+        ->capture_default_str();
+    c->add_flag("--epipolar", law.epipolar, "decode with the projector's calibration");
+    c->add_flag("--no-plot", no_plot, "do not draw the plots");
+    conditions.add(c);
+  }
+  cellsim::CampaignOptions options(const sim::Cell& cell) const {
+    cellsim::CampaignOptions c = o;
+    c.source = cellsim::parse_feature_source(source);
+    c.base = cellsim::servo_config_for(cell);
+    law.apply(c.base, desired_depth(cell));
+    for (std::size_t a = 0, b; a < models.size(); a = b + 1) {
+      b = models.find(',', a);
+      if (b == std::string::npos) b = models.size();
+      c.models.push_back(control::parse_interaction_model(models.substr(a, b - a)));
+    }
+    c.out_dir = dir;
+    c.errors = conditions.errors_for(cell.scenario);
+    c.latency = conditions.latency_for(cell.scenario);
+    c.divergence_ratio = conditions.divergence_ratio;
+    return c;
+  }
+};
+
+int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const ConditionFlags& conditions,
+                       const std::string& source, int max_iterations, const std::string& initial,
+                       const std::string& out_dir, bool plot) {
   const auto cell = sim::build_cell(sim::load_scenario(scenario_file));
   cellsim::ExperimentOptions o;
+  o.errors = conditions.errors_for(cell->scenario);
+  o.latency = conditions.latency_for(cell->scenario);
+  o.divergence_ratio = conditions.divergence_ratio;
   o.servo = cellsim::servo_config_for(*cell);
   law.apply(o.servo, desired_depth(*cell));
   o.source = cellsim::parse_feature_source(source);
@@ -189,6 +275,8 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
               o.servo.law.z_hat_m, cellsim::to_string(o.source).c_str(),
               o.source == cellsim::FeatureSource::kIdeal ? " (simulator truth)" : "");
   std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
+  const std::string conds = cellsim::describe(*o.errors, *o.latency);
+  if (conds != "none") std::printf("  errors and delays: %s\n", conds.c_str());
   std::printf("  %s after %d iterations (%.2f s simulated)\n", r.stop_reason.c_str(), r.iterations,
               r.iterations * cell->scenario.dt_s);
   std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
@@ -265,9 +353,38 @@ int main(int argc, char** argv) {
   ex->add_option("--initial", initial, "initial pose instead of the scenario's: \"x y z rx ry rz\" (cm, deg)");
   ex->add_option("-o,--output", exp_dir, "folder for trace.csv, features.jsonl and the plots");
   ex->add_flag("--no-plot", no_plot, "do not draw the plots");
+  ConditionFlags ex_conditions;
+  ex_conditions.add(ex);
 
-  cellsim::CampaignOptions camp;
-  std::string camp_dir, camp_models = "desired-constant-depth,desired,current,mean";
+  cellsim::DivergenceSearchOptions search;
+  auto* fs = app.add_subcommand("fig5-search",
+                                "seeded search for a Fig. 5 configuration: five spots and an initial pose for which "
+                                "L(s*, Z-hat) diverges and L(s*, Z*), L(s, Z) converge (ideal features)");
+  fs->add_option("scenario", scenario, "scenario YAML file (the cylinder, projector and desired pose)")->required();
+  fs->add_option("--tries", search.tries, "configurations drawn")->capture_default_str()->check(CLI::Range(1, 100000));
+  fs->add_option("--seed", search.seed, "seed of the draw")->capture_default_str();
+  fs->add_option("--z-hat", search.z_hat_m, "depth of the constant-depth model (m)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 100.0));
+  fs->add_option("--gain", search.gain, "constant gain")->capture_default_str()->check(CLI::Range(1e-6, 100.0));
+  fs->add_option("--max-iterations", search.max_iterations, "iteration cap per run")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  fs->add_option("--max-translation-cm", search.max_translation_cm, "offset per axis in [-this, this] (cm)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 200.0));
+  fs->add_option("--max-tilt-deg", search.max_tilt_deg, "rotation about x and y in [-this, this] (deg)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 180.0));
+  fs->add_option("--max-roll-deg", search.max_roll_deg, "rotation about the optical axis in [-this, this] (deg)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 180.0));
+  bool keep_spots = false;
+  fs->add_flag("--keep-spots", keep_spots, "keep the scenario's only_spots (draw only the initial pose)");
+  fs->add_option("--threads", search.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 64));
+  fs->add_option("-o,--output", search.out_dir, "folder for candidates.csv and best.yaml");
+
+  CampaignFlags camp;
   auto* cp = app.add_subcommand("campaign", "many random initial poses per interaction-matrix model");
   cp->add_option("scenario", scenario, "scenario YAML file");
   std::string shard;
@@ -277,23 +394,18 @@ int main(int argc, char** argv) {
   auto* merge = cp->add_subcommand("merge", "combine the folders of a sharded campaign into the unsharded result");
   merge->add_option("folders", merge_dirs, "the shards' output folders")->required();
   merge->add_option("-o,--output", merge_out, "folder for the merged campaign.csv and summary.md")->required();
-  cp->add_option("--runs", camp.runs, "initial poses per model")->capture_default_str()->check(CLI::PositiveNumber);
-  cp->add_option("--models", camp_models, "comma-separated models")->capture_default_str();
-  cp->add_option("--seed", camp.seed, "seed of the initial-pose draw")->capture_default_str();
-  cp->add_option("--scale", camp.scale, "initial offsets drawn in [-scale, scale] x the scenario's")->capture_default_str();
-  cp->add_option("--max-iterations", camp.max_iterations, "iteration cap per run")->capture_default_str();
-  cp->add_option("--features", source, "decoded | ideal")->capture_default_str();
-  cp->add_option("--threads", camp.threads, "worker threads")->capture_default_str();
-  cp->add_option("-o,--output", camp_dir, "folder for campaign.csv, campaign.json and summary.md");
-  LawFlags camp_law;
-  cp->add_option("--z-hat", camp_law.z_hat, "depth of desired-constant-depth (m)");
-  cp->add_option("--gain", camp_law.gain, "constant gain")->capture_default_str();
-  cp->add_option("--points", camp_law.points, "servo on this many best-conditioned points (0: all)")
-      ->check(CLI::Range(0, 4096))
-      ->capture_default_str();
-  cp->add_flag("--epipolar", camp_law.epipolar, "decode with the projector's calibration");
-  bool camp_no_plot = false;
-  cp->add_flag("--no-plot", camp_no_plot, "do not draw campaign.png");
+  camp.add(cp);
+
+  CampaignFlags study;
+  std::vector<std::string> study_axes;
+  auto* st = app.add_subcommand("study", "a campaign at every point of one or two axes (depth, errors, delays, gain)");
+  st->add_option("scenario", scenario, "scenario YAML file")->required();
+  {
+    std::string names;
+    for (const auto& n : cellsim::study_axis_names()) names += " " + n;
+    st->add_option("--axis", study_axes, "NAME=V1,V2,... (once or twice: a grid); names:" + names)->required();
+  }
+  study.add(st);
 
   cellsim::ServiceOptions svc;
   std::string mode = "lockstep", svc_trace;
@@ -361,37 +473,64 @@ int main(int argc, char** argv) {
       svc.trace_dir = svc_trace;
       return cellsim::run_sim_service(svc);
     }
-    if (*ex) return run_experiment_cli(scenario, law, source, max_iterations, initial, exp_dir, !no_plot);
+    if (*ex) return run_experiment_cli(scenario, law, ex_conditions, source, max_iterations, initial, exp_dir, !no_plot);
+    if (*fs) {
+      search.vary_spots = !keep_spots;
+      const sim::Scenario sc = sim::load_scenario(scenario);
+      const auto r = cellsim::search_divergence(sc, search);
+      int kept = 0;
+      for (const auto& c : r.candidates) kept += c.kept;
+      std::printf("%s: %d of %d configurations kept (L(s*, Z-hat = %.2f) diverges, L(s*, Z*) converges, L(s, Z) "
+                  "converges faster)\n",
+                  sc.name.c_str(), kept, search.tries, search.z_hat_m);
+      if (r.best < 0) return 4;
+      const auto& b = r.candidates[static_cast<std::size_t>(r.best)];
+      std::printf("  least displaced: try %d, spots", b.index);
+      for (const auto& rc : b.spots) std::printf(" (%d, %d)", rc[0], rc[1]);
+      std::printf(", offset %.2f %.2f %.2f cm, %.2f %.2f %.2f deg\n", b.offset[0], b.offset[1], b.offset[2],
+                  b.offset[3], b.offset[4], b.offset[5]);
+      std::printf("  constant depth: %s after %d; desired: converged in %d; current: converged in %d\n",
+                  b.constant_depth.stop_reason.c_str(), b.constant_depth.iterations, b.desired.iterations,
+                  b.current.iterations);
+      if (!search.out_dir.empty())
+        std::printf("  %s/candidates.csv, %s/best.yaml\n", search.out_dir.c_str(), search.out_dir.c_str());
+      return 0;
+    }
     if (*cp) {
       if (*merge) {
         std::vector<std::filesystem::path> dirs(merge_dirs.begin(), merge_dirs.end());
         std::printf("%s", cellsim::merge_campaigns(dirs, merge_out).c_str());
-        if (!camp_no_plot) cellsim::plot_campaign(merge_out, "merged campaign");
+        if (!camp.no_plot) cellsim::plot_campaign(merge_out, "merged campaign");
         return 0;
       }
       if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
-      if (camp_dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
+      if (camp.dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
+      const auto cell = sim::build_cell(sim::load_scenario(scenario));
+      cellsim::CampaignOptions o = camp.options(*cell);
       if (!shard.empty()) {
         int i = 0, n = 0;
         char extra = 0;
         if (std::sscanf(shard.c_str(), "%d/%d%c", &i, &n, &extra) != 2 || n < 1 || n > 100000 || i < 1 || i > n)
           throw std::invalid_argument("--shard '" + config::printable(shard) + "': expected I/N with 1 <= I <= N");
-        camp.shard_index = i;
-        camp.shard_count = n;
+        o.shard_index = i;
+        o.shard_count = n;
       }
-      const auto cell = sim::build_cell(sim::load_scenario(scenario));
-      camp.source = cellsim::parse_feature_source(source);
-      camp.base = cellsim::servo_config_for(*cell);
-      camp_law.apply(camp.base, desired_depth(*cell));
-      for (std::size_t a = 0, b; a < camp_models.size(); a = b + 1) {
-        b = camp_models.find(',', a);
-        if (b == std::string::npos) b = camp_models.size();
-        camp.models.push_back(control::parse_interaction_model(camp_models.substr(a, b - a)));
-      }
-      camp.out_dir = camp_dir;
-      const auto table = cellsim::run_campaign(*cell, camp);
+      const auto table = cellsim::run_campaign(*cell, o);
       std::printf("%s", table.c_str());
-      if (!camp_no_plot) cellsim::plot_campaign(camp_dir, cell->scenario.name + " campaign");
+      if (!camp.no_plot) cellsim::plot_campaign(camp.dir, cell->scenario.name + " campaign");
+      return 0;
+    }
+    if (*st) {
+      cellsim::StudyOptions so;
+      for (const auto& a : study_axes) so.axes.push_back(cellsim::parse_study_axis(a));
+      if (so.axes.size() > 2) throw std::invalid_argument("study: at most two --axis");
+      if (study.dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
+      const sim::Scenario sc = sim::load_scenario(scenario);
+      const auto cell = sim::build_cell(sc);
+      so.campaign = study.options(*cell);
+      so.out_dir = study.dir;
+      std::printf("%s", cellsim::run_study(sc, so).c_str());
+      if (!study.no_plot) cellsim::plot_study(study.dir, sc.name + " study");
       return 0;
     }
     if (*render) return run_render(scenario, pose, out, truth, frame, observer);

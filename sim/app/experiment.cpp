@@ -8,6 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include <deque>
+
 #include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
 
@@ -72,20 +74,47 @@ servo::ServoConfig servo_config_for(const sim::Cell& cell) {
   return c;
 }
 
+control::CameraIntrinsics believed_camera(const control::CameraIntrinsics& truth, const sim::DrawnErrors& d) {
+  control::CameraIntrinsics c = truth;
+  c.fx *= d.fx_scale;
+  c.fy *= d.fy_scale;
+  c.cx += d.principal_shift_px.x();
+  c.cy += d.principal_shift_px.y();
+  c.distortion[0] += d.k1_shift;
+  return c;
+}
+
+control::ProjectorModel believed_projector(const control::ProjectorModel& truth, const sim::DrawnErrors& d) {
+  control::ProjectorModel p = truth;
+  p.world_T_projector = truth.world_T_projector * d.projector_delta;
+  return p;
+}
+
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) {
   const sim::Scenario& sc = cell.scenario;
   const std::uint64_t seed = o.noise_seed ? o.noise_seed : sc.seed;
-  servo::ServoPipeline pipeline(pattern::WindowTable(cell.projector->pattern(), {3, 3}), o.servo);
+  const sim::CalibrationErrors errors = o.errors.value_or(sc.errors);
+  const sim::Latency latency = o.latency.value_or(sc.latency);
+  const std::unique_ptr<sim::Robot> robot_owner = sim::make_robot(cell);
+  sim::Robot& robot = *robot_owner;
+  servo::ServoConfig config = o.servo;
+  if (errors.any()) {
+    // the simulator keeps the truth; the servo and the robot's controller get the draw
+    const sim::DrawnErrors drawn =
+        sim::draw_errors(errors, seed, sc.robot.model ? sc.robot.model->chain.size() : std::size_t{0});
+    config.camera = believed_camera(config.camera, drawn);
+    if (config.projector) config.projector = believed_projector(*config.projector, drawn);
+    robot.set_belief(drawn.robot);
+  }
+  servo::ServoPipeline pipeline(pattern::WindowTable(cell.projector->pattern(), {3, 3}), config);
   sim::RenderScratch scratch;
   ExperimentResult res;
 
   // teach by showing: the robot at the desired pose, s* from what the camera sees there
-  const std::unique_ptr<sim::Robot> robot_owner = sim::make_robot(cell);
-  sim::Robot& robot = *robot_owner;
   std::uint64_t frame = 0;
   const auto taught = observe(cell, pipeline, o.source, robot.world_T_camera(), robot.world_T_links(),
                               sim::frame_seed(seed, frame++), scratch, nullptr);
-  res.decoded_desired = pipeline.teach(taught, robot.world_T_camera());
+  res.decoded_desired = pipeline.teach(taught, robot.reported_world_T_camera());
 
   try {
     robot.reset(o.initial.value_or(sc.world_T_initial()));
@@ -111,10 +140,23 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     }
   }
 
+  // the loop's delays: the scenes the camera has not delivered yet, the twists on their way
+  // to the robot, and those the robot got but does not follow yet (with when it will)
+  std::deque<std::pair<Eigen::Isometry3d, sim::LinkPoses>> scenes;
+  std::deque<sim::Vector6d> in_flight(static_cast<std::size_t>(latency.processing_frames), sim::Vector6d::Zero());
+  std::deque<std::pair<double, sim::Vector6d>> pending;
+  sim::Vector6d followed = sim::Vector6d::Zero();
+  std::optional<double> initial_error;
+
   for (int k = 0; k < o.max_iterations; ++k) {
     const Eigen::Isometry3d wTc = robot.world_T_camera();
     const sim::LinkPoses links = robot.world_T_links();
-    const auto spots = observe(cell, pipeline, o.source, wTc, links, sim::frame_seed(seed, frame++), scratch, nullptr);
+    scenes.emplace_back(wTc, links);
+    if (scenes.size() > static_cast<std::size_t>(latency.acquisition_frames) + 1) scenes.pop_front();
+    // the image of this frame shows the oldest scene kept: acquisition_frames ago, or the start
+    const auto& [scene_wTc, scene_links] = scenes.front();
+    const auto spots =
+        observe(cell, pipeline, o.source, scene_wTc, scene_links, sim::frame_seed(seed, frame++), scratch, nullptr);
     if (occlusion.is_open()) {
       // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
       int visible = 0, hidden = 0, on_arm = 0;
@@ -126,7 +168,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
     }
     if (k == 0) res.decoded_initial = static_cast<int>(spots.size());
-    const servo::StepResult step = pipeline.step(spots, wTc);
+    const servo::StepResult step = pipeline.step(spots, robot.reported_world_T_camera());
 
     IterationRecord rec;
     rec.t_s = k * sc.dt_s;
@@ -138,8 +180,36 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     rec.translation_error_m = sim::translation_error(wTc, sc.world_T_desired);
     rec.rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
     res.iterations = k + 1;
-    const bool last = step.control.status != control::ControlStatus::kServoing;
-    if (!last) rec.robot_limits = robot.move(step.control.twist, sc.dt_s, sc.workspace).limits;
+    bool last = step.control.status != control::ControlStatus::kServoing;
+    if (!last && !initial_error) initial_error = step.control.error_norm;
+    if (!last && o.divergence_ratio > 0 && step.control.error_norm > o.divergence_ratio * *initial_error) {
+      char why[160];
+      std::snprintf(why, sizeof why, "diverging: |e| = %.4g, above %g x its initial %.4g", step.control.error_norm,
+                    o.divergence_ratio, *initial_error);
+      res.stop_reason = why;
+      res.diverged = true;
+      last = true;
+    }
+    if (!last && !latency.any()) {
+      rec.robot_limits = robot.move(step.control.twist, sc.dt_s, sc.workspace).limits;
+    } else if (!last) {
+      in_flight.push_back(step.control.twist);
+      pending.emplace_back(rec.t_s + latency.actuation_s, in_flight.front());
+      in_flight.pop_front();
+      // this frame's dt, in pieces: the robot switches to each twist when its time comes
+      double t = rec.t_s;
+      const double end = rec.t_s + sc.dt_s;
+      while (t < end) {
+        while (!pending.empty() && pending.front().first <= t + 1e-12) {
+          followed = pending.front().second;
+          pending.pop_front();
+        }
+        const double until = pending.empty() ? end : std::min(end, pending.front().first);
+        const double piece = (t == rec.t_s && until == end) ? sc.dt_s : until - t;
+        if (until > t) rec.robot_limits |= robot.move(followed, piece, sc.workspace).limits;
+        t = std::max(until, t + 1e-12);
+      }
+    }
     res.trace.push_back(rec);
     if (trace.is_open()) {
       trace << rec.t_s;
@@ -173,8 +243,12 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       res.stop_reason = "safe stop: " + step.control.reason;
       break;
     }
+    if (res.diverged) break;
   }
   if (res.stop_reason.empty()) res.stop_reason = "iteration cap (" + std::to_string(o.max_iterations) + ") reached";
+  for (std::size_t i = 1; i < res.trace.size(); ++i)
+    res.error_rise += std::max(0.0, res.trace[i].error_norm - res.trace[i - 1].error_norm);
+  if (!res.trace.empty() && res.trace.front().error_norm > 0) res.error_rise /= res.trace.front().error_norm;
   res.final_translation_error_m = sim::translation_error(robot.world_T_camera(), sc.world_T_desired);
   res.final_rotation_error_deg = sim::rotation_error(robot.world_T_camera(), sc.world_T_desired) * kRadToDeg;
   return res;

@@ -24,6 +24,13 @@ struct ExperimentOptions {
   std::filesystem::path out_dir;             // trace.csv, features.jsonl (nothing when empty)
   bool write_features = true;
   std::uint64_t noise_seed = 0;              // 0: the scenario's seed
+  // what the servo is told against the truth, and the loop's delays (default: the scenario's)
+  std::optional<sim::CalibrationErrors> errors;
+  std::optional<sim::Latency> latency;
+  // a safe stop that says "diverging" when |e| rises above this x its first value (0: never).
+  // Off by default: |e| may rise for a while when the set of matched spots changes (spots
+  // coming into view), which is not divergence; the fig5 runs set it to 2.
+  double divergence_ratio = 0;
 };
 
 struct IterationRecord {
@@ -37,10 +44,14 @@ struct IterationRecord {
 
 struct ExperimentResult {
   bool converged = false;
+  bool diverged = false;
   std::string stop_reason;
   int iterations = 0;
   int decoded_desired = 0, decoded_initial = 0;
   double final_translation_error_m = 0, final_rotation_error_deg = 0;
+  // how much |e| rose on its way, summed over the iterations where it rose, relative to its
+  // first value: 0 for a monotonic decrease; an oscillating loop piles it up
+  double error_rise = 0;
   std::vector<IterationRecord> trace;
 };
 
@@ -52,6 +63,11 @@ control::ProjectorModel projector_model_of(const sim::Cell& cell);
 // The servo configuration a scenario implies: the camera's intrinsics and the projector's
 // calibration taken as exact.
 servo::ServoConfig servo_config_for(const sim::Cell& cell);
+
+// What calibration would give with the drawn errors (issue 13): the camera's intrinsics and
+// the projector's pose as the servo is told them.
+control::CameraIntrinsics believed_camera(const control::CameraIntrinsics& truth, const sim::DrawnErrors& errors);
+control::ProjectorModel believed_projector(const control::ProjectorModel& truth, const sim::DrawnErrors& errors);
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& options);
 

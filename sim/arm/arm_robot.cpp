@@ -19,6 +19,28 @@ ArmRobot::ArmRobot(std::shared_ptr<const RobotModel> model, const Eigen::Isometr
   reset_joints(home_.cwiseMax(kin_.lower()).cwiseMin(kin_.upper()));
 }
 
+Eigen::Isometry3d ArmRobot::reported_world_T_camera() const {
+  const Eigen::Isometry3d w_T_c = believed_kin_ ? world_T_base_ * believed_kin_->base_T_camera(q_) : world_T_camera_;
+  return camera_T_believed_.matrix().isIdentity(0) ? w_T_c : w_T_c * camera_T_believed_;
+}
+
+void ArmRobot::set_belief(const RobotBelief& belief) {
+  camera_T_believed_ = belief.camera_T_believed;
+  believed_kin_.reset();
+  believed_model_.reset();
+  if (belief.link_scale.empty() && belief.joint_offset_rad.empty()) return;
+  auto m = std::make_shared<RobotModel>(*model_);
+  for (std::size_t i = 0; i < m->chain.size(); ++i) {
+    ChainSegment& seg = m->chain[i];
+    if (i < belief.link_scale.size()) seg.parent_T_origin.translation() *= belief.link_scale[i];
+    // a joint whose zero is off: the controller reads q where the joint is at q + offset
+    if (i < belief.joint_offset_rad.size() && seg.type == JointType::kRevolute)
+      seg.parent_T_origin.rotate(Eigen::AngleAxisd(belief.joint_offset_rad[i], seg.axis));
+  }
+  believed_model_ = std::move(m);
+  believed_kin_ = std::make_unique<ArmKinematics>(*believed_model_);
+}
+
 void ArmRobot::sync() {
   q_ = arm_.q();
   qdot_ = arm_.qdot();
@@ -69,8 +91,13 @@ MotionReport ArmRobot::move(const Vector6d& twist_c, double dt_s, const Workspac
   carry_ns_ -= steps * period_ns_;
   const double h = static_cast<double>(period_ns_) * 1e-9;
   bool stopped = false;
+  // the controller moves the camera it believes in: its twist, in the frame of the model's
+  // camera link, is the commanded one carried over the hand-eye error
+  const ArmKinematics& ck = believed_kin_ ? *believed_kin_ : kin_;
+  const bool exact_hand_eye = camera_T_believed_.matrix().isIdentity(0);
+  const Vector6d command = exact_hand_eye ? twist_c : transform_twist(camera_T_believed_, twist_c);
   for (std::int64_t k = 0; k < steps; ++k) {
-    ArmCommand cmd = stopped ? ArmCommand{Eigen::VectorXd::Zero(kin_.dof())} : controller_.step(kin_, q_, twist_c, h);
+    ArmCommand cmd = stopped ? ArmCommand{Eigen::VectorXd::Zero(kin_.dof())} : controller_.step(ck, q_, command, h);
     if (!stopped) {
       // the camera stays in the workspace: a step that would leave it is not commanded
       const Eigen::Vector3d next = world_T_camera_ * (cmd.twist.head<3>() * h);

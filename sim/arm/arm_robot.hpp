@@ -23,6 +23,10 @@ class ArmRobot final : public Robot {
            double physics_period_s = 0.001);
 
   Eigen::Isometry3d world_T_camera() const override { return world_T_camera_; }
+  // the forward kinematics of the believed model (link lengths, joint zeros, hand-eye)
+  Eigen::Isometry3d reported_world_T_camera() const override;
+  // the controller's model from here on: the true chain with the belief's errors
+  void set_belief(const RobotBelief& belief) override;
   void reset(const Eigen::Isometry3d& world_T_camera) override;
   void reset_joints(const Eigen::VectorXd& q);
   // reset() to exactly this pose takes these joint angles (a scenario's desired and
@@ -49,6 +53,10 @@ class ArmRobot final : public Robot {
   std::shared_ptr<const RobotModel> model_;
   Eigen::Isometry3d world_T_base_;
   ArmKinematics kin_;
+  // what the controller believes (null: the truth, kin_)
+  std::shared_ptr<const RobotModel> believed_model_;
+  std::unique_ptr<ArmKinematics> believed_kin_;
+  Eigen::Isometry3d camera_T_believed_ = Eigen::Isometry3d::Identity();
   ArmController controller_;
   BulletArm arm_;
   Eigen::VectorXd home_, q_, qdot_, q_ref_;

@@ -85,4 +85,12 @@ double rotation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return Eigen::AngleAxisd(a.rotation().transpose() * b.rotation()).angle();
 }
 
+Vector6d transform_twist(const Eigen::Isometry3d& a_T_b, const Vector6d& twist_b) {
+  const Eigen::Matrix3d R = a_T_b.rotation();
+  Vector6d out;
+  out.tail<3>() = R * twist_b.tail<3>();
+  out.head<3>() = R * twist_b.head<3>() + a_T_b.translation().cross(out.tail<3>());
+  return out;
+}
+
 }  // namespace sim

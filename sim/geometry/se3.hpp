@@ -16,6 +16,10 @@ Eigen::Isometry3d se3_exp(const Vector6d& twist);
 // Inverse of se3_exp (the twist that reaches T in unit time), for tests and error metrics.
 Vector6d se3_log(const Eigen::Isometry3d& T);
 
+// The twist (v, w) of a body expressed in frame B, expressed in frame A instead (a_T_b):
+// w_a = R w_b, v_a = R v_b + p x (R w_b).
+Vector6d transform_twist(const Eigen::Isometry3d& a_T_b, const Vector6d& twist_b);
+
 // Pose from translation (metres) and intrinsic rotations about X, then Y, then Z (radians):
 // T = Trans(x, y, z) * Rx(rx) * Ry(ry) * Rz(rz).
 Eigen::Isometry3d pose_from_xyz_rxyz(double x, double y, double z, double rx, double ry, double rz);

@@ -19,6 +19,8 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   std::size_t total = 0;
   for (const ObjectSpec& o : scenario.objects) {
     TriangleMesh mesh = load_mesh(o.mesh);
+    if (o.scale != Eigen::Vector3d::Ones())
+      for (auto& v : mesh.vertices) v = v.cwiseProduct(o.scale);
     total += mesh.triangles.size();
     if (total > kMaxSceneTriangles)
       throw MeshError(scenario.file.string() + ": objects: more than " + std::to_string(kMaxSceneTriangles) +

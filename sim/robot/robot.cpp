@@ -37,7 +37,11 @@ Vector6d FreeFlyingCamera::apply_twist(const Vector6d& twist_c, double dt_s) {
 MotionReport FreeFlyingCamera::move(const Vector6d& twist_c, double dt_s, const Workspace& workspace) {
   MotionReport r;
   FreeFlyingCamera trial = *this;
-  const Vector6d a = trial.apply_twist(twist_c, dt_s);
+  // the twist is meant for the camera the controller believes in; the true camera, rigidly
+  // attached to it, moves with the same body motion
+  const bool exact = camera_T_believed_.matrix().isIdentity(0);
+  const Vector6d wanted = exact ? twist_c : transform_twist(camera_T_believed_, twist_c);
+  const Vector6d a = trial.apply_twist(wanted, dt_s);
   if (!workspace.contains(trial.world_T_camera().translation())) {
     r.limits = kLimitWorkspace;
     r.event = "a twist would take the camera out of the workspace: robot stopped";
@@ -45,7 +49,7 @@ MotionReport FreeFlyingCamera::move(const Vector6d& twist_c, double dt_s, const 
   }
   *this = trial;
   r.applied = a;
-  if (a != twist_c) r.limits = kLimitCartesianSpeed;
+  if (a != wanted) r.limits = kLimitCartesianSpeed;
   return r;
 }
 

@@ -33,10 +33,24 @@ struct MotionReport {
   std::string event;                    // non-empty when the robot stopped by itself: why
 };
 
+// What the cell's controller believes of the robot when its calibration is off (issue 13):
+// the camera on the flange (hand-eye) and, for an arm, each joint origin's offset and each
+// joint's zero. The robot moves by the truth; it executes a twist for the camera it believes
+// in and reports the pose of that camera.
+struct RobotBelief {
+  Eigen::Isometry3d camera_T_believed = Eigen::Isometry3d::Identity();  // hand-eye error
+  std::vector<double> link_scale;        // per chain segment (arm); empty: exact
+  std::vector<double> joint_offset_rad;  // per chain segment (arm); empty: exact
+  bool exact() const { return camera_T_believed.matrix().isIdentity(0) && link_scale.empty() && joint_offset_rad.empty(); }
+};
+
 class Robot {
  public:
   virtual ~Robot() = default;
   virtual Eigen::Isometry3d world_T_camera() const = 0;
+  // the camera pose the robot reports (tf): the true one unless set_belief said otherwise
+  virtual Eigen::Isometry3d reported_world_T_camera() const = 0;
+  virtual void set_belief(const RobotBelief& belief) = 0;
   // Places the camera at the pose. Throws std::invalid_argument (one line) when the robot
   // cannot be there (out of reach, in collision).
   virtual void reset(const Eigen::Isometry3d& world_T_camera) = 0;
@@ -57,6 +71,11 @@ class FreeFlyingCamera final : public Robot {
  public:
   FreeFlyingCamera(const Eigen::Isometry3d& world_T_camera, double max_linear_mps, double max_angular_radps);
   Eigen::Isometry3d world_T_camera() const override { return world_T_camera_; }
+  Eigen::Isometry3d reported_world_T_camera() const override {
+    return camera_T_believed_.matrix().isIdentity(0) ? world_T_camera_ : world_T_camera_ * camera_T_believed_;
+  }
+  // a free-flying camera has no joints: only the hand-eye part applies
+  void set_belief(const RobotBelief& belief) override { camera_T_believed_ = belief.camera_T_believed; }
   void reset(const Eigen::Isometry3d& world_T_camera) override { world_T_camera_ = world_T_camera; }
   MotionReport move(const Vector6d& twist_c, double dt_s, const Workspace& workspace) override;
   // the motion without a workspace; returns the twist applied
@@ -64,6 +83,7 @@ class FreeFlyingCamera final : public Robot {
 
  private:
   Eigen::Isometry3d world_T_camera_;
+  Eigen::Isometry3d camera_T_believed_ = Eigen::Isometry3d::Identity();
   double max_linear_mps_;
   double max_angular_radps_;
 };

@@ -156,13 +156,27 @@ void resolve_arm(const Reader& top, Scenario& s) {
   }
 }
 
+// errors: {focal_pct: 1, hand_eye_rotation_deg: 0.5, seed: 3, ...} (sim/scenario/cell_errors.hpp)
+void read_errors(const Reader& r, CalibrationErrors& e) {
+  std::vector<std::string> names = error_names();
+  names.push_back("seed");
+  r.only_keys(names);
+  if (r.has("seed")) e.seed = r.at("seed").unsigned_integer();
+  for (const std::string& name : error_names())
+    if (r.has(name.c_str())) try {
+        set_error(e, name, r.at(name.c_str()).in_range(0, 1e6));
+      } catch (const std::invalid_argument& ex) {
+        r.at(name.c_str()).fail(ex.what());
+      }
+}
+
 Scenario read_scenario(const std::filesystem::path& file) {
   const YAML::Node root = config::load_yaml_file(file, "scenario file");
   Scenario s;
   s.file = std::filesystem::absolute(file).lexically_normal();
   const Reader top(s.file, root, "");
   top.only_keys({"name", "seed", "timing", "objects", "projector", "camera", "robot", "desired_pose", "initial_offset",
-                 "workspace"});
+                 "workspace", "errors", "latency"});
   s.name = top.at("name").text(200);
   s.seed = top.at("seed").unsigned_integer();
 
@@ -176,7 +190,7 @@ Scenario read_scenario(const std::filesystem::path& file) {
   if (objs.size_at_most(kMaxObjects) == 0) objs.fail("needs at least one object");
   for (std::size_t i = 0; i < objs.size(); ++i) {
     const Reader o = objs.at(i);
-    o.only_keys({"name", "mesh", "position_m", "rotation_deg", "albedo"});
+    o.only_keys({"name", "mesh", "position_m", "rotation_deg", "albedo", "scale"});
     ObjectSpec spec;
     spec.name = o.has("name") ? o.at("name").text(200) : "object" + std::to_string(i);
     spec.mesh = o.at("mesh").existing_file();
@@ -185,6 +199,10 @@ Scenario read_scenario(const std::filesystem::path& file) {
                                          : std::array<double, 3>{0, 0, 0};
     spec.world_T_object = pose_from_xyz_rxyz(p.x(), p.y(), p.z(), r[0] * kDeg, r[1] * kDeg, r[2] * kDeg);
     if (o.has("albedo")) spec.albedo = o.at("albedo").in_range(0, 1);
+    if (o.has("scale")) {
+      const auto k = o.at("scale").numbers_in<3>(0.01, 100);
+      spec.scale = {k[0], k[1], k[2]};
+    }
     s.objects.push_back(spec);
   }
 
@@ -247,6 +265,17 @@ Scenario read_scenario(const std::filesystem::path& file) {
   }
 
   if (s.robot.arm_enabled) resolve_arm(top, s);
+  if (top.has("errors")) read_errors(top.at("errors"), s.errors);
+  if (top.has("latency")) {
+    const Reader l = top.at("latency");
+    l.only_keys({"acquisition_frames", "processing_frames", "actuation_s"});
+    for (const std::string& name : latency_names())
+      if (l.has(name.c_str())) try {
+          set_latency(s.latency, name, l.at(name.c_str()).in_range(0, 1e6));
+        } catch (const std::invalid_argument& e) {
+          l.at(name.c_str()).fail(e.what());
+        }
+  }
 
   // the camera's workspace: given, or the desired and initial positions with a margin
   if (top.has("workspace")) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "sim/arm/robot_model.hpp"
+#include "sim/scenario/cell_errors.hpp"
 #include "sim/geometry/workspace.hpp"
 
 namespace sim {
@@ -41,6 +42,7 @@ struct ObjectSpec {
   std::filesystem::path mesh;            // absolute (resolved against the scenario file)
   Eigen::Isometry3d world_T_object = Eigen::Isometry3d::Identity();
   double albedo = 0.8;                   // Lambertian reflectance, 0..1
+  Eigen::Vector3d scale = Eigen::Vector3d::Ones();  // of the mesh, along its own axes
 };
 
 // Pinhole intrinsics in pixels; the pixel (i, j) has its centre at (u, v) = (i, j).
@@ -121,6 +123,9 @@ struct Scenario {
   Eigen::Isometry3d world_T_initial() const;
   // set when the initial pose is given as joint angles (build_cell fills it by FK)
   std::optional<Eigen::Isometry3d> initial_pose;
+  // what the servo is told against the truth, and the loop's delays (all zero: none)
+  CalibrationErrors errors;
+  Latency latency;
 };
 
 // Throws ScenarioError (one line naming the file and the key) on unknown keys, wrong types,

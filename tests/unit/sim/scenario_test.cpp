@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -66,6 +67,34 @@ TEST(Scenario, PlaneMatchesThePapersSetUp) {
   // the initial pose is the paper's displacement: 5 + 10 + 20 cm, 15 and 10 degrees
   const Eigen::Isometry3d delta = s.world_T_desired.inverse() * s.world_T_initial();
   EXPECT_NEAR(delta.translation().norm(), std::sqrt(0.05 * 0.05 + 0.1 * 0.1 + 0.2 * 0.2), 1e-9);
+}
+
+// The errors a real cell has (issue 13): read at load, checked, named in one line.
+TEST(Scenario, ErrorsAndLatencyAreReadAndChecked) {
+  const std::string ok = variant("errors", "seed: 1\n",
+                                 "seed: 1\nerrors: {focal_pct: 1.5, hand_eye_rotation_deg: 0.5, seed: 4}\n"
+                                 "latency: {processing_frames: 2, actuation_s: 0.01}\n");
+  const Scenario s = load_scenario(ok);
+  std::remove(ok.c_str());
+  EXPECT_EQ(s.errors.focal_pct, 1.5);
+  EXPECT_EQ(s.errors.hand_eye_rotation_deg, 0.5);
+  EXPECT_EQ(s.errors.seed, 4u);
+  EXPECT_EQ(s.latency.processing_frames, 2);
+  EXPECT_EQ(s.latency.actuation_s, 0.01);
+  EXPECT_FALSE(load_scenario(kScenarios + "plane.yaml").errors.any());
+
+  std::string e = error_of(variant("errors_big", "seed: 1\n", "seed: 1\nerrors: {focal_pct: 1e300}\n"));
+  EXPECT_NE(e.find("errors.focal_pct"), std::string::npos) << e;
+  e = error_of(variant("errors_range", "seed: 1\n", "seed: 1\nerrors: {focal_pct: 60}\n"));
+  EXPECT_NE(e.find("errors.focal_pct"), std::string::npos) << e;
+  EXPECT_NE(e.find("outside [0, 50]"), std::string::npos) << e;
+  e = error_of(variant("errors_key", "seed: 1\n", "seed: 1\nerrors: {lens: 1}\n"));
+  EXPECT_NE(e.find("unknown key"), std::string::npos) << e;
+  e = error_of(variant("latency_big", "seed: 1\n", "seed: 1\nlatency: {processing_frames: 100000000}\n"));
+  EXPECT_NE(e.find("latency.processing_frames"), std::string::npos) << e;
+  e = error_of(variant("scale", "albedo: 0.85", "albedo: 0.85\n    scale: [1, 0, 1]"));
+  EXPECT_NE(e.find("scale"), std::string::npos) << e;
+  EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 0) << e;
 }
 
 TEST(Scenario, OffsetConventionIsTranslationThenIntrinsicXYZ) {

@@ -441,11 +441,16 @@ int main(int argc, char** argv) {
       const sim::Scenario s = sim::load_scenario(scenario);
       const pattern::MArray a = pattern::read_marray(s.projector.pattern);
       const auto& k = s.projector.intrinsics;
-      const Eigen::Quaterniond q(s.projector.world_T_projector.rotation());
-      const Eigen::Vector3d t = s.projector.world_T_projector.translation();
+      // what a calibration would give: off by the scenario's projector errors, if any
+      const Eigen::Isometry3d pose = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
+      const Eigen::Quaterniond q(pose.rotation());
+      const Eigen::Vector3d t = pose.translation();
       std::ofstream f(calib_out);
       if (!f) throw std::runtime_error(calib_out + ": cannot write");
-      f << std::setprecision(12) << "# projector calibration of scenario " << s.name << " (exact: the simulator's own)\n"
+      const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
+      f << std::setprecision(12) << "# projector calibration of scenario " << s.name
+        << (off ? " (with the scenario's projector errors: " + cellsim::describe(s.errors, {}) + ")\n"
+                : " (exact: the simulator's own)\n")
         << "fx: " << k.fx << "\nfy: " << k.fy << "\ncx: " << k.cx << "\ncy: " << k.cy
         << "\nspot_pitch_px: " << s.projector.spot_pitch_px << "\nrows: " << a.rows << "\ncols: " << a.cols
         << "\nposition_m: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", "

@@ -33,6 +33,33 @@ std::vector<servo::ImageSpot> observe(const sim::Cell& cell, const servo::ServoP
   return pipeline.locate(sim::render_image(cell, wTc, seed, &scratch, nullptr, &links), wTc, detected);
 }
 
+nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return rows;
+}
+
+// What the Fig. 5a-b drawings need: where the camera is taught and starts, where the
+// projector is, and where the spots seen at the desired pose land (the truth).
+void write_scene(const sim::Cell& cell, const Eigen::Isometry3d& desired, const Eigen::Isometry3d& initial,
+                 const std::filesystem::path& file) {
+  nlohmann::json j;
+  j["camera_desired"] = matrix_json(desired);
+  j["camera_initial"] = matrix_json(initial);
+  j["projector"] = matrix_json(cell.scenario.projector.world_T_projector);
+  j["spots"] = nlohmann::json::array();
+  for (const auto& t : sim::compute_truth(cell, desired))
+    if (t.visible) j["spots"].push_back({{"row", t.row}, {"col", t.col}, {"point_w", {t.point_w.x(), t.point_w.y(), t.point_w.z()}}});
+  j["objects"] = nlohmann::json::array();
+  for (std::size_t i = 0; i < cell.scenario.objects.size(); ++i) {
+    const auto& o = cell.scenario.objects[i];
+    j["objects"].push_back({{"name", o.name}, {"pose", matrix_json(o.world_T_object)}});
+  }
+  std::ofstream out(file);
+  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+  out << j.dump(1) << "\n";
+}
+
 }  // namespace
 
 FeatureSource parse_feature_source(const std::string& name) {
@@ -98,8 +125,10 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   const std::unique_ptr<sim::Robot> robot_owner = sim::make_robot(cell);
   sim::Robot& robot = *robot_owner;
   servo::ServoConfig config = o.servo;
+  // the simulator keeps the truth; the servo and the robot's controller get the draw (and
+  // the robot forgets what make_robot drew from the scenario when the options say otherwise)
+  robot.set_belief({});
   if (errors.any()) {
-    // the simulator keeps the truth; the servo and the robot's controller get the draw
     const sim::DrawnErrors drawn =
         sim::draw_errors(errors, seed, sc.robot.model ? sc.robot.model->chain.size() : std::size_t{0});
     config.camera = believed_camera(config.camera, drawn);
@@ -133,6 +162,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
           << "\n";
     trace << sim::kTraceHeader << "\n";
     trace << std::setprecision(9);
+    write_scene(cell, sc.world_T_desired, robot.world_T_camera(), o.out_dir / "scene.json");
     if (o.write_features) features.open(o.out_dir / "features.jsonl");
     if (o.write_features && arm) {
       occlusion.open(o.out_dir / "occlusion.csv");

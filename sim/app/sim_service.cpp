@@ -1,5 +1,8 @@
 #include "sim/app/sim_service.hpp"
 
+#include "sim/app/campaign.hpp"
+#include "sim/app/experiment.hpp"
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -94,10 +97,23 @@ sim::ServoReport to_report(const ServoStatus_& s) {
           s.reason()};
 }
 
+// What a scenario's errors: and latency: sections do in this service, said once at load.
+void announce_conditions(const sim::Scenario& s) {
+  if (s.errors.any())
+    std::printf("cellsim: %s: the servo is told a calibration off by %s (camera_info, rt/camera_pose, the robot's "
+                "controller; `cellsim calibration` writes the projector's)\n",
+                s.file.filename().c_str(), describe(s.errors, {}).c_str());
+  if (s.latency.any())
+    std::printf("cellsim: %s: latency: %s applies to in-process runs (experiment, campaign, study); over DDS the "
+                "loop's delays are the real ones, nothing is added\n",
+                s.file.filename().c_str(), describe({}, s.latency).c_str());
+}
+
 class SimService {
  public:
   explicit SimService(const ServiceOptions& o) : o_(o) {
     cell_ = sim::build_cell(sim::load_scenario(o.scenario));
+    announce_conditions(cell_->scenario);
     sim::CellParams cp;
     cp.timing = o.mode == TimingMode::kLockstep ? sim::Timing::kLockstep : sim::Timing::kRealtime;
     cp.watchdog_s = o.watchdog_ms / 1e3;
@@ -165,7 +181,10 @@ class SimService {
       trace_ << "# scenario " << cell_->scenario.name << ", cellsim serve ("
              << (o.mode == TimingMode::kLockstep ? "lockstep" : "realtime")
              << "), one row per applied step, twists and status from the servo\n";
-      trace_ << sim::kTraceHeader << "\n" << std::setprecision(9);
+      // realtime adds the measured processing time of each twist (lockstep has none to
+      // measure, and keeps the in-process runner's columns)
+      trace_ << sim::kTraceHeader << (o.mode == TimingMode::kRealtime ? ",processing_ms" : "") << "\n"
+             << std::setprecision(9);
       trace_.flush();
     }
   }
@@ -239,6 +258,7 @@ class SimService {
         auto robot = sim::make_robot(*cell);
         cell_ = std::move(cell);
         machine_->loaded(cell_->scenario, std::move(robot));
+        announce_conditions(cell_->scenario);
         publish_camera_info();
         publish_description();
       } catch (const std::exception& e) {
@@ -253,14 +273,17 @@ class SimService {
   double dt() const { return cell_->scenario.dt_s; }
 
   void publish_camera_info() {
-    const auto& k = cell_->scenario.camera.intrinsics;
+    // the intrinsics as calibration gave them: off by the scenario's errors, if it has any
+    const control::CameraIntrinsics k =
+        cellsim::believed_camera(cellsim::camera_intrinsics_of(*cell_), sim::scenario_errors(cell_->scenario));
+    const auto& size = cell_->scenario.camera.intrinsics;
     sensor_msgs::msg::dds_::CameraInfo_ ci;
     ci.header().stamp(cell_dds::stamp_of(machine_->next_frame(), dt()));
     ci.header().frame_id(cell_dds::kCameraFrame);
-    ci.height(static_cast<uint32_t>(k.height));
-    ci.width(static_cast<uint32_t>(k.width));
+    ci.height(static_cast<uint32_t>(size.height));
+    ci.width(static_cast<uint32_t>(size.width));
     ci.distortion_model("plumb_bob");
-    const auto& d = cell_->scenario.camera.distortion;
+    const auto& d = k.distortion;
     ci.d(std::vector<double>(d.begin(), d.end()));
     ci.k({k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1});
     ci.r({1, 0, 0, 0, 1, 0, 0, 0, 1});
@@ -291,7 +314,7 @@ class SimService {
     tf2_msgs::msg::dds_::TFMessage_ tf;
     const auto& model = cell_->scenario.robot.model;
     if (!model || f.world_T_links.size() != model->chain.size() + 1) {
-      tf.transforms().push_back(transform(stamp, cell_dds::kWorldFrame, cell_dds::kCameraFrame, f.world_T_camera));
+      tf.transforms().push_back(transform(stamp, cell_dds::kWorldFrame, cell_dds::kCameraFrame, f.reported_world_T_camera));
       tf_->write(tf);
       return;
     }
@@ -347,7 +370,8 @@ class SimService {
     geometry_msgs::msg::dds_::PoseStamped_ pose;
     pose.header().stamp(stamp);
     pose.header().frame_id(cell_dds::kWorldFrame);
-    fill_pose(pose.pose().position(), pose.pose().orientation(), wTc);
+    // what the robot reports, not the truth (they differ when the scenario has errors:)
+    fill_pose(pose.pose().position(), pose.pose().orientation(), f.reported_world_T_camera);
     pose_->write(pose);  // before the image: the servo may need it to triangulate
 
     publish_robot(stamp, f);
@@ -375,7 +399,12 @@ class SimService {
     for (int i = 0; i < 6; ++i) trace_ << ',' << r.twist[i];
     trace_ << ',' << (r.status ? r.status->error_norm : std::nan("")) << ',' << (r.status ? r.status->decoded : 0) << ','
            << (r.status ? r.status->matched : 0) << ',' << r.translation_error_m << ',' << r.rotation_error_deg << ','
-           << sim::limit_names(r.robot_limits) << '\n';
+           << sim::limit_names(r.robot_limits);
+    if (o_.mode == TimingMode::kRealtime) {
+      trace_ << ',';
+      if (r.processing_s) trace_ << 1e3 * *r.processing_s;
+    }
+    trace_ << '\n';
     if (o_.mode == TimingMode::kRealtime) trace_.flush();  // a realtime run usually ends by a signal
   }
 

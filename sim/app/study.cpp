@@ -23,6 +23,9 @@ bool is_object_scale(const std::string& name) {
   return name == "object_scale_x" || name == "object_scale_y" || name == "object_scale_z";
 }
 
+// axes that change the world: each point needs a cell of its own
+bool reshapes_world(const std::string& name) { return is_object_scale(name) || name == "object_yaw_deg"; }
+
 bool is_error(const std::string& name) {
   const auto n = sim::error_names();
   return std::find(n.begin(), n.end(), name) != n.end();
@@ -48,9 +51,26 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
   } else if (name == "gain") {
     within(1e-6, 100);
     c.base.law.gain = control::Gain{v, v, 0};
+  } else if (name == "error_scale") {
+    // every calibration error given (scenario or --error) times this factor
+    within(0, 1000);
+    sim::CalibrationErrors e = c.errors.value_or(s.errors);
+    for (const auto& [n, magnitude] : sim::error_values(e))
+      if (magnitude != 0) sim::set_error(e, n, magnitude * v);
+    c.errors = e;
   } else if (is_object_scale(name)) {
     within(0.01, 100);
     for (auto& o : s.objects) o.scale[name.back() - 'x'] = v;
+  } else if (name == "object_yaw_deg") {
+    // every object turned about the vertical through its origin: a tilted plane shows the
+    // camera a depth spread that grows with the angle
+    within(-89, 89);
+    for (auto& o : s.objects) {
+      const Eigen::Vector3d p = o.world_T_object.translation();
+      o.world_T_object.linear() = Eigen::AngleAxisd(v * 3.14159265358979323846 / 180, Eigen::Vector3d::UnitZ()) *
+                                  o.world_T_object.linear();
+      o.world_T_object.translation() = p;
+    }
   } else if (is_error(name)) {
     if (!c.errors) c.errors = s.errors;
     sim::set_error(*c.errors, name, v);
@@ -86,7 +106,7 @@ double depth_spread(const sim::Cell& cell) {
 }  // namespace
 
 std::vector<std::string> study_axis_names() {
-  std::vector<std::string> n{"z_hat", "gain", "object_scale_x", "object_scale_y", "object_scale_z"};
+  std::vector<std::string> n{"z_hat", "gain", "object_scale_x", "object_scale_y", "object_scale_z", "object_yaw_deg", "error_scale"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;
@@ -138,7 +158,7 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
       for (double b : o.axes[1].values) grid.push_back({a, b});
     }
   }
-  const bool reshapes = std::any_of(o.axes.begin(), o.axes.end(), [](const StudyAxis& a) { return is_object_scale(a.name); });
+  const bool reshapes = std::any_of(o.axes.begin(), o.axes.end(), [](const StudyAxis& a) { return reshapes_world(a.name); });
   const std::unique_ptr<sim::Cell> shared = reshapes ? nullptr : sim::build_cell(scenario);
 
   std::ofstream csv(o.out_dir / "study.csv");

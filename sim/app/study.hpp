@@ -18,7 +18,9 @@ namespace cellsim {
 //   gain                       the constant gain lambda
 //   object_scale_x|y|z         every object's mesh scaled along its own axis (the depth
 //                              spread the camera sees; study.csv gives it in metres)
+//   object_yaw_deg             every object turned about the vertical through its origin
 //   any calibration error      focal_pct, hand_eye_rotation_deg, ... (sim::error_names)
+//   error_scale                every calibration error given (scenario, --error) times this
 //   any delay                  acquisition_frames, processing_frames, actuation_s
 struct StudyAxis {
   std::string name;

@@ -207,6 +207,8 @@ bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
     }
   } else {
     current_ = t.twist;
+    const auto sent = sent_at_s_.find(*k);
+    current_processing_s_ = sent == sent_at_s_.end() ? std::nullopt : std::optional<double>(now_s - sent->second);
     last_applied_frame_ = *k;
     valid_until_s_ = now_s + p_.watchdog_s;
     watchdog_tripped_ = false;
@@ -262,6 +264,7 @@ FrameOrder CellStateMachine::order(bool teach, bool repeat) const {
   f.index = frame_;
   f.time_s = static_cast<double>(frame_) * scenario_.dt_s;
   f.world_T_camera = robot_->world_T_camera();
+  f.reported_world_T_camera = robot_->reported_world_T_camera();
   f.teach = teach;
   f.applies_twist = !teach && (running_ || steps_ > 0);
   f.repeat = repeat;
@@ -415,9 +418,12 @@ void CellStateMachine::realtime(double now_s) {
       ++counters_.applied;
       out_.trace.push_back(row(f, current_, statuses_.empty() ? std::nullopt
                                                                     : std::optional<ServoReport>(statuses_.rbegin()->second)));
+      if (!current_.isZero(0)) out_.trace.back().processing_s = current_processing_s_;
       if (!running_ && steps_ > 0) --steps_;
     }
     newest_sent_frame_ = f.index;
+    sent_at_s_[f.index] = now_s;
+    while (sent_at_s_.size() > kMaxKeptStatuses) sent_at_s_.erase(sent_at_s_.begin());
     ++frame_;
     ++counters_.frames;
     out_.frames.push_back(f);

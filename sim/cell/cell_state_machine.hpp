@@ -78,6 +78,8 @@ struct FrameOrder {
   std::uint64_t index = 0;
   double time_s = 0;              // simulated time, index * dt
   Eigen::Isometry3d world_T_camera = Eigen::Isometry3d::Identity();
+  // what the robot reports (rt/camera_pose): the true pose unless the scenario has errors
+  Eigen::Isometry3d reported_world_T_camera = Eigen::Isometry3d::Identity();
   bool applies_twist = false;     // a twist answering it will move the robot
   bool teach = false;             // rendered at the desired pose for TEACH
   bool repeat = false;            // lockstep: the same frame again (unanswered)
@@ -97,6 +99,9 @@ struct TraceRow {
   std::optional<ServoReport> status;
   double translation_error_m = 0, rotation_error_deg = 0;
   std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (RobotLimit bits)
+  // realtime: how long the twist in force took, from its frame's publication to its arrival
+  // here (decoding, the control law and both DDS hops); none in lockstep, where time waits
+  std::optional<double> processing_s;
 };
 
 struct CellCounters {
@@ -202,6 +207,9 @@ class CellStateMachine {
 
   std::map<std::uint64_t, ServoReport> statuses_;  // by frame, newest kept
   bool peer_sends_statuses_ = false;               // lockstep: an answer waits for its status
+  // realtime: when each recent frame went out, and the processing time of the twist in force
+  std::map<std::uint64_t, double> sent_at_s_;
+  std::optional<double> current_processing_s_;
   std::deque<std::pair<std::uint64_t, TraceRow>> trace_pending_;  // waiting for their status
   int converged_refusals_logged_ = 0;
 };

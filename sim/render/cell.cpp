@@ -74,8 +74,11 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
 
 std::unique_ptr<Robot> make_robot(const Cell& cell) {
   const Scenario& s = cell.scenario;
-  if (!s.robot.arm_enabled || !s.robot.model)
-    return std::make_unique<FreeFlyingCamera>(s.world_T_desired, s.robot.max_linear_mps, s.robot.max_angular_radps);
+  if (!s.robot.arm_enabled || !s.robot.model) {
+    auto cam = std::make_unique<FreeFlyingCamera>(s.world_T_desired, s.robot.max_linear_mps, s.robot.max_angular_radps);
+    if (s.errors.any()) cam->set_belief(scenario_errors(s).robot);
+    return cam;
+  }
   const ArmSpec& a = s.robot.arm;
   ArmControllerParams p;
   p.max_linear_mps = s.robot.max_linear_mps;
@@ -92,6 +95,7 @@ std::unique_ptr<Robot> make_robot(const Cell& cell) {
   arm->pin(s.world_T_desired, s.robot.desired_q);
   arm->pin(s.world_T_initial(), s.robot.initial_q);
   arm->reset(s.world_T_desired);
+  if (s.errors.any()) arm->set_belief(scenario_errors(s).robot);
   return arm;
 }
 

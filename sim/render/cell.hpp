@@ -42,7 +42,8 @@ struct Cell {
 std::unique_ptr<Cell> build_cell(const Scenario& scenario);
 
 // The robot the scenario names, at the desired pose: the free-flying camera, or the arm
-// (its desired and initial poses pinned to the joint angles resolved at load).
+// (its desired and initial poses pinned to the joint angles resolved at load), believing
+// what the scenario's calibration errors make its controller believe (scenario_errors).
 std::unique_ptr<Robot> make_robot(const Cell& cell);
 
 }  // namespace sim

@@ -307,6 +307,10 @@ Eigen::Isometry3d offset_pose(const Eigen::Isometry3d& world_T_desired, const st
   return world_T_desired * d_T_f * motion * d_T_f.inverse();
 }
 
+DrawnErrors scenario_errors(const Scenario& s) {
+  return draw_errors(s.errors, s.seed, s.robot.model ? s.robot.model->chain.size() : std::size_t{0});
+}
+
 Eigen::Isometry3d Scenario::world_T_initial() const {
   if (initial_pose) return *initial_pose;
   return offset_pose(world_T_desired, initial_translation_cm, initial_rotation_deg, offset_frame_rotation_deg);

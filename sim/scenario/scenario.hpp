@@ -128,6 +128,11 @@ struct Scenario {
   Latency latency;
 };
 
+// The scenario's calibration errors drawn with its seed (errors.seed, or the scenario's):
+// what `cellsim serve` and `cellsim calibration` tell the servo, and what an in-process run
+// with the scenario's seed draws too.
+DrawnErrors scenario_errors(const Scenario& scenario);
+
 // Throws ScenarioError (one line naming the file and the key) on unknown keys, wrong types,
 // missing files, non-positive focal lengths or sizes, NaN or infinite numbers.
 Scenario load_scenario(const std::filesystem::path& file);

@@ -1,5 +1,6 @@
 // Issue 9 against the real processes: what an adversarial DDS participant found, replayed
 // over the wire. Checks are made on the topics (and the exit summary), with hard timeouts.
+#include <cmath>
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -160,10 +161,20 @@ TEST(Hardening, RealtimeRunConvergesOnlyAtTheGoalWithAFullTrace) {
   EXPECT_LT(sim::translation_error(w.pose_now(), s.world_T_desired), 0.01);
   std::ifstream trace(dir + "/trace.csv");
   std::string line;
-  long rows = 0;
-  while (std::getline(trace, line))
-    if (!line.empty() && line[0] != '#' && line[0] != 't') ++rows;
+  long rows = 0, measured = 0;
+  while (std::getline(trace, line)) {
+    if (line.rfind("t,", 0) == 0) EXPECT_NE(line.find(",processing_ms"), std::string::npos) << line;
+    if (line.empty() || line[0] == '#' || line[0] == 't') continue;
+    ++rows;
+    // issue 13: the measured processing time of the twist in force (blank before the first)
+    const std::string last = line.substr(line.rfind(',') + 1);
+    if (last.empty()) continue;
+    const double ms = std::stod(last);
+    EXPECT_TRUE(std::isfinite(ms) && ms > 0) << line;
+    ++measured;
+  }
   EXPECT_GT(rows, 50);
+  EXPECT_GT(measured, rows / 2);
 }
 
 // the viewer reads the same untrusted images: an overflowing header and spots at 1e300 are

@@ -12,6 +12,7 @@
 
 #include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
+#include "sim/robot/twist_delay.hpp"
 
 namespace cellsim {
 
@@ -170,12 +171,10 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     }
   }
 
-  // the loop's delays: the scenes the camera has not delivered yet, the twists on their way
-  // to the robot, and those the robot got but does not follow yet (with when it will)
+  // the loop's delays: the scenes the camera has not delivered yet, and the twists on their
+  // way to the robot
   std::deque<std::pair<Eigen::Isometry3d, sim::LinkPoses>> scenes;
-  std::deque<sim::Vector6d> in_flight(static_cast<std::size_t>(latency.processing_frames), sim::Vector6d::Zero());
-  std::deque<std::pair<double, sim::Vector6d>> pending;
-  sim::Vector6d followed = sim::Vector6d::Zero();
+  sim::TwistDelay delay(latency.processing_frames, latency.actuation_s);
   std::optional<double> initial_error;
 
   for (int k = 0; k < o.max_iterations; ++k) {
@@ -220,25 +219,10 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       res.diverged = true;
       last = true;
     }
-    if (!last && !latency.any()) {
+    if (!last && !delay.active()) {
       rec.robot_limits = robot.move(step.control.twist, sc.dt_s, sc.workspace).limits;
     } else if (!last) {
-      in_flight.push_back(step.control.twist);
-      pending.emplace_back(rec.t_s + latency.actuation_s, in_flight.front());
-      in_flight.pop_front();
-      // this frame's dt, in pieces: the robot switches to each twist when its time comes
-      double t = rec.t_s;
-      const double end = rec.t_s + sc.dt_s;
-      while (t < end) {
-        while (!pending.empty() && pending.front().first <= t + 1e-12) {
-          followed = pending.front().second;
-          pending.pop_front();
-        }
-        const double until = pending.empty() ? end : std::min(end, pending.front().first);
-        const double piece = (t == rec.t_s && until == end) ? sc.dt_s : until - t;
-        if (until > t) rec.robot_limits |= robot.move(followed, piece, sc.workspace).limits;
-        t = std::max(until, t + 1e-12);
-      }
+      rec.robot_limits = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace).limits;
     }
     res.trace.push_back(rec);
     if (trace.is_open()) {

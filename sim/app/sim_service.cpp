@@ -98,14 +98,17 @@ sim::ServoReport to_report(const ServoStatus_& s) {
 }
 
 // What a scenario's errors: and latency: sections do in this service, said once at load.
-void announce_conditions(const sim::Scenario& s) {
+void announce_conditions(const sim::Scenario& s, TimingMode mode) {
   if (s.errors.any())
     std::printf("cellsim: %s: the servo is told a calibration off by %s (camera_info, rt/camera_pose, the robot's "
                 "controller; `cellsim calibration` writes the projector's)\n",
                 s.file.filename().c_str(), describe(s.errors, {}).c_str());
-  if (s.latency.any())
-    std::printf("cellsim: %s: latency: %s applies to in-process runs (experiment, campaign, study); over DDS the "
-                "loop's delays are the real ones, nothing is added\n",
+  if (s.latency.any() && mode == TimingMode::kLockstep)
+    std::printf("cellsim: %s: latency: %s (frames shown late, twists applied late, as in-process)\n",
+                s.file.filename().c_str(), describe({}, s.latency).c_str());
+  if (s.latency.any() && mode == TimingMode::kRealtime)
+    std::printf("cellsim: %s: latency: %s is not added in realtime, where the loop's delays are the real ones "
+                "(the trace's processing_ms measures them); lockstep and in-process runs apply it\n",
                 s.file.filename().c_str(), describe({}, s.latency).c_str());
 }
 
@@ -113,7 +116,7 @@ class SimService {
  public:
   explicit SimService(const ServiceOptions& o) : o_(o) {
     cell_ = sim::build_cell(sim::load_scenario(o.scenario));
-    announce_conditions(cell_->scenario);
+    announce_conditions(cell_->scenario, o.mode);
     sim::CellParams cp;
     cp.timing = o.mode == TimingMode::kLockstep ? sim::Timing::kLockstep : sim::Timing::kRealtime;
     cp.watchdog_s = o.watchdog_ms / 1e3;
@@ -258,7 +261,7 @@ class SimService {
         auto robot = sim::make_robot(*cell);
         cell_ = std::move(cell);
         machine_->loaded(cell_->scenario, std::move(robot));
-        announce_conditions(cell_->scenario);
+        announce_conditions(cell_->scenario, o_.mode);
         publish_camera_info();
         publish_description();
       } catch (const std::exception& e) {
@@ -332,11 +335,11 @@ class SimService {
   }
 
   void publish_truth(const builtin_interfaces::msg::dds_::Time_& stamp, const sim::FrameOrder& f) {
-    const Eigen::Isometry3d& wTc = f.world_T_camera;
+    const Eigen::Isometry3d& wTc = f.scene_world_T_camera;  // the truth of the image
     cell_msgs::msg::dds_::SpotTruthArray_ truth;
     truth.header().stamp(stamp);
     truth.header().frame_id(cell_dds::kCameraFrame);
-    for (const auto& t : sim::compute_truth(*cell_, wTc, &f.world_T_links)) {
+    for (const auto& t : sim::compute_truth(*cell_, wTc, &f.scene_world_T_links)) {
       cell_msgs::msg::dds_::SpotTruth_ s;
       s.row(static_cast<int16_t>(t.row));
       s.col(static_cast<int16_t>(t.col));
@@ -352,9 +355,10 @@ class SimService {
   // Frame k: sim status, camera pose (truth), spot truth, image, clock, all with one stamp.
   void publish_frame(const sim::FrameOrder& f) {
     const auto stamp = cell_dds::stamp_of(f.index, dt());
-    const Eigen::Isometry3d& wTc = f.world_T_camera;
+    // the scene the image shows (a frame ago or more, with an acquisition delay)
+    const Eigen::Isometry3d& wTc = f.scene_world_T_camera;
     const cv::Mat rgb = sim::render_image(*cell_, wTc, sim::frame_seed(cell_->scenario.seed, f.index), &scratch_,
-                                          nullptr, &f.world_T_links);
+                                          nullptr, &f.scene_world_T_links);
 
     namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
     cell_msgs::msg::dds_::SimStatus_ st;

@@ -34,7 +34,8 @@ const char* command_name(int c) {
 }  // namespace
 
 CellStateMachine::CellStateMachine(const Scenario& scenario, CellParams params, std::unique_ptr<Robot> robot)
-    : scenario_(scenario), p_(params), robot_(std::move(robot)) {
+    : scenario_(scenario), p_(params), robot_(std::move(robot)),
+      delay_(scenario.latency.processing_frames, scenario.latency.actuation_s) {
   if (!(p_.watchdog_s > 0) || !(p_.physics_period_s > 0) || !(p_.republish_s > 0) || !(p_.teach_timeout_s > 0))
     throw std::invalid_argument("CellStateMachine: watchdog, physics period, republish and teach timeout must be positive");
   if (!robot_)
@@ -48,6 +49,7 @@ void CellStateMachine::loaded(const Scenario& scenario, std::unique_ptr<Robot> r
                  : std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
                                                       scenario_.robot.max_angular_radps);
   limits_ = 0;
+  forget_delays();
   loading_ = false;
   running_ = false;
   steps_ = 0;
@@ -145,6 +147,20 @@ void CellStateMachine::place_robot(const Eigen::Isometry3d& world_T_camera) {
   robot_->reset(world_T_camera);
   limits_ = 0;
   stop_motion();
+  forget_delays();
+}
+
+void CellStateMachine::forget_delays() {
+  scenes_.clear();
+  delay_ = TwistDelay(scenario_.latency.processing_frames, scenario_.latency.actuation_s);
+}
+
+void CellStateMachine::delay_scene(FrameOrder& f) {
+  if (scenario_.latency.acquisition_frames <= 0 || !f.applies_twist) return;
+  scenes_.emplace_back(f.world_T_camera, f.world_T_links);
+  while (scenes_.size() > static_cast<std::size_t>(scenario_.latency.acquisition_frames) + 1) scenes_.pop_front();
+  f.scene_world_T_camera = scenes_.front().first;
+  f.scene_world_T_links = scenes_.front().second;
 }
 
 void CellStateMachine::abandon_awaited() {
@@ -247,7 +263,10 @@ void CellStateMachine::check_convergence(const ServoReport& s) {
 }
 
 bool CellStateMachine::move(const Vector6d& twist, double duration_s) {
-  const MotionReport r = robot_->move(twist, duration_s, scenario_.workspace);
+  return moved(robot_->move(twist, duration_s, scenario_.workspace));
+}
+
+bool CellStateMachine::moved(const MotionReport& r) {
   limits_ = r.limits;
   if (!r.event.empty()) {
     if (r.limits & kLimitWorkspace) {
@@ -265,10 +284,12 @@ FrameOrder CellStateMachine::order(bool teach, bool repeat) const {
   f.time_s = static_cast<double>(frame_) * scenario_.dt_s;
   f.world_T_camera = robot_->world_T_camera();
   f.reported_world_T_camera = robot_->reported_world_T_camera();
+  f.scene_world_T_camera = f.world_T_camera;
   f.teach = teach;
   f.applies_twist = !teach && (running_ || steps_ > 0);
   f.repeat = repeat;
   f.world_T_links = robot_->world_T_links();
+  f.scene_world_T_links = f.world_T_links;
   f.joint_names = robot_->joint_names();
   f.joint_positions = robot_->joint_positions();
   f.joint_velocities = robot_->joint_velocities();
@@ -331,7 +352,13 @@ void CellStateMachine::lockstep(double now_s) {
       if (answer_complete(now_s)) {
         if (awaited_->frame.applies_twist) {
           trace_pending_.emplace_back(awaited_->frame.index, row(awaited_->frame, *answer_, std::nullopt));
-          move(*answer_, scenario_.dt_s);
+          if (delay_.active()) {
+            // the run's own clock, as the in-process runner's, so both integrate the same pieces
+            const double t = static_cast<double>(awaited_->frame.index - run_first_frame_) * scenario_.dt_s;
+            moved(delay_.step(*robot_, *answer_, t, scenario_.dt_s, scenario_.workspace));
+          } else {
+            move(*answer_, scenario_.dt_s);
+          }
           trace_pending_.back().second.robot_limits = limits_;
           ++counters_.applied;
         }
@@ -358,7 +385,9 @@ void CellStateMachine::lockstep(double now_s) {
     } else {
       const bool teach = teach_requested_;
       teach_requested_ = false;
-      const FrameOrder f = order(teach, false);
+      FrameOrder f = order(teach, false);
+      if (teach) forget_delays();
+      delay_scene(f);
       if (!teach && !running_ && steps_ > 0) --steps_;
       if (running_ && !run_started_at_) {
         run_started_at_ = now_s;

@@ -27,6 +27,7 @@
 
 #include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
+#include "sim/robot/twist_delay.hpp"
 #include "sim/scenario/scenario.hpp"
 
 namespace sim {
@@ -80,6 +81,10 @@ struct FrameOrder {
   Eigen::Isometry3d world_T_camera = Eigen::Isometry3d::Identity();
   // what the robot reports (rt/camera_pose): the true pose unless the scenario has errors
   Eigen::Isometry3d reported_world_T_camera = Eigen::Isometry3d::Identity();
+  // what the image shows: the scene now, or, in lockstep with `latency.acquisition_frames`,
+  // that of a frames ago (the camera's pose and the arm's links then)
+  Eigen::Isometry3d scene_world_T_camera = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Isometry3d> scene_world_T_links;
   bool applies_twist = false;     // a twist answering it will move the robot
   bool teach = false;             // rendered at the desired pose for TEACH
   bool repeat = false;            // lockstep: the same frame again (unanswered)
@@ -157,6 +162,12 @@ class CellStateMachine {
   void apply_command(const CommandMsg& c, double now_s);
   std::optional<std::uint64_t> frame_of(std::int64_t sec, std::uint32_t nanosec, std::string& why) const;
   bool move(const Vector6d& twist, double duration_s);
+  // the robot's report of a motion: limits kept, events logged; false when it stopped
+  bool moved(const MotionReport& r);
+  // forgets the delayed scenes and twists (a reset, a load, a teach)
+  void forget_delays();
+  // lockstep with an acquisition delay: the frame shows the scene of a frames ago
+  void delay_scene(FrameOrder& f);
   void abandon_awaited();
   void stop_motion();
   void place_robot(const Eigen::Isometry3d& world_T_camera);
@@ -207,6 +218,9 @@ class CellStateMachine {
 
   std::map<std::uint64_t, ServoReport> statuses_;  // by frame, newest kept
   bool peer_sends_statuses_ = false;               // lockstep: an answer waits for its status
+  // lockstep with the scenario's latency: the scenes not delivered yet, the twists on their way
+  std::deque<std::pair<Eigen::Isometry3d, std::vector<Eigen::Isometry3d>>> scenes_;
+  TwistDelay delay_;
   // realtime: when each recent frame went out, and the processing time of the twist in force
   std::map<std::uint64_t, double> sent_at_s_;
   std::optional<double> current_processing_s_;

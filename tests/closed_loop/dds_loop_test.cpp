@@ -66,6 +66,57 @@ TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
   EXPECT_EQ(service, in_process);
 }
 
+// The trace rows of a trace.csv (no comments), one string per row.
+std::vector<std::string> trace_rows(const std::string& file) {
+  std::ifstream f(file);
+  std::vector<std::string> rows;
+  for (std::string line; std::getline(f, line);)
+    if (!line.empty() && line[0] != '#') rows.push_back(line);
+  return rows;
+}
+
+// Issue 13 over DDS: a scenario with calibration errors and delays. The servo is told the
+// errors through camera_info and the robot, the frames are shown and the twists applied late
+// in lockstep, and the two-process run is the in-process run of the same scenario, row for row.
+TEST(DdsLoop, ErrorsAndDelaysOfTheScenarioGiveTheInProcessTrace) {
+  const int domain = unique_domain(30);
+  const std::string dir = tmp_dir("errors_latency");
+  std::ifstream in(kSrc + "/sim/scenarios/plane.yaml");
+  std::string text{std::istreambuf_iterator<char>(in), {}};
+  for (std::size_t p; (p = text.find("../../")) != std::string::npos;) text.replace(p, 6, kSrc + "/");
+  text += "errors: {focal_pct: 2, principal_point_px: 3, hand_eye_position_mm: 4, hand_eye_rotation_deg: 1, "
+          "link_length_pct: 0.3, joint_offset_deg: 0.2}\n"
+          "latency: {acquisition_frames: 1, processing_frames: 2, actuation_s: 0.01}\n";
+  const std::string scenario = dir + "/plane_errors.yaml";
+  std::ofstream(scenario) << text;
+  {
+    Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+    Process sim({kBin + "cellsim", "serve", scenario, "--autorun", "--max-frames", "40", "--trace", dir}, domain,
+                dir + "/sim.log");
+    ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
+  }
+  const auto cell = sim::build_cell(sim::load_scenario(scenario));
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.max_iterations = 60;
+  o.out_dir = tmp_dir("errors_latency_in_process");
+  o.write_features = false;
+  const auto r = cellsim::run_experiment(*cell, o);
+  EXPECT_EQ(r.stop_reason, "iteration cap (60) reached");
+  const auto service = trace_rows(dir + "/trace.csv"), in_process = trace_rows(o.out_dir.string() + "/trace.csv");
+  ASSERT_GE(service.size(), 30u) << "see " << dir;
+  ASSERT_GE(in_process.size(), service.size());
+  for (std::size_t i = 0; i < service.size(); ++i) EXPECT_EQ(service[i], in_process[i]) << "row " << i;
+  // the errors reached the servo: the same run without them is another trace
+  cellsim::ExperimentOptions exact = o;
+  exact.errors = sim::CalibrationErrors{};
+  exact.latency = sim::Latency{};
+  exact.out_dir = tmp_dir("errors_latency_exact");
+  cellsim::run_experiment(*cell, exact);
+  EXPECT_NE(trace_rows(exact.out_dir.string() + "/trace.csv")[5], in_process[5]);
+}
+
 // The servo with `servo_argv` and cellsim serving `scenario` to convergence, checked on the topics.
 void expect_lockstep_convergence(int domain, const std::string& dir, const std::vector<std::string>& servo_argv,
                                  const std::string& scenario, const std::string& max_frames) {

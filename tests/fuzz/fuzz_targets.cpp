@@ -5,6 +5,7 @@
 // number of inputs; bin/fuzz runs them for long under AddressSanitizer and UBSan.
 //
 //   fuzz_targets --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr --iterations N [--seconds S] [--seed K]
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -107,6 +108,10 @@ struct ScenarioTarget : Target {
   std::filesystem::path file = std::filesystem::temp_directory_path() / ("fuzz_scenario_" + std::to_string(getpid()) + ".yaml");
   ScenarioTarget() {
     for (std::size_t p; (p = seed.find("../../")) != std::string::npos;) seed.replace(p, 6, kSrc + "/");
+    // issue 13's sections, so mutations reach their readers and the draw
+    seed += "errors: {focal_pct: 1, principal_point_px: 2, projector_rotation_deg: 0.5, hand_eye_position_mm: 3, "
+            "link_length_pct: 0.5, joint_offset_deg: 0.1, seed: 4}\n"
+            "latency: {acquisition_frames: 1, processing_frames: 2, actuation_s: 0.01}\n";
   }
   ~ScenarioTarget() override { std::filesystem::remove(file); }
   void one(std::mt19937_64& rng) override {
@@ -114,6 +119,8 @@ struct ScenarioTarget : Target {
     try {
       const sim::Scenario s = sim::load_scenario(file);
       sim::resolve_pose(s, "initial");
+      const sim::DrawnErrors d = sim::scenario_errors(s);
+      if (!std::isfinite(d.fx_scale) || !d.projector_delta.matrix().allFinite()) std::abort();
     } catch (const std::exception&) {
     }
   }

@@ -325,8 +325,12 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
     }
     if (s.type != JointType::kFixed) {
       s.axis = Eigen::Vector3d(j.axis.x, j.axis.y, j.axis.z);
-      if (!s.axis.allFinite() || s.axis.norm() < 1e-9) fail(file, where + ": axis must be a finite non-zero vector");
-      s.axis.normalize();
+      // scaled by its largest component before normalising: (1e300, 0, 1) has a norm that
+      // overflows to infinity, and dividing by it gave a zero axis (the fuzzer found it)
+      const double largest = s.axis.allFinite() ? s.axis.cwiseAbs().maxCoeff() : 0.0;
+      if (!(largest > 0) || (s.axis / largest).norm() < 1e-9 || !std::isfinite(largest))
+        fail(file, where + ": axis must be a finite non-zero vector");
+      s.axis = (s.axis / largest).normalized();
       if (!j.limits) fail(file, where + ": no <limit> (velocity and effort limits are required)");
       s.max_velocity = j.limits->velocity;
       s.max_effort = j.limits->effort;

@@ -107,7 +107,6 @@ struct ScenarioTarget : Target {
   std::string seed = read(kSrc + "/sim/scenarios/cylinder.yaml");
   std::filesystem::path file = std::filesystem::temp_directory_path() / ("fuzz_scenario_" + std::to_string(getpid()) + ".yaml");
   ScenarioTarget() {
-    for (std::size_t p; (p = seed.find("../../")) != std::string::npos;) seed.replace(p, 6, kSrc + "/");
     // issue 13's sections, so mutations reach their readers and the draw
     seed += "errors: {focal_pct: 1, principal_point_px: 2, projector_rotation_deg: 0.5, hand_eye_position_mm: 3, "
             "link_length_pct: 0.5, joint_offset_deg: 0.1, seed: 4}\n"
@@ -115,7 +114,12 @@ struct ScenarioTarget : Target {
   }
   ~ScenarioTarget() override { std::filesystem::remove(file); }
   void one(std::mt19937_64& rng) override {
-    std::ofstream(file, std::ios::binary) << mutated(seed, rng);
+    // mutated before the paths are made absolute: the inputs do not depend on where the
+    // repository lies, so a seed finds the same inputs on every machine
+    std::string text = mutated(seed, rng);
+    for (std::size_t p = 0; (p = text.find("../../", p)) != std::string::npos; p += kSrc.size() + 1)
+      text.replace(p, 6, kSrc + "/");
+    std::ofstream(file, std::ios::binary) << text;
     try {
       const sim::Scenario s = sim::load_scenario(file);
       sim::resolve_pose(s, "initial");
@@ -132,10 +136,7 @@ struct UrdfTarget : Target {
   std::string seed = read(kSrc + "/sim/robots/ur5e/ur5e.urdf");
   std::filesystem::path file = std::filesystem::temp_directory_path() / ("fuzz_urdf_" + std::to_string(getpid()) + ".urdf");
   sim::World empty;
-  UrdfTarget() {
-    for (std::size_t p = 0; (p = seed.find("\"meshes/", p)) != std::string::npos; p += 2)
-      seed.replace(p + 1, 7, kSrc + "/sim/robots/ur5e/meshes/");
-  }
+  UrdfTarget() = default;
   ~UrdfTarget() override { std::filesystem::remove(file); }
   void one(std::mt19937_64& rng) override {
     static const char* xml[] = {"<", ">", "/>", "</link>", "<link name='x'>", "<joint name='j' type='revolute'>",
@@ -144,6 +145,11 @@ struct UrdfTarget : Target {
     std::string text = mutated(seed, rng);
     for (int i = static_cast<int>(rng() % 3); i > 0; --i)
       text.insert(rng() % (text.size() + 1), xml[rng() % (sizeof xml / sizeof *xml)]);
+    // the meshes' paths made absolute after the mutation: the inputs do not depend on where
+    // the repository lies
+    const std::string meshes = kSrc + "/sim/robots/ur5e/meshes/";
+    for (std::size_t p = 0; (p = text.find("\"meshes/", p)) != std::string::npos; p += meshes.size() + 1)
+      text.replace(p + 1, 7, meshes);
     std::ofstream(file, std::ios::binary) << text;
     try {
       const auto model = std::make_shared<sim::RobotModel>(sim::load_robot_model(file, "camera_optical"));

@@ -294,6 +294,18 @@ std::string write_temp(const std::string& name, const std::string& text) {
   return path;
 }
 
+// An axis whose norm overflows is still a direction: (1e300, 0, 1) is the x axis, not zero
+// (a zero axis made the kinematics NaN; the fuzzer found it).
+TEST(RobotModel, HugeAxisComponentsGiveAUnitAxis) {
+  const std::string file = write_temp("huge_axis.urdf",
+                                      "<robot name='r'><link name='a'/><link name='camera'/><joint name='j' "
+                                      "type='revolute'><parent link='a'/><child link='camera'/><axis xyz='1e300 0 1'/>"
+                                      "<limit lower='-1' upper='1' velocity='1' effort='1'/></joint></robot>");
+  const RobotModel m = load_robot_model(file, "camera");
+  ASSERT_EQ(m.chain.size(), 1u);
+  EXPECT_TRUE(m.chain[0].axis.isApprox(Eigen::Vector3d::UnitX(), 1e-12)) << m.chain[0].axis.transpose();
+}
+
 TEST(RobotModel, MalformedDescriptionsAreRefusedInOneLineNamingTheFile) {
   const std::string joint_ok =
       "<link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/><child link='b'/>"
@@ -323,6 +335,9 @@ TEST(RobotModel, MalformedDescriptionsAreRefusedInOneLineNamingTheFile) {
        }() + "</link></robot>",
        "nested deeper than 64"},
       {"<!DOCTYPE r [<!ENTITY a 'aaaa'>]><robot name='r'/>", "DTD"},
+      {"<robot name='r'><link name='a'/><link name='camera'/><joint name='j' type='revolute'><parent link='a'/>"
+       "<child link='camera'/><axis xyz='0 0 0'/><limit lower='-1' upper='1' velocity='1' effort='1'/></joint></robot>",
+       "finite non-zero"},
   };
   int i = 0;
   for (const auto& [text, expected] : cases) {

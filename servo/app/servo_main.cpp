@@ -338,6 +338,10 @@ int main(int argc, char** argv) {
                   "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
                   "desired, current and mean models, and decoding with the epipolar check");
   run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
+  double divergence_ratio = -1;
+  run->add_option("--divergence-ratio", divergence_ratio,
+                  "stop (zero twist, STOPPED) when |e| rises above this x its first value after START (0: never)")
+      ->check(CLI::Range(0.0, 1e6));
   int points = -1;
   run->add_option("--points", points,
                   "servo on this many points, chosen at teaching for the best-conditioned interaction matrix "
@@ -401,6 +405,7 @@ int main(int argc, char** argv) {
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       svc.config.decoder.epipolar.enabled = !no_epipolar;
       if (points >= 0) svc.config.points = points;
+      if (divergence_ratio >= 0) svc.config.divergence_ratio = divergence_ratio;
       return servo::run_servo_service(svc);
     }
     if (*decode) {

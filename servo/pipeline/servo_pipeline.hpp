@@ -26,6 +26,9 @@ struct ServoConfig {
   // Point selection (issue 13, item 5): > 0 servos on this many points, chosen at teaching
   // for the best-conditioned interaction matrix (control::best_conditioned_subset); 0: all.
   int points = 0;
+  // > 0: the servo stops (zero twist, state STOPPED, reason "diverging") when |e| rises above
+  // this x its first value after START or teaching (issue 13); 0: never
+  double divergence_ratio = 0;
 };
 
 // A spot located in the image with its identity: from the decoder, or from the simulator's

@@ -16,9 +16,10 @@ struct Frames : ::testing::Test {
   cv::Mat desired = sim::render_image(*cell, cell->scenario.world_T_desired, 1);
   cv::Mat initial = sim::render_image(*cell, cell->scenario.world_T_initial(), 2);
 
-  std::unique_ptr<ServoStateMachine> make(bool autostart = false) {
+  std::unique_ptr<ServoStateMachine> make(bool autostart = false, double divergence_ratio = 0) {
     ServoConfig c;
     c.law.z_hat_m = 0.9;
+    c.divergence_ratio = divergence_ratio;
     auto p = std::make_unique<ServoPipeline>(pattern::WindowTable(cell->projector->pattern(), {3, 3}), c);
     auto m = std::make_unique<ServoStateMachine>(std::move(p), ServoTiming{0.5, autostart});
     EXPECT_EQ(m->on_camera_info(info()), "");
@@ -163,6 +164,39 @@ TEST_F(Frames, PauseStopsAndResetNeedsANewStart) {
   EXPECT_EQ(m->state(), ServoState::kIdle);
   m->on_command(250);  // unknown: nothing changes
   EXPECT_EQ(m->state(), ServoState::kIdle);
+}
+
+// issue 13: with a divergence ratio, an error that runs away stops the robot (zero twist,
+// STOPPED, a reason that says so) instead of being followed; START servos again
+TEST_F(Frames, ARunawayErrorStopsTheServoWhenAsked) {
+  const cv::Mat farther = sim::render_image(*cell, sim::resolve_pose(cell->scenario, "-8 -12 -20 -20 15 20"), 3);
+  for (const double ratio : {0.0, 1.2}) {
+    auto m = make(false, ratio);
+    m->on_command(static_cast<int>(Command::kTeach));
+    m->on_sim_status({at(1), false, true});
+    ASSERT_TRUE(m->on_image(view(desired, at(1)), 0.04).taught);
+    m->on_command(static_cast<int>(Command::kStart));
+    m->on_sim_status({at(2), true, false});
+    const ServoReply first = m->on_image(view(initial, at(2)), 0.08);
+    ASSERT_EQ(first.state, ServoState::kServoing) << first.reason;
+    m->on_sim_status({at(3), true, false});
+    const ServoReply worse = m->on_image(view(farther, at(3)), 0.12);
+    ASSERT_GT(worse.error_norm, 1.2 * first.error_norm) << "the second pose is not farther in the task space";
+    if (ratio == 0) {
+      EXPECT_EQ(worse.state, ServoState::kServoing);
+      EXPECT_FALSE(worse.twist.isZero());
+      continue;
+    }
+    EXPECT_EQ(worse.state, ServoState::kStopped);
+    EXPECT_TRUE(worse.twist.isZero());
+    EXPECT_NE(worse.reason.find("diverging"), std::string::npos) << worse.reason;
+    // stopped: later frames are not servoed until START
+    m->on_sim_status({at(4), true, false});
+    EXPECT_TRUE(m->on_image(view(initial, at(4)), 0.16).twist.isZero());
+    m->on_command(static_cast<int>(Command::kStart));
+    m->on_sim_status({at(5), true, false});
+    EXPECT_FALSE(m->on_image(view(initial, at(5)), 0.20).twist.isZero());
+  }
 }
 
 }  // namespace

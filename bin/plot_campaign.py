@@ -2,23 +2,16 @@
 """Plots a campaign folder's campaign.csv: campaign.png, one column per model: the share of runs
 that converged, the iterations of the converged runs, and every run's final pose error.
 Usage: plot_campaign.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
-import argparse
 import csv
 import math
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import dir_and_title, plt, save
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("dir")
-    ap.add_argument("--title", default="")
-    a = ap.parse_args()
+    a = dir_and_title()
     path = os.path.join(a.dir, "campaign.csv")
     try:
         with open(path) as f:
@@ -51,9 +44,8 @@ def main():
         ax.set_ylabel("final translation error (mm)")
     if a.title:
         fig.suptitle(a.title, fontsize=10)
-    fig.tight_layout()
     out = os.path.join(a.dir, "campaign.png")
-    fig.savefig(out, dpi=100)
+    save(fig, out, dpi=100)
     print(f"plot_campaign: {out}")
 
 

@@ -13,10 +13,7 @@ import json
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import plt, save
 
 MODELS = ("L(s*, Z-hat*)", "L(s*, Z*)", "L(s, Z)")
 
@@ -132,9 +129,7 @@ def main():
         ax.legend(ncol=2, fontsize=6)
     if a.title:
         fig.suptitle(a.title)
-    fig.tight_layout()
-    fig.savefig(a.out, dpi=100)
-    plt.close(fig)
+    save(fig, a.out, dpi=100)
 
 
 if __name__ == "__main__":

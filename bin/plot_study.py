@@ -5,17 +5,13 @@ object_scale or object_yaw axis): the share of runs that converged, the median i
 error of those, and the median rise of |e| (0 for a monotonic decrease; oscillation piles it up).
 Two axes: per model, a map of the converged share and one of the median rise of |e|.
 Usage: plot_study.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
-import argparse
 import csv
 import json
 import math
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import dir_and_title, plt, save
 
 
 def number(s):
@@ -45,9 +41,7 @@ def one_axis(rows, axis, models, title, out):
     axes[0].legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save(fig, out)
 
 
 def two_axes(rows, axes_names, models, title, out):
@@ -77,16 +71,11 @@ def two_axes(rows, axes_names, models, title, out):
             fig.colorbar(im, ax=ax, fraction=0.046)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save(fig, out)
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("dir")
-    ap.add_argument("--title", default="")
-    a = ap.parse_args()
+    a = dir_and_title()
     try:
         with open(os.path.join(a.dir, "study.json")) as f:
             axes_names = [x["name"] for x in json.load(f)["axes"]]

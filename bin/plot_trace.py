@@ -3,15 +3,11 @@
 velocities.png (camera velocities vs time) and error_norm.png (norm of the task function);
 with an arm, occlusion.png from occlusion.csv (spots the arm hides or catches, per frame).
 Usage: plot_trace.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
-import argparse
 import csv
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import dir_and_title, plt, save
 
 
 def read_trace(path):
@@ -44,16 +40,11 @@ def plot_occlusion(directory, title, trace=None):
     ax.set_title(f"{title}: the arm and the pattern" if title else "the arm and the pattern")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(os.path.join(directory, "occlusion.png"), dpi=110)
-    plt.close(fig)
+    save(fig, os.path.join(directory, "occlusion.png"))
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("dir")
-    ap.add_argument("--title", default="")
-    args = ap.parse_args()
+    args = dir_and_title()
     trace = os.path.join(args.dir, "trace.csv")
     if not os.path.exists(trace):
         sys.exit(f"plot_trace: {trace} not found")
@@ -67,9 +58,7 @@ def main():
     ax.set_title(f"{args.title}: camera velocities" if args.title else "camera velocities")
     ax.grid(True, alpha=0.3)
     ax.legend(ncol=2, fontsize=8)
-    fig.tight_layout()
-    fig.savefig(os.path.join(args.dir, "velocities.png"), dpi=110)
-    plt.close(fig)
+    save(fig, os.path.join(args.dir, "velocities.png"))
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     ax.plot(t["t"], t["error_norm"], color="k")
@@ -78,9 +67,7 @@ def main():
     ax.set_yscale("log")
     ax.set_title(f"{args.title}: norm of the task function" if args.title else "norm of the task function")
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(args.dir, "error_norm.png"), dpi=110)
-    plt.close(fig)
+    save(fig, os.path.join(args.dir, "error_norm.png"))
     plot_occlusion(args.dir, args.title, t)
 
 

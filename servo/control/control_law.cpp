@@ -58,6 +58,15 @@ Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::Vect
   return V * inv.asDiagonal() * (V.transpose() * (A.transpose() * b));
 }
 
+std::string DivergenceWatch::check(double error_norm) {
+  if (!(ratio_ > 0)) return "";
+  if (!first_) first_ = error_norm;
+  if (!(error_norm > ratio_ * *first_)) return "";
+  char why[160];
+  std::snprintf(why, sizeof why, "diverging: |e| = %.4g, above %g x its first value %.4g", error_norm, ratio_, *first_);
+  return why;
+}
+
 std::string to_string(ControlStatus s) {
   switch (s) {
     case ControlStatus::kServoing: return "servoing";

@@ -92,4 +92,18 @@ std::vector<MatchedPoint> best_conditioned_subset(const std::vector<MatchedPoint
 
 std::string to_string(ControlStatus s);
 
+// A loop that runs away (issue 13): |e| above `ratio` x its first value since reset(). The
+// in-process runner and the servo node stop on it; ratio 0 never trips.
+class DivergenceWatch {
+ public:
+  explicit DivergenceWatch(double ratio = 0) : ratio_(ratio) {}
+  void reset() { first_.reset(); }
+  // "" while the loop is fine; once |e| has run away, why ("diverging: |e| = ...")
+  std::string check(double error_norm);
+
+ private:
+  double ratio_;
+  std::optional<double> first_;
+};
+
 }  // namespace control

@@ -14,7 +14,7 @@ std::string size_text(std::uint64_t w, std::uint64_t h) { return std::to_string(
 }  // namespace
 
 ServoStateMachine::ServoStateMachine(std::unique_ptr<ServoPipeline> pipeline, ServoTiming timing)
-    : pipeline_(std::move(pipeline)), timing_(timing) {
+    : pipeline_(std::move(pipeline)), timing_(timing), divergence_(pipeline_ ? pipeline_->config().divergence_ratio : 0) {
   if (!pipeline_) throw std::invalid_argument("ServoStateMachine: no pipeline");
   if (!(timing_.lost_s > 0)) throw std::invalid_argument("ServoStateMachine: lost_s must be positive");
   state_ = pipeline_->taught() && timing_.autostart ? ServoState::kServoing : ServoState::kIdle;
@@ -26,7 +26,7 @@ void ServoStateMachine::on_command(int command) {
     case static_cast<int>(Command::kStart):
       // commands can arrive before the teach frame: START then takes effect once taught
       started_ = true;
-      first_error_.reset();
+      divergence_.reset();
       if (pipeline_->taught() && state_ != ServoState::kTeaching) state_ = ServoState::kServoing;
       break;
     case static_cast<int>(Command::kStep):
@@ -200,7 +200,7 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     const int n = pipeline_->teach(spots, pose);
     matched_ = static_cast<std::uint32_t>(n);
     iteration_ = 0;
-    first_error_.reset();
+    divergence_.reset();
     if (!pipeline_->taught()) {
       state_ = ServoState::kTeaching;
       return with_spots(reply(img.stamp, "teach frame has no decodable spots: send TEACH again"));
@@ -227,17 +227,13 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
   error_norm_ = step.control.error_norm;
   matched_ = static_cast<std::uint32_t>(step.matched.size());
   std::string reason;
-  const double ratio = pipeline_->config().divergence_ratio;
-  if (step.control.status == control::ControlStatus::kServoing && ratio > 0) {
-    if (!first_error_) first_error_ = step.control.error_norm;
-    if (step.control.error_norm > ratio * *first_error_) {
+  if (step.control.status == control::ControlStatus::kServoing) {
+    const std::string why = divergence_.check(step.control.error_norm);
+    if (!why.empty()) {
       // the loop is running away: stop the robot rather than follow it (START resumes)
-      char why[160];
-      std::snprintf(why, sizeof why, "diverging: |e| = %.4g, above %g x its first value %.4g: stopped",
-                    step.control.error_norm, ratio, *first_error_);
       state_ = ServoState::kStopped;
       started_ = false;
-      return with_spots(reply(img.stamp, why));
+      return with_spots(reply(img.stamp, why + ": stopped"));
     }
   }
   switch (step.control.status) {

@@ -133,7 +133,7 @@ class ServoStateMachine {
   Stamp last_stamp_;
   long images_ = 0, rejected_ = 0;
   std::uint32_t iteration_ = 0;
-  std::optional<double> first_error_;  // |e| at the first step after START or teaching
+  control::DivergenceWatch divergence_;  // from the first step after START or teaching
   double error_norm_ = 0;
   std::uint32_t decoded_ = 0, matched_ = 0;
 };

@@ -8,8 +8,6 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
-#include <deque>
-
 #include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
 #include "sim/robot/twist_delay.hpp"
@@ -130,8 +128,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   // the robot forgets what make_robot drew from the scenario when the options say otherwise)
   robot.set_belief({});
   if (errors.any()) {
-    const sim::DrawnErrors drawn =
-        sim::draw_errors(errors, seed, sc.robot.model ? sc.robot.model->chain.size() : std::size_t{0});
+    const sim::DrawnErrors drawn = sim::scenario_errors(sc, errors, seed);
     config.camera = believed_camera(config.camera, drawn);
     if (config.projector) config.projector = believed_projector(*config.projector, drawn);
     robot.set_belief(drawn.robot);
@@ -173,17 +170,15 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
 
   // the loop's delays: the scenes the camera has not delivered yet, and the twists on their
   // way to the robot
-  std::deque<std::pair<Eigen::Isometry3d, sim::LinkPoses>> scenes;
+  sim::FrameDelay<std::pair<Eigen::Isometry3d, sim::LinkPoses>> scenes(latency.acquisition_frames);
   sim::TwistDelay delay(latency.processing_frames, latency.actuation_s);
-  std::optional<double> initial_error;
+  control::DivergenceWatch divergence(o.divergence_ratio);
 
   for (int k = 0; k < o.max_iterations; ++k) {
     const Eigen::Isometry3d wTc = robot.world_T_camera();
     const sim::LinkPoses links = robot.world_T_links();
-    scenes.emplace_back(wTc, links);
-    if (scenes.size() > static_cast<std::size_t>(latency.acquisition_frames) + 1) scenes.pop_front();
-    // the image of this frame shows the oldest scene kept: acquisition_frames ago, or the start
-    const auto& [scene_wTc, scene_links] = scenes.front();
+    // the image of this frame shows the scene of acquisition_frames ago (or the start)
+    const auto& [scene_wTc, scene_links] = scenes.push({wTc, links});
     const auto spots =
         observe(cell, pipeline, o.source, scene_wTc, scene_links, sim::frame_seed(seed, frame++), scratch, nullptr);
     if (occlusion.is_open()) {
@@ -210,20 +205,11 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     rec.rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
     res.iterations = k + 1;
     bool last = step.control.status != control::ControlStatus::kServoing;
-    if (!last && !initial_error) initial_error = step.control.error_norm;
-    if (!last && o.divergence_ratio > 0 && step.control.error_norm > o.divergence_ratio * *initial_error) {
-      char why[160];
-      std::snprintf(why, sizeof why, "diverging: |e| = %.4g, above %g x its initial %.4g", step.control.error_norm,
-                    o.divergence_ratio, *initial_error);
-      res.stop_reason = why;
-      res.diverged = true;
-      last = true;
+    if (!last) {
+      res.stop_reason = divergence.check(step.control.error_norm);
+      res.diverged = last = !res.stop_reason.empty();
     }
-    if (!last && !delay.active()) {
-      rec.robot_limits = robot.move(step.control.twist, sc.dt_s, sc.workspace).limits;
-    } else if (!last) {
-      rec.robot_limits = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace).limits;
-    }
+    if (!last) rec.robot_limits = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace).limits;
     res.trace.push_back(rec);
     if (trace.is_open()) {
       trace << rec.t_s;

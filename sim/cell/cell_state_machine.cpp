@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <tuple>
 
 #include "servo/config/strict_yaml.hpp"
 #include "sim/geometry/se3.hpp"
@@ -35,6 +36,7 @@ const char* command_name(int c) {
 
 CellStateMachine::CellStateMachine(const Scenario& scenario, CellParams params, std::unique_ptr<Robot> robot)
     : scenario_(scenario), p_(params), robot_(std::move(robot)),
+      scenes_(scenario.latency.acquisition_frames),
       delay_(scenario.latency.processing_frames, scenario.latency.actuation_s) {
   if (!(p_.watchdog_s > 0) || !(p_.physics_period_s > 0) || !(p_.republish_s > 0) || !(p_.teach_timeout_s > 0))
     throw std::invalid_argument("CellStateMachine: watchdog, physics period, republish and teach timeout must be positive");
@@ -151,16 +153,13 @@ void CellStateMachine::place_robot(const Eigen::Isometry3d& world_T_camera) {
 }
 
 void CellStateMachine::forget_delays() {
-  scenes_.clear();
+  scenes_ = FrameDelay<std::pair<Eigen::Isometry3d, std::vector<Eigen::Isometry3d>>>(scenario_.latency.acquisition_frames);
   delay_ = TwistDelay(scenario_.latency.processing_frames, scenario_.latency.actuation_s);
 }
 
 void CellStateMachine::delay_scene(FrameOrder& f) {
   if (scenario_.latency.acquisition_frames <= 0 || !f.applies_twist) return;
-  scenes_.emplace_back(f.world_T_camera, f.world_T_links);
-  while (scenes_.size() > static_cast<std::size_t>(scenario_.latency.acquisition_frames) + 1) scenes_.pop_front();
-  f.scene_world_T_camera = scenes_.front().first;
-  f.scene_world_T_links = scenes_.front().second;
+  std::tie(f.scene_world_T_camera, f.scene_world_T_links) = scenes_.push({f.world_T_camera, f.world_T_links});
 }
 
 void CellStateMachine::abandon_awaited() {
@@ -352,13 +351,9 @@ void CellStateMachine::lockstep(double now_s) {
       if (answer_complete(now_s)) {
         if (awaited_->frame.applies_twist) {
           trace_pending_.emplace_back(awaited_->frame.index, row(awaited_->frame, *answer_, std::nullopt));
-          if (delay_.active()) {
-            // the run's own clock, as the in-process runner's, so both integrate the same pieces
-            const double t = static_cast<double>(awaited_->frame.index - run_first_frame_) * scenario_.dt_s;
-            moved(delay_.step(*robot_, *answer_, t, scenario_.dt_s, scenario_.workspace));
-          } else {
-            move(*answer_, scenario_.dt_s);
-          }
+          // the run's own clock, as the in-process runner's, so both integrate the same pieces
+          const double t = static_cast<double>(awaited_->frame.index - run_first_frame_) * scenario_.dt_s;
+          moved(delay_.step(*robot_, *answer_, t, scenario_.dt_s, scenario_.workspace));
           trace_pending_.back().second.robot_limits = limits_;
           ++counters_.applied;
         }

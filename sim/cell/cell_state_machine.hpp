@@ -219,7 +219,7 @@ class CellStateMachine {
   std::map<std::uint64_t, ServoReport> statuses_;  // by frame, newest kept
   bool peer_sends_statuses_ = false;               // lockstep: an answer waits for its status
   // lockstep with the scenario's latency: the scenes not delivered yet, the twists on their way
-  std::deque<std::pair<Eigen::Isometry3d, std::vector<Eigen::Isometry3d>>> scenes_;
+  FrameDelay<std::pair<Eigen::Isometry3d, std::vector<Eigen::Isometry3d>>> scenes_;
   TwistDelay delay_;
   // realtime: when each recent frame went out, and the processing time of the twist in force
   std::map<std::uint64_t, double> sent_at_s_;

@@ -6,6 +6,7 @@
 // stay equal with delays too.
 #pragma once
 
+#include <cstddef>
 #include <deque>
 #include <utility>
 
@@ -16,9 +17,9 @@ namespace sim {
 class TwistDelay {
  public:
   TwistDelay(int processing_frames = 0, double actuation_s = 0);
-  bool active() const { return processing_frames_ > 0 || actuation_s_ > 0; }
   // Moves the robot for the frame [t_s, t_s + dt_s) given this frame's twist: the limits of
-  // every piece OR'ed, the applied twist averaged, the first event.
+  // every piece OR'ed, the applied twist averaged, the first event. Without delays this is
+  // exactly robot.move(twist, dt_s).
   MotionReport step(Robot& robot, const Vector6d& twist, double t_s, double dt_s, const Workspace& workspace);
   // forgets the twists on their way (a reset, a new run): the robot holds still until the
   // next ones arrive
@@ -30,6 +31,24 @@ class TwistDelay {
   std::deque<Vector6d> in_flight_;                 // computed, not at the robot yet
   std::deque<std::pair<double, Vector6d>> pending_;  // at the robot, followed from .first on
   Vector6d followed_ = Vector6d::Zero();
+};
+
+// What a camera with an acquisition delay shows: push each frame's scene, get the one of
+// `frames` frames ago (the oldest kept until there are that many).
+template <class Scene>
+class FrameDelay {
+ public:
+  explicit FrameDelay(int frames = 0) : keep_(static_cast<std::size_t>(frames > 0 ? frames : 0) + 1) {}
+  const Scene& push(Scene now) {
+    scenes_.push_back(std::move(now));
+    while (scenes_.size() > keep_) scenes_.pop_front();
+    return scenes_.front();
+  }
+  void clear() { scenes_.clear(); }
+
+ private:
+  std::size_t keep_;
+  std::deque<Scene> scenes_;
 };
 
 }  // namespace sim

@@ -307,9 +307,11 @@ Eigen::Isometry3d offset_pose(const Eigen::Isometry3d& world_T_desired, const st
   return world_T_desired * d_T_f * motion * d_T_f.inverse();
 }
 
-DrawnErrors scenario_errors(const Scenario& s) {
-  return draw_errors(s.errors, s.seed, s.robot.model ? s.robot.model->chain.size() : std::size_t{0});
+DrawnErrors scenario_errors(const Scenario& s, const CalibrationErrors& errors, std::uint64_t seed) {
+  return draw_errors(errors, seed, s.robot.model ? s.robot.model->chain.size() : std::size_t{0});
 }
+
+DrawnErrors scenario_errors(const Scenario& s) { return scenario_errors(s, s.errors, s.seed); }
 
 Eigen::Isometry3d Scenario::world_T_initial() const {
   if (initial_pose) return *initial_pose;

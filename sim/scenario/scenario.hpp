@@ -132,6 +132,8 @@ struct Scenario {
 // what `cellsim serve` and `cellsim calibration` tell the servo, and what an in-process run
 // with the scenario's seed draws too.
 DrawnErrors scenario_errors(const Scenario& scenario);
+// Other errors drawn for this scenario's robot, with another seed (a campaign run's).
+DrawnErrors scenario_errors(const Scenario& scenario, const CalibrationErrors& errors, std::uint64_t seed);
 
 // Throws ScenarioError (one line naming the file and the key) on unknown keys, wrong types,
 // missing files, non-positive focal lengths or sizes, NaN or infinite numbers.

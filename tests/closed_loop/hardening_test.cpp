@@ -163,7 +163,9 @@ TEST(Hardening, RealtimeRunConvergesOnlyAtTheGoalWithAFullTrace) {
   std::string line;
   long rows = 0, measured = 0;
   while (std::getline(trace, line)) {
-    if (line.rfind("t,", 0) == 0) EXPECT_NE(line.find(",processing_ms"), std::string::npos) << line;
+    if (line.rfind("t,", 0) == 0) {
+      EXPECT_NE(line.find(",processing_ms"), std::string::npos) << line;
+    }
     if (line.empty() || line[0] == '#' || line[0] == 't') continue;
     ++rows;
     // issue 13: the measured processing time of the twist in force (blank before the first)

@@ -219,7 +219,7 @@ TEST(Triangulation, RecoversTheDepthOfALitPoint) {
 
 TEST(CameraIntrinsics, NormaliseInvertsTheDistortion) {
   const CameraIntrinsics k{800, 810, 320, 240, {-0.2, 0.05, 0.001, -0.002, 0.01}};
-  for (const Eigen::Vector2d x : {Eigen::Vector2d(0.1, -0.2), Eigen::Vector2d(-0.35, 0.25), Eigen::Vector2d(0, 0)}) {
+  for (const Eigen::Vector2d& x : {Eigen::Vector2d(0.1, -0.2), Eigen::Vector2d(-0.35, 0.25), Eigen::Vector2d(0, 0)}) {
     const double r2 = x.squaredNorm();
     const auto& d = k.distortion;
     const double radial = 1 + d[0] * r2 + d[1] * r2 * r2 + d[4] * r2 * r2 * r2;
@@ -253,4 +253,19 @@ TEST(ConditionedSubset, PicksWellSpreadPoints) {
 }
 
 }  // namespace
+// issue 13: a runaway |e| is named once it passes ratio x its first value; 0 never trips
+TEST(DivergenceWatch, TripsAboveRatioTimesTheFirstValueAndResets) {
+  DivergenceWatch off;
+  EXPECT_EQ(off.check(1.0), "");
+  EXPECT_EQ(off.check(1e300), "");
+  DivergenceWatch w(2);
+  EXPECT_EQ(w.check(0.5), "");
+  EXPECT_EQ(w.check(0.9), "");
+  EXPECT_EQ(w.check(1.0), "");  // exactly twice: not above
+  EXPECT_NE(w.check(1.01).find("diverging"), std::string::npos);
+  w.reset();
+  EXPECT_EQ(w.check(1.01), "");  // a new first value
+  EXPECT_EQ(w.check(2.0), "");
+}
+
 }  // namespace control

@@ -1,0 +1,22 @@
+"""What the plot scripts share (imported by them, not run): matplotlib without a display, the
+DIR [--title TITLE] arguments, and saving a figure. Debian's python3-matplotlib (bin/setup)."""
+import argparse
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402,F401  (the scripts take plt from here)
+
+
+def dir_and_title():
+    """The arguments DIR [--title TITLE] every folder-plotting script takes."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("dir")
+    ap.add_argument("--title", default="")
+    return ap.parse_args()
+
+
+def save(fig, path, dpi=110):
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)

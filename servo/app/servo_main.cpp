@@ -17,6 +17,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "servo/config/strict_yaml.hpp"
+#include "servo/config/regular_file.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
@@ -63,12 +64,13 @@ std::optional<std::pair<std::uint64_t, std::uint64_t>> header_size(const std::st
   return std::nullopt;
 }
 
+// an uncompressed image of the largest size the servo takes, with room for its header
+constexpr std::uintmax_t kMaxImageFileBytes = 3 * static_cast<std::uintmax_t>(servo::kMaxImagePixels) + (1u << 20);
+
 cv::Mat read_rgb(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error(path + ": cannot read image (missing or unreadable)");
-  std::string head(64 * 1024, '\0');
-  f.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(f.gcount()));
+  // read once, as a regular file (a FIFO or a link to /proc/kmsg must not hang the decoder)
+  const std::string bytes = config::read_regular_file(path, kMaxImageFileBytes, "image");
+  const std::string head = bytes.substr(0, 64 * 1024);
   // a 1 MB PNG can decode to 20000 x 20000 (1.2 GB): the header is checked before decoding
   if (const auto wh = header_size(head)) {
     const auto [w, h] = *wh;
@@ -87,7 +89,8 @@ cv::Mat read_rgb(const std::string& path) {
     try {
       // IMREAD_COLOR turns grey and binary images into 3 equal channels: they have no chroma,
       // so they decode to zero spots instead of failing
-      bgr = cv::imread(path, cv::IMREAD_COLOR);
+      const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
+      if (!bytes.empty()) bgr = cv::imdecode(raw, cv::IMREAD_COLOR);
     } catch (const cv::Exception&) {
       bgr.release();
     }
@@ -163,11 +166,9 @@ Eigen::Isometry3d sidecar_pose(const std::filesystem::path& image) {
   file.replace_extension(".json");
   const std::string name = file.string();
   std::error_code ec;
-  const auto size = std::filesystem::file_size(file, ec);
-  if (ec) throw std::runtime_error(image.string() + ": no camera pose (--camera-pose, or " + name + " with camera_pose)");
-  if (size > (16u << 20)) throw std::runtime_error(name + ": larger than 16 MiB");
-  std::ifstream in(file);
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (!std::filesystem::exists(file, ec))
+    throw std::runtime_error(image.string() + ": no camera pose (--camera-pose, or " + name + " with camera_pose)");
+  const nlohmann::json j = nlohmann::json::parse(config::read_regular_file(file, 16u << 20, "camera pose file"), nullptr, false);
   try {
     if (j.is_discarded()) throw std::runtime_error("not JSON");
     const auto& c = j.at("camera_pose");

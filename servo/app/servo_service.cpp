@@ -1,5 +1,7 @@
 #include "servo/app/servo_service.hpp"
 
+#include "servo/config/regular_file.hpp"
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -46,14 +48,10 @@ void save_reference(const std::filesystem::path& file, const std::vector<control
 }
 
 std::vector<control::Feature> load_reference(const std::filesystem::path& file) {
-  std::error_code ec;
-  const auto bytes = std::filesystem::file_size(file, ec);
-  if (ec || bytes > (16u << 20)) throw std::runtime_error(file.string() + ": reference file unreadable or over 16 MB");
-  std::ifstream in(file);
+  const std::string text = config::read_regular_file(file, 16u << 20, "reference file");
   std::vector<control::Feature> out;
   try {
-    nlohmann::json j;
-    in >> j;
+    const nlohmann::json j = nlohmann::json::parse(text);
     if (!j.is_array() || j.size() > 65536) throw std::runtime_error("expected a list of at most 65536 features");
     for (const auto& e : j) {
       control::Feature f{e.at("row").get<int>(), e.at("col").get<int>(), e.at("x").get<double>(), e.at("y").get<double>(),

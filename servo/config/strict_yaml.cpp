@@ -1,5 +1,7 @@
 #include "servo/config/strict_yaml.hpp"
 
+#include "servo/config/regular_file.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -76,18 +78,15 @@ void check_tree(const std::filesystem::path& file, const YAML::Node& root) {
 }  // namespace
 
 YAML::Node load_yaml_file(const std::filesystem::path& file, const std::string& what) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw ConfigError(file.string() + ": " + what + " not found");
-  const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
-  if (ec) throw ConfigError(file.string() + ": cannot read " + what + ": " + ec.message());
-  if (bytes > kMaxYamlBytes)
-    throw ConfigError(file.string() + ": " + what + " is " + std::to_string(bytes) + " bytes, more than the limit of " +
-                      std::to_string(kMaxYamlBytes));
+  std::string text;
+  try {
+    text = read_regular_file(file, kMaxYamlBytes, what);
+  } catch (const FileError& e) {
+    throw ConfigError(e.what());
+  }
   YAML::Node root;
   try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::BadFile&) {
-    throw ConfigError(file.string() + ": cannot open " + what);
+    root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw ConfigError(file.string() + ": line " + std::to_string(e.mark.line + 1) + ": YAML syntax error: " +
                       printable(e.msg));

@@ -1,5 +1,7 @@
 #include "servo/pattern/pattern_file.hpp"
 
+#include "servo/config/regular_file.hpp"
+
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -65,18 +67,15 @@ MArray parse_marray(const std::string& text, const std::string& source, int colo
 }
 
 MArray read_marray(const std::filesystem::path& path, int colours) {
-  std::error_code ec;
-  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
-  if (ec) throw PatternFileError(path.string() + ": cannot open pattern file");
-  const std::uintmax_t limit = static_cast<std::uintmax_t>(kMaxPatternSide) * (kMaxPatternSide + 2);
-  if (bytes > limit)
-    throw PatternFileError(path.string() + ": " + std::to_string(bytes) + " bytes, more than a " +
-                           std::to_string(kMaxPatternSide) + " x " + std::to_string(kMaxPatternSide) + " pattern can take");
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw PatternFileError(path.string() + ": cannot open pattern file");
-  std::ostringstream s;
-  s << f.rdbuf();
-  return parse_marray(s.str(), path.string(), colours);
+  // rows of kMaxPatternSide digits and their line ends, plus room for comments
+  const std::uintmax_t limit = static_cast<std::uintmax_t>(kMaxPatternSide) * (kMaxPatternSide + 2) + 4096;
+  std::string text;
+  try {
+    text = config::read_regular_file(path, limit, "pattern file");
+  } catch (const config::FileError& e) {
+    throw PatternFileError(e.what());
+  }
+  return parse_marray(text, path.string(), colours);
 }
 
 MArray load_pattern(const std::filesystem::path& path, WindowShape window, int colours) {

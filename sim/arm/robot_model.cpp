@@ -1,13 +1,19 @@
 #include "sim/arm/robot_model.hpp"
 
 #include <console_bridge/console.h>
+#include <tinyxml2.h>
 #include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <map>
 
 #include <cmath>
 #include <fstream>
 #include <mutex>
 #include <sstream>
 
+#include "servo/config/regular_file.hpp"
 #include "servo/config/strict_yaml.hpp"
 
 namespace sim {
@@ -37,6 +43,10 @@ Eigen::Isometry3d to_iso(const urdf::Pose& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
   Eigen::Quaterniond q(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z);
+  if (!std::isfinite(q.norm())) {
+    t.matrix().setConstant(std::nan(""));  // refused by finite_pose, never taken for the identity
+    return t;
+  }
   if (!(q.norm() > 0.5)) q = Eigen::Quaterniond::Identity();
   t.linear() = q.normalized().toRotationMatrix();
   return t;
@@ -101,7 +111,7 @@ TriangleMesh sphere_mesh(double r, int rings = 12, int around = 24) {
 
 // One URDF geometry as a mesh in the link frame.
 TriangleMesh geometry_mesh(const std::filesystem::path& urdf_file, const urdf::GeometrySharedPtr& g,
-                           const urdf::Pose& origin, const std::string& where) {
+                           const urdf::Pose& origin, const std::string& where, std::size_t triangles_left) {
   if (!g) fail(urdf_file, where + ": no geometry");
   TriangleMesh m;
   Eigen::Vector3d scale(1, 1, 1);
@@ -131,7 +141,9 @@ TriangleMesh geometry_mesh(const std::filesystem::path& urdf_file, const urdf::G
                             "': URIs are not resolved here; give a path relative to the URDF file");
       std::filesystem::path p(name);
       if (p.is_relative()) p = urdf_file.parent_path() / p;
-      m = load_mesh(p);  // walked by check_mesh_file before assimp; throws MeshError naming it
+      // walked by check_mesh_file and counted before assimp: a URDF of many huge meshes is
+      // refused at the first one past the arm's limit, not after loading them all (issue 18)
+      m = load_mesh(p, triangles_left, "of the robot's limit of " + std::to_string(kMaxArmTriangles) + " (" + where + ")");
       scale = Eigen::Vector3d(me.scale.x, me.scale.y, me.scale.z);
       if (!scale.allFinite() || scale.cwiseAbs().minCoeff() < 1e-6 || scale.cwiseAbs().maxCoeff() > 1e3)
         fail(urdf_file, where + ": mesh scale must be finite, between 1e-6 and 1000");
@@ -151,12 +163,21 @@ void append(TriangleMesh& to, const TriangleMesh& m) {
   for (const auto& t : m.triangles) to.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
 }
 
-// A link's visual and collision meshes; false when it has neither.
+// A link's visual and collision meshes; false when it has neither. `triangles` counts every
+// triangle of the robot so far, and the limit holds after each geometry.
 bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkShape& out, std::size_t& triangles) {
   bool any = false;
+  const auto add = [&](TriangleMesh& to, const TriangleMesh& m) {
+    triangles += m.triangles.size();
+    if (triangles > kMaxArmTriangles)
+      fail(file, "more than " + std::to_string(kMaxArmTriangles) + " triangles in the robot's meshes (the limit), at link '" +
+                     config::printable(link.name) + "'");
+    append(to, m);
+  };
+  const auto left = [&] { return kMaxArmTriangles - std::min(triangles, kMaxArmTriangles); };
   for (const auto& v : link.visual_array) {
     if (!v) continue;
-    append(out.visual, geometry_mesh(file, v->geometry, v->origin, "link '" + link.name + "' visual"));
+    add(out.visual, geometry_mesh(file, v->geometry, v->origin, "link '" + config::printable(link.name) + "' visual", left()));
     if (v->material) {
       const auto& c = v->material->color;
       const double grey = (c.r + c.g + c.b) / 3.0;
@@ -166,14 +187,100 @@ bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkS
   }
   for (const auto& c : link.collision_array) {
     if (!c) continue;
-    append(out.collision, geometry_mesh(file, c->geometry, c->origin, "link '" + link.name + "' collision"));
+    add(out.collision,
+        geometry_mesh(file, c->geometry, c->origin, "link '" + config::printable(link.name) + "' collision", left()));
     any = true;
   }
-  if (out.collision.triangles.empty()) out.collision = out.visual;
-  triangles += out.visual.triangles.size() + out.collision.triangles.size();
-  if (triangles > kMaxArmTriangles)
-    fail(file, "more than " + std::to_string(kMaxArmTriangles) + " triangles in the robot's meshes (the limit)");
+  if (out.collision.triangles.empty()) {
+    out.collision = out.visual;
+    triangles += out.visual.triangles.size();
+    if (triangles > kMaxArmTriangles)
+      fail(file, "more than " + std::to_string(kMaxArmTriangles) + " triangles in the robot's meshes (the limit), at link '" +
+                     config::printable(link.name) + "'");
+  }
   return any;
+}
+
+// A number as a URDF should spell it: plain decimal, finite ("nan", "inf" and hex floats are
+// not lengths or angles).
+bool strict_number(const std::string& tok, double& v) {
+  if (tok.empty() || tok.size() > 64 || tok.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
+  char* end = nullptr;
+  v = std::strtod(tok.c_str(), &end);
+  return end == tok.c_str() + tok.size() && std::isfinite(v);
+}
+
+// `n` strict numbers separated by white space; "" when they are, else what is wrong.
+std::string numbers_problem(const char* text, std::size_t n) {
+  std::istringstream in(text ? text : "");
+  std::string tok;
+  std::size_t count = 0;
+  double v = 0;
+  while (in >> tok) {
+    if (!strict_number(tok, v)) return "'" + config::printable(tok, 32) + "' is not a finite number";
+    ++count;
+  }
+  if (count != n) return "has " + std::to_string(count) + " numbers, expected " + std::to_string(n);
+  return "";
+}
+
+// Every <visual> and <collision> of every link, walked on the XML itself: urdfdom reads "nan"
+// as a number, turns an unreadable origin into the identity and drops an element whose
+// geometry it cannot read, so a broken shape used to vanish in silence (issue 18, item 14).
+// Returns the number of visual and collision elements per link.
+std::map<std::string, std::pair<std::size_t, std::size_t>> check_urdf_geometry(const std::filesystem::path& file,
+                                                                               const std::string& text) {
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
+    fail(file, std::string("not a valid URDF: ") + config::printable(doc.ErrorStr() ? doc.ErrorStr() : "XML error", 160));
+  const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
+  if (!robot) fail(file, "not a valid URDF: no <robot> element");
+  std::map<std::string, std::pair<std::size_t, std::size_t>> counts;
+  for (const auto* link = robot->FirstChildElement("link"); link; link = link->NextSiblingElement("link")) {
+    const char* name_attr = link->Attribute("name");
+    const std::string name = name_attr ? name_attr : "";
+    auto& count = counts[name];
+    for (const auto* e = link->FirstChildElement(); e; e = e->NextSiblingElement()) {
+      const std::string kind = e->Name();
+      if (kind != "visual" && kind != "collision") continue;
+      (kind == "visual" ? count.first : count.second)++;
+      const std::string where = "link '" + config::printable(name) + "' " + kind + " " +
+                                std::to_string(kind == "visual" ? count.first : count.second);
+      const auto check = [&](const tinyxml2::XMLElement* el, const char* attr, std::size_t n, bool required) {
+        const char* v = el->Attribute(attr);
+        if (!v) {
+          if (required) fail(file, where + ": <" + el->Name() + "> has no " + attr);
+          return;
+        }
+        if (const std::string bad = numbers_problem(v, n); !bad.empty())
+          fail(file, where + ": <" + el->Name() + "> " + attr + " " + bad);
+      };
+      if (const auto* o = e->FirstChildElement("origin")) {
+        check(o, "xyz", 3, false);
+        check(o, "rpy", 3, false);
+      }
+      const auto* g = e->FirstChildElement("geometry");
+      if (!g) fail(file, where + ": no <geometry>");
+      const auto* shape = g->FirstChildElement();
+      if (!shape) fail(file, where + ": <geometry> is empty");
+      if (shape->NextSiblingElement()) fail(file, where + ": <geometry> holds more than one shape");
+      const std::string type = shape->Name();
+      if (type == "box") {
+        check(shape, "size", 3, true);
+      } else if (type == "cylinder") {
+        check(shape, "radius", 1, true);
+        check(shape, "length", 1, true);
+      } else if (type == "sphere") {
+        check(shape, "radius", 1, true);
+      } else if (type == "mesh") {
+        if (!shape->Attribute("filename")) fail(file, where + ": <mesh> has no filename");
+        check(shape, "scale", 3, false);
+      } else {
+        fail(file, where + ": unsupported geometry <" + config::printable(type, 32) + ">");
+      }
+    }
+  }
+  return counts;
 }
 
 // The XML walked before any parser sees it: TinyXML2 recurses once per nesting level (a
@@ -257,19 +364,15 @@ Eigen::VectorXd RobotModel::effort_limits() const {
 }
 
 RobotModel load_robot_model(const std::filesystem::path& file, const std::string& camera_link) {
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(file, ec);
-  if (ec) fail(file, "cannot read the robot description (" + ec.message() + ")");
-  if (size > kMaxUrdfBytes) fail(file, "larger than " + std::to_string(kMaxUrdfBytes) + " bytes (the URDF limit)");
-  std::ifstream in(file, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (!in && !in.eof()) fail(file, "cannot read the robot description");
-
   RobotModel model;
   model.file = file;
-  model.urdf = text.str();
+  try {
+    model.urdf = config::read_regular_file(file, kMaxUrdfBytes, "robot description");
+  } catch (const config::FileError& e) {
+    throw RobotModelError(e.what());
+  }
   if (const std::string bad = check_xml_structure(model.urdf); !bad.empty()) fail(file, "not a valid URDF: " + bad);
+  const auto geometry_counts = check_urdf_geometry(file, model.urdf);
   model.camera_link = camera_link;
   urdf::ModelInterfaceSharedPtr urdf;
   {
@@ -285,6 +388,13 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
     if (!urdf)
       fail(file, "not a valid URDF: " +
                      config::printable(captured.first_error.empty() ? "parse error" : captured.first_error, 160));
+  }
+  for (const auto& [name, count] : geometry_counts) {
+    const urdf::LinkConstSharedPtr link = urdf->getLink(name);
+    if (link && (link->visual_array.size() != count.first || link->collision_array.size() != count.second))
+      fail(file, "link '" + config::printable(name) + "': " + std::to_string(count.first) + " visual and " +
+                     std::to_string(count.second) + " collision elements, but the URDF parser read " +
+                     std::to_string(link->visual_array.size()) + " and " + std::to_string(link->collision_array.size()));
   }
   model.name = urdf->getName();
   urdf::LinkConstSharedPtr tip = urdf->getLink(camera_link);

@@ -1,5 +1,7 @@
 #include "sim/scene/mesh_check.hpp"
 
+#include "servo/config/regular_file.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -46,16 +48,6 @@ bool parse_long(const std::string& tok, long long& v) {
   errno = 0;
   v = std::strtoll(tok.c_str(), &end, 10);
   return errno == 0 && end == tok.c_str() + tok.size();
-}
-
-std::string read_all(const std::filesystem::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) fail(path, "cannot open mesh file");
-  std::string data;
-  data.resize(static_cast<std::size_t>(std::filesystem::file_size(path)));
-  f.read(data.data(), static_cast<std::streamsize>(data.size()));
-  if (f.gcount() != static_cast<std::streamsize>(data.size())) fail(path, "cannot read the whole mesh file");
-  return data;
 }
 
 // Text formats hold printable ASCII, spaces, tabs and line ends only: assimp splits on fewer
@@ -376,19 +368,22 @@ MeshFileCounts check_stl(const std::filesystem::path& p, const std::string& data
 
 }  // namespace
 
-MeshFileCounts check_mesh_file(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) fail(path, "mesh file not found");
-  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
-  if (ec) fail(path, "cannot read mesh file: " + ec.message());
-  if (bytes > kMaxMeshFileBytes)
-    fail(path, std::to_string(bytes) + " bytes, more than the limit of " + std::to_string(kMaxMeshFileBytes) + " per mesh file");
+std::string read_mesh_file(const std::filesystem::path& path) {
+  try {
+    return config::read_regular_file(path, kMaxMeshFileBytes, "mesh file");
+  } catch (const config::FileError& e) {
+    throw MeshError(e.what());
+  }
+}
+
+MeshFileCounts check_mesh_data(const std::filesystem::path& path, const std::string& data) {
   const std::string ext = lower(path.extension().string());
-  const std::string data = read_all(path);
   if (ext == ".obj") return check_obj(path, data);
   if (ext == ".ply") return check_ply(path, data);
   if (ext == ".stl") return check_stl(path, data);
   fail(path, "unsupported mesh format '" + shown(ext) + "' (use .obj, .ply or .stl)");
 }
+
+MeshFileCounts check_mesh_file(const std::filesystem::path& path) { return check_mesh_data(path, read_mesh_file(path)); }
 
 }  // namespace sim

@@ -25,5 +25,9 @@ struct MeshFileCounts {
 // Walks an OBJ, PLY (ASCII or binary, either byte order) or STL (ASCII or binary) file
 // completely: sizes, counts, numbers and indices. Throws MeshError ("<file>: <what>").
 MeshFileCounts check_mesh_file(const std::filesystem::path& path);
+// The same in two steps, so that the bytes walked are the bytes assimp reads: the file as a
+// regular file of at most kMaxMeshFileBytes (MeshError otherwise), then its structure.
+std::string read_mesh_file(const std::filesystem::path& path);
+MeshFileCounts check_mesh_data(const std::filesystem::path& path, const std::string& data);
 
 }  // namespace sim

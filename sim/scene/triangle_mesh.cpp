@@ -42,15 +42,23 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
 
 }  // namespace
 
-TriangleMesh load_mesh(const std::filesystem::path& path) {
+TriangleMesh load_mesh(const std::filesystem::path& path) { return load_mesh(path, kMaxMeshTriangles, ""); }
+
+TriangleMesh load_mesh(const std::filesystem::path& path, std::size_t max_triangles, const std::string& budget_name) {
   const std::string file = path.string();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw MeshError(file + ": mesh file not found");
-  check_mesh_file(path);  // assimp only ever sees a file whose structure was walked here
+  // assimp only ever sees bytes whose structure was walked here, read once from a regular file
+  const std::string data = read_mesh_file(path);
+  const MeshFileCounts counts = check_mesh_data(path, data);
+  if (counts.triangles > max_triangles)
+    throw MeshError(file + ": " + std::to_string(counts.triangles) + " triangles, more than the " +
+                    std::to_string(max_triangles) + " left " + budget_name);
+  std::string hint = path.extension().string().substr(1);  // a known extension: checked above
+  for (char& ch : hint) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
   Assimp::Importer importer;
-  const aiScene* scene = importer.ReadFile(
-      file, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
-                aiProcess_SortByPType);
+  const aiScene* scene = importer.ReadFileFromMemory(
+      data.data(), data.size(),
+      aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure | aiProcess_SortByPType,
+      hint.c_str());
   if (scene == nullptr || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mRootNode == nullptr) {
     std::string why = importer.GetErrorString();
     if (why.empty()) why = "incomplete scene";

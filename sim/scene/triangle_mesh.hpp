@@ -24,6 +24,9 @@ struct TriangleMesh {
 // vertices joined. Throws MeshError when the file is missing, assimp cannot parse it, it
 // holds no triangles, or a coordinate is not finite.
 TriangleMesh load_mesh(const std::filesystem::path& path);
+// The same, refused before assimp reads it when the file holds more than `max_triangles`
+// (a caller's running budget: a URDF's many meshes are counted as they load).
+TriangleMesh load_mesh(const std::filesystem::path& path, std::size_t max_triangles, const std::string& budget_name);
 
 struct MeshStats {
   std::size_t triangle_count = 0;

@@ -6,9 +6,13 @@
 #include <filesystem>
 #include <fstream>
 #include <cstdint>
+#include <cstdlib>
 #include <sstream>
 
+#include <unistd.h>
+
 #include "sim/app/experiment.hpp"
+#include "support/numeric_text.hpp"
 
 namespace {
 
@@ -73,23 +77,45 @@ TEST(CellErrorsLoop, ZeroErrorsAndDelaysChangeNothingBitForBit) {
 
 // Today's results: a run whose scenario did not change, as the code before the errors existed
 // wrote it (`cellsim experiment sim/scenarios/cylinder.yaml --features ideal --model
-// desired-constant-depth --z-hat 0.6 --max-iterations 60` at commit 22e97a6): its trace.csv
-// text (tests/data/golden/) and, bit for bit, its features.jsonl (every number to 17 digits;
-// 2 MB, so kept as its FNV-1a hash).
+// desired-constant-depth --z-hat 0.6 --max-iterations 60` at commit 22e97a6). Stored results
+// are compared across machines within the stated tolerance (tests/support/numeric_text.hpp:
+// 1e-6 relative), never bit for bit: another CPU rounds the last digit differently (issue 18,
+// item 1). trace.csv is kept whole; features.jsonl (2 MB) as a per-line digest of its numbers.
+// Bit-reproducibility on one machine is the next test's.
 TEST(CellErrorsLoop, TracesEqualThoseBeforeTheErrorsExisted) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder.yaml"));
   auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, cellsim::FeatureSource::kIdeal, 60);
-  o.out_dir = std::filesystem::temp_directory_path() / "_test_golden_cylinder_ideal";
+  o.out_dir = std::filesystem::temp_directory_path() / ("_test_golden_cylinder_ideal_" + std::to_string(::getpid()));
   cellsim::run_experiment(*cell, o);
   const std::string now = read(o.out_dir / "trace.csv"), features = read(o.out_dir / "features.jsonl");
   std::filesystem::remove_all(o.out_dir);
-  const std::string before = read(std::string(CELL_SOURCE_DIR) + "/tests/data/golden/cylinder_ideal_60.csv");
+  const std::string golden = std::string(CELL_SOURCE_DIR) + "/tests/data/golden/";
+  const std::string before = read(golden + "cylinder_ideal_60.csv");
   ASSERT_FALSE(before.empty());
-  EXPECT_EQ(now, before);
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  for (unsigned char c : features) h = (h ^ c) * 0x100000001b3ull;
-  EXPECT_EQ(features.size(), 2100937u);
-  EXPECT_EQ(h, 0x949ee870f152a21full);
+  EXPECT_EQ(cell_test::numeric_difference(now, before), "");
+  // CELL_WRITE_GOLDEN=1 writes the digest anew (after a deliberate change of the results)
+  if (std::getenv("CELL_WRITE_GOLDEN")) std::ofstream(golden + "cylinder_ideal_60_features.digest") << cell_test::numeric_digest(features);
+  const std::string digest = read(golden + "cylinder_ideal_60_features.digest");
+  ASSERT_FALSE(digest.empty());
+  EXPECT_EQ(cell_test::digest_difference(cell_test::numeric_digest(features), digest), "");
+}
+
+// Lockstep's promise on one machine: the same run twice gives the same bits, trace and
+// features alike.
+TEST(CellErrorsLoop, TheSameRunTwiceGivesTheSameBits) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder.yaml"));
+  std::string trace[2], features[2];
+  for (int k = 0; k < 2; ++k) {
+    auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, cellsim::FeatureSource::kIdeal, 40);
+    o.out_dir = std::filesystem::temp_directory_path() / ("_test_twice_" + std::to_string(::getpid()) + "_" + std::to_string(k));
+    cellsim::run_experiment(*cell, o);
+    trace[k] = read(o.out_dir / "trace.csv");
+    features[k] = read(o.out_dir / "features.jsonl");
+    std::filesystem::remove_all(o.out_dir);
+  }
+  ASSERT_FALSE(trace[0].empty());
+  EXPECT_EQ(trace[0], trace[1]);
+  EXPECT_TRUE(features[0] == features[1]) << "features.jsonl differs between two identical runs";
 }
 
 // Calibration errors reach the servo and the robot: the path changes, and teach-by-showing

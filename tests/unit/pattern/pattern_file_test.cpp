@@ -59,7 +59,7 @@ TEST(PatternFile, RepeatedWindowIsRejectedByLoadPattern) {
 }
 
 TEST(PatternFile, MissingAndEmptyFiles) {
-  EXPECT_NE(error_of([] { read_marray("/nonexistent/p.txt"); }).find("/nonexistent/p.txt: cannot open"),
+  EXPECT_NE(error_of([] { read_marray("/nonexistent/p.txt"); }).find("/nonexistent/p.txt: pattern file not found"),
             std::string::npos);
   const auto path = write_temp("empty.txt", "");
   EXPECT_NE(error_of([&] { read_marray(path); }).find("empty pattern file"), std::string::npos);

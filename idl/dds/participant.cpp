@@ -14,6 +14,7 @@
 #include <fastdds/dds/log/Log.hpp>
 #include <mutex>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
@@ -26,13 +27,38 @@ namespace cell_dds {
 
 using namespace eprosima::fastdds::dds;
 
+namespace {
+// Text from the environment or a command line, safe for a one-line message.
+std::string config_printable(const std::string& v) {
+  std::string out;
+  for (char ch : v.substr(0, 60)) out += (ch >= 0x20 && ch < 0x7f) ? ch : '?';
+  return v.size() > 60 ? out + "..." : out;
+}
+
+// A domain id as text: a whole number in [0, kMaxDomainId], or nullopt.
+std::optional<int> parse_domain(const std::string& text) {
+  if (text.empty() || text.size() > 6 || text.find_first_not_of("0123456789") != std::string::npos) return std::nullopt;
+  const long v = std::strtol(text.c_str(), nullptr, 10);
+  if (v > kMaxDomainId) return std::nullopt;
+  return static_cast<int>(v);
+}
+const std::string kDomainRange = "a whole number from 0 to " + std::to_string(kMaxDomainId) +
+                                 " (above, the RTPS ports of the participants this cell reaches pass 65535)";
+}  // namespace
+
 int domain_id_from_env(int fallback) {
   const char* env = std::getenv("ROS_DOMAIN_ID");
   if (env == nullptr || *env == '\0') return fallback;
-  char* end = nullptr;
-  const long v = std::strtol(env, &end, 10);
-  if (*end != '\0' || v < 0 || v > 232) throw std::runtime_error(std::string("ROS_DOMAIN_ID='") + env + "' is not a domain id (0..232)");
-  return static_cast<int>(v);
+  const auto d = parse_domain(env);
+  if (!d) throw std::runtime_error("ROS_DOMAIN_ID='" + config_printable(env) + "' is not a domain id: " + kDomainRange);
+  return *d;
+}
+
+int domain_id_from(const std::string& flag) {
+  if (flag.empty()) return domain_id_from_env(0);
+  const auto d = parse_domain(flag);
+  if (!d) throw std::runtime_error("--domain '" + config_printable(flag) + "' is not a domain id: " + kDomainRange);
+  return *d;
 }
 
 const char* to_string(DiscoveryRange r) {
@@ -74,6 +100,13 @@ Discovery parse_discovery(const char* range, const char* peers, const char* loca
       in_addr addr{};
       if (inet_pton(AF_INET, peer.c_str(), &addr) != 1)
         throw std::invalid_argument("ROS_STATIC_PEERS: '" + shown(peer) + "' is not an IPv4 address");
+      // a peer is one host: a multicast group, the broadcast address or 0.0.0.0 would send
+      // discovery onto every network the machine is on (issue 18, item 13)
+      const std::uint32_t a4 = ntohl(addr.s_addr);
+      if ((a4 >> 28) == 0xE || a4 == 0xFFFFFFFFu || a4 == 0)
+        throw std::invalid_argument("ROS_STATIC_PEERS: '" + shown(peer) +
+                                    "' is not a unicast address (multicast, broadcast and 0.0.0.0 are refused: a peer "
+                                    "is one host)");
       if (d.static_peers.size() >= 64) throw std::invalid_argument("ROS_STATIC_PEERS: more than 64 peers");
       d.static_peers.push_back(peer);
     }
@@ -81,7 +114,45 @@ Discovery parse_discovery(const char* range, const char* peers, const char* loca
   return d;
 }
 
+void check_discovery_servers(const char* value) {
+  if (!value || !*value) return;
+  const std::string list = value;
+  const auto bad = [&](const std::string& entry, const std::string& why) {
+    return std::invalid_argument("ROS_DISCOVERY_SERVER='" + config_printable(list) + "': '" + config_printable(entry) +
+                                 "' " + why);
+  };
+  if (list.size() > 4096) throw bad(list.substr(0, 20), "and the rest: longer than 4096 characters");
+  int servers = 0;
+  for (std::size_t a = 0, b; a <= list.size(); a = b + 1) {
+    b = list.find(';', a);
+    if (b == std::string::npos) b = list.size();
+    const std::string entry = list.substr(a, b - a);
+    if (entry.empty()) continue;  // an empty entry skips a server id, as Fast DDS reads it
+    const std::size_t colon = entry.rfind(':');
+    const std::string host = colon == std::string::npos ? entry : entry.substr(0, colon);
+    if (colon != std::string::npos) {
+      const std::string port = entry.substr(colon + 1);
+      if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+          std::stol(port) < 1 || std::stol(port) > 65535)
+        throw bad(entry, "has no port from 1 to 65535 after its ':'");
+    }
+    in_addr addr{};
+    if (inet_pton(AF_INET, host.c_str(), &addr) == 1) {
+      const std::uint32_t a4 = ntohl(addr.s_addr);
+      if ((a4 >> 28) == 0xE || a4 == 0xFFFFFFFFu || a4 == 0) throw bad(entry, "is not a unicast address");
+    } else if (host.empty() || host.size() > 253 ||
+               host.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-") !=
+                   std::string::npos) {
+      throw bad(entry, "is not ADDRESS[:PORT] (an IPv4 address or a host name)");
+    }
+    if (++servers > 64) throw bad(entry, "is past the 64th server");
+  }
+}
+
 Discovery discovery_from_env() {
+  // Fast DDS reads ROS_DISCOVERY_SERVER itself and skips what it cannot parse without a word:
+  // it is checked here, so a typo is an error and not a cell that silently finds nobody
+  check_discovery_servers(std::getenv("ROS_DISCOVERY_SERVER"));
   return parse_discovery(std::getenv("ROS_AUTOMATIC_DISCOVERY_RANGE"), std::getenv("ROS_STATIC_PEERS"),
                          std::getenv("ROS_LOCALHOST_ONLY"));
 }

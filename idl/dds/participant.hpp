@@ -62,6 +62,12 @@ struct ParticipantOptions {
 
 // Domain id from $ROS_DOMAIN_ID when set (and valid), otherwise `fallback`.
 int domain_id_from_env(int fallback);
+// The largest domain id: 7400 + 250 d + 11 + 2 x 63 (the participant ids the initial peers
+// reach) must stay a port number, so 231, not the 232 of DDS's formula for one participant.
+inline constexpr int kMaxDomainId = 231;
+// --domain's text if given (it must be a domain id), else ROS_DOMAIN_ID, else 0. Throws
+// std::runtime_error with one line naming the value.
+int domain_id_from(const std::string& flag);
 
 struct ParticipantDeleter {
   void operator()(eprosima::fastdds::dds::DomainParticipant* p) const;

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "servo/config/cli_numbers.hpp"
 #include "servo/pattern/marray.hpp"
 #include "servo/pattern/palette.hpp"
 #include "servo/pattern/pattern_file.hpp"
@@ -101,7 +102,8 @@ int main(int argc, char** argv) {
   ren->add_option("-o,--output", out, "PNG to write")->required();
   ren->add_option("--pitch", pitch, "pixels between spots")->check(CLI::Range(4, 200));
 
-  CLI11_PARSE(app, argc, argv);
+  config::require_finite_numbers(app);
+  if (const int rc = config::parse_command_line(app, argc, argv, "pattern"); rc >= 0) return rc;
   try {
     if (*gen) {
       gp.window = {window, window};

@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "servo/config/cli_numbers.hpp"
 #include "servo/config/strict_yaml.hpp"
 #include "servo/config/regular_file.hpp"
 #include "servo/pattern/pattern_file.hpp"
@@ -317,13 +318,13 @@ int main(int argc, char** argv) {
   servo::ServiceOptions svc;
   std::string config_file, model, reference, projector_file;
   double z_hat = 0, gain = 0;
-  int domain = -1;
+  std::string domain;
   auto* run = app.add_subcommand("run", "run the controller as a DDS service");
   run->add_option("--pattern", pattern_file, "pattern file")->required();
   run->add_option("--config", config_file, "servo configuration (YAML)");
   run->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
-  run->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)");
-  run->add_option("--gain", gain, "constant gain");
+  run->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
+  run->add_option("--gain", gain, "constant gain")->check(config::finite_in(1e-9, 1e3));
   run->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
   std::string discovery_range, static_peers;
   const char* range_help = "LOCALHOST | SUBNET | OFF (default: $ROS_AUTOMATIC_DISCOVERY_RANGE, or LOCALHOST)";
@@ -366,13 +367,14 @@ int main(int argc, char** argv) {
   // a backstop for the formats whose header read_rgb does not read: OpenCV refuses to
   // decode beyond this many pixels (read once, before the first decode)
   setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(servo::kMaxImagePixels).c_str(), 1);
-  CLI11_PARSE(app, argc, argv);
+  config::require_finite_numbers(app);
+  if (const int rc = config::parse_command_line(app, argc, argv, "servo"); rc >= 0) return rc;
   // The decoder's per-frame OpenCV operations are too small to gain from OpenCV's thread
   // pool: measured 2.1 ms per VGA frame with it, 1.5 ms without (docs/performance.md).
   cv::setNumThreads(1);
   try {
     if (*vw) {
-      view.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      view.domain_id = cell_dds::domain_id_from(domain);
       view.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       view.ns = cell_dds::checked_namespace(ns);
       view.security = cell_dds::security_from_env();
@@ -398,7 +400,7 @@ int main(int argc, char** argv) {
         within("--gain", gain, 1e-6, 100);
         svc.config.law.gain = {gain, gain, 0};
       }
-      svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      svc.domain_id = cell_dds::domain_id_from(domain);
       svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       svc.ns = cell_dds::checked_namespace(ns);
       svc.security = cell_dds::security_from_env();

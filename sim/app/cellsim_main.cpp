@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "servo/config/cli_numbers.hpp"
 #include "servo/config/projector_calibration.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/pattern/window_table.hpp"
@@ -147,13 +148,18 @@ struct LawFlags {
                 "--projector` does");
     c->add_option("--model", model, "desired-constant-depth | desired | current | mean")->capture_default_str();
     c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the mean depth of the lit spots "
-                                    "at the desired pose, from the simulator (the paper's runs pass 0.9 or 0.6)");
-    c->add_option("--gain", gain, "constant gain lambda")->capture_default_str();
-    c->add_option("--gain-adaptive", adaptive, "adaptive gain: lambda0 lambda_inf slope0")->expected(3);
+                                    "at the desired pose, from the simulator (the paper's runs pass 0.9 or 0.6)")
+        ->check(config::finite_in(0, 100));
+    c->add_option("--gain", gain, "constant gain lambda")->capture_default_str()->check(config::finite_in(1e-9, 1e3));
+    c->add_option("--gain-adaptive", adaptive, "adaptive gain: lambda0 lambda_inf slope0")
+        ->expected(3)
+        ->check(config::finite_in(0, 1e3));
     c->add_option("--converge-mm", converge_mm, "task-function translation that counts as converged (mm)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(config::finite_in(1e-9, 1e4));
     c->add_option("--converge-deg", converge_deg, "task-function rotation that counts as converged (deg)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(config::finite_in(1e-9, 180));
   }
   void apply(servo::ServoConfig& cfg, double default_z_hat) const {
     cfg.law.model = control::parse_interaction_model(model);
@@ -229,8 +235,8 @@ struct CampaignFlags {
     c->add_option("--features", source, "decoded | ideal")->capture_default_str();
     c->add_option("--threads", o.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 256));
     c->add_option("-o,--output", dir, "output folder");
-    c->add_option("--z-hat", law.z_hat, "depth of desired-constant-depth (m)");
-    c->add_option("--gain", law.gain, "constant gain")->capture_default_str();
+    c->add_option("--z-hat", law.z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
+    c->add_option("--gain", law.gain, "constant gain")->capture_default_str()->check(config::finite_in(1e-9, 1e3));
     c->add_option("--points", law.points, "servo on this many best-conditioned points (0: all)")
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
@@ -409,7 +415,7 @@ int main(int argc, char** argv) {
 
   cellsim::ServiceOptions svc;
   std::string mode = "lockstep", svc_trace;
-  int domain = -1;
+  std::string domain;
   auto* sv = app.add_subcommand("serve", "run the simulated cell as a DDS service");
   sv->add_option("scenario", scenario, "scenario YAML file")->required();
   sv->add_option("--mode", mode, "lockstep | realtime")->capture_default_str();
@@ -435,7 +441,8 @@ int main(int argc, char** argv) {
   cal->add_option("scenario", scenario, "scenario YAML file")->required();
   cal->add_option("-o,--output", calib_out, "calibration YAML to write")->required();
 
-  CLI11_PARSE(app, argc, argv);
+  config::require_finite_numbers(app);
+  if (const int rc = config::parse_command_line(app, argc, argv, "cellsim"); rc >= 0) return rc;
   try {
     if (*cal) {
       const sim::Scenario s = sim::load_scenario(scenario);
@@ -471,7 +478,7 @@ int main(int argc, char** argv) {
       within("--republish-ms", svc.republish_ms, 1, 600000);
       within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
       svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
-      svc.domain_id = domain >= 0 ? domain : cell_dds::domain_id_from_env(0);
+      svc.domain_id = cell_dds::domain_id_from(domain);
       svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
       svc.ns = cell_dds::checked_namespace(ns);
       svc.security = cell_dds::security_from_env();

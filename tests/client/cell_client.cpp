@@ -2,9 +2,11 @@
 // idl/ (none of the project's libraries): it commands the simulator on rt/sim/control and
 // watches the servo on rt/servo/status, as any user's tool would.
 //
-//   cell_client [--domain N] [--timeout S]      teach, go to the initial pose, start, and
-//                                               wait for CONVERGED (exit 0) or give up (1)
+//   cell_client [--domain N] [--timeout S] [--help]   teach, go to the initial pose, start,
+//                                                    and wait for CONVERGED (exit 0) or give up (1)
 #include <atomic>
+#include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -61,14 +63,59 @@ class StatusListener : public DataReaderListener {
   }
 };
 
+constexpr const char* kUsage =
+    "usage: cell_client [--domain N] [--timeout S]\n"
+    "  Joins DDS domain N (default: ROS_DOMAIN_ID, else 0) over loopback, waits for a cellsim and a\n"
+    "  servo (the two readers of rt/sim/control), sends TEACH, RESET initial and START, and waits\n"
+    "  for CONVERGED on rt/servo/status: exit 0, or 1 after S seconds (default 120).\n";
+
+// A whole decimal integer in [lo, hi], or nullopt.
+bool parse_int(const char* text, long lo, long hi, long& out) {
+  if (!text || !*text) return false;
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text, &end, 10);
+  if (errno != 0 || *end != '\0' || v < lo || v > hi) return false;
+  out = v;
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  int domain = std::getenv("ROS_DOMAIN_ID") ? std::atoi(std::getenv("ROS_DOMAIN_ID")) : 0;
+  // 232: the largest domain whose RTPS ports (7400 + 250 d + ...) fit in 16 bits
+  long domain = 0;
+  if (const char* env = std::getenv("ROS_DOMAIN_ID"); env && *env && !parse_int(env, 0, 232, domain)) {
+    std::fprintf(stderr, "cell_client: ROS_DOMAIN_ID '%.40s' is not a domain id (0 to 232)\n", env);
+    return 2;
+  }
   double timeout_s = 120;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--domain")) domain = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--timeout")) timeout_s = std::atof(argv[i + 1]);
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "-h" || a == "--help") {
+      std::printf("%s", kUsage);
+      return 0;
+    }
+    if ((a == "--domain" || a == "--timeout") && i + 1 >= argc) {
+      std::fprintf(stderr, "cell_client: %s needs a value (see --help)\n", a.c_str());
+      return 2;
+    }
+    if (a == "--domain") {
+      if (!parse_int(argv[++i], 0, 232, domain)) {
+        std::fprintf(stderr, "cell_client: --domain '%.40s' is not a domain id (0 to 232)\n", argv[i]);
+        return 2;
+      }
+    } else if (a == "--timeout") {
+      char* end = nullptr;
+      timeout_s = std::strtod(argv[++i], &end);
+      if (*end != '\0' || !std::isfinite(timeout_s) || timeout_s <= 0 || timeout_s > 1e6) {
+        std::fprintf(stderr, "cell_client: --timeout '%.40s' must be a number of seconds in (0, 1e6]\n", argv[i]);
+        return 2;
+      }
+    } else {
+      std::fprintf(stderr, "cell_client: unknown argument '%.40s' (see --help)\n", a.c_str());
+      return 2;
+    }
   }
 
   // The cell's services discover peers on this host through 127.0.0.1 (no multicast onto
@@ -85,9 +132,9 @@ int main(int argc, char** argv) {
   peer.kind = LOCATOR_KIND_UDPv4;
   eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
   pq.wire_protocol().builtin.initialPeersList.push_back(peer);
-  DomainParticipant* p = DomainParticipantFactory::get_instance()->create_participant(domain, pq);
+  DomainParticipant* p = DomainParticipantFactory::get_instance()->create_participant(static_cast<int>(domain), pq);
   if (!p) {
-    std::fprintf(stderr, "cell_client: cannot join DDS domain %d\n", domain);
+    std::fprintf(stderr, "cell_client: cannot join DDS domain %ld\n", domain);
     return 2;
   }
   // no type information on the wire (what Cyclone DDS and the cell expect)
@@ -121,13 +168,24 @@ int main(int argc, char** argv) {
   // both the simulator and the servo listen to the control topic
   const auto start = std::chrono::steady_clock::now();
   const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  std::printf("cell_client: waiting for cellsim and servo on domain %ld (the two readers of rt/sim/control)\n", domain);
+  std::fflush(stdout);
   PublicationMatchedStatus pm;
+  double next_note_s = 5;
   do {
     control->get_publication_matched_status(pm);
+    if (pm.current_count < 2 && elapsed() >= next_note_s) {
+      std::printf("cell_client: no cellsim and servo on domain %ld yet: %d of the 2 readers of rt/sim/control after "
+                  "%.0f s (are they running, with the same ROS_DOMAIN_ID?)\n",
+                  domain, pm.current_count, elapsed());
+      std::fflush(stdout);
+      next_note_s += 10;
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   } while (pm.current_count < 2 && elapsed() < timeout_s);
   if (pm.current_count < 2) {
-    std::fprintf(stderr, "cell_client: the simulator and the servo are not both on domain %d\n", domain);
+    std::fprintf(stderr, "cell_client: the simulator and the servo are not both on domain %ld after %.0f s\n", domain,
+                 timeout_s);
     return 1;
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(200));

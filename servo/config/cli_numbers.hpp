@@ -1,0 +1,68 @@
+// Numbers from the command line are checked like numbers from a file (issue 18, item 16):
+// CLI11 reads "nan", "inf" and 1e300 as doubles and its Range check lets NaN through (every
+// comparison with NaN is false), so `--gain nan` once reached a worker thread and aborted a
+// campaign. Header-only, for the apps' command lines (CLI11).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+namespace config {
+
+// The bound every number of every command line stays within, unless its own range is tighter.
+inline constexpr double kMaxCliMagnitude = 1e9;
+
+// A finite number in [lo, hi].
+inline CLI::Validator finite_in(double lo, double hi) {
+  char desc[96];
+  std::snprintf(desc, sizeof desc, "finite in [%g, %g]", lo, hi);
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || *end != '\0' || !std::isfinite(v) || v < lo || v > hi) {
+          char why[160];
+          std::snprintf(why, sizeof why, "'%.40s' is not a finite number in [%g, %g]", text.c_str(), lo, hi);
+          return why;
+        }
+        return "";
+      },
+      desc);
+}
+
+// Every floating-point option of `app` and of its subcommands, at any depth, gets the finite check
+// with the common bound (a tighter range given at the option still holds): no number escapes
+// the check because its option was added without one.
+inline void require_finite_numbers(CLI::App& app) {
+  for (CLI::Option* o : app.get_options()) {
+    const std::string t = o->get_type_name();
+    // integers need no such check: CLI11 refuses "nan", "inf" and 1e300 for them, and a seed
+    // may use all 64 bits
+    if (t.rfind("FLOAT", 0) == 0) o->check(finite_in(-kMaxCliMagnitude, kMaxCliMagnitude));
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) require_finite_numbers(*sub);
+}
+
+// Parses like CLI11_PARSE, but a bad command line is one line ("<program>: <what>; see --help").
+inline int parse_command_line(CLI::App& app, int argc, char** argv, const char* program) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::string what = e.what();
+    for (char& ch : what)
+      if (ch == '\n') ch = ' ';
+    std::fprintf(stderr, "%s: %s (see --help)\n", program, what.c_str());
+    return e.get_exit_code() != 0 ? e.get_exit_code() : 2;
+  }
+  return -1;  // parsed: go on
+}
+
+}  // namespace config

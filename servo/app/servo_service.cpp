@@ -214,7 +214,9 @@ class ServoService {
     while (!in_.sim_statuses.empty()) {
       const SimStatus_& s = in_.sim_statuses.front();
       namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
-      machine_->on_sim_status({to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING});
+      // a LOADING status belongs to no frame
+      if (s.state() != SST::LOADING)
+        machine_->on_sim_status({to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING});
       in_.sim_statuses.pop_front();
     }
     while (!in_.poses.empty()) {

@@ -435,6 +435,8 @@ int main(int argc, char** argv) {
   sv->add_option("--max-frames", svc.max_frames, "exit after this many frames")->capture_default_str();
   sv->add_flag("--exit-on-converged", svc.exit_on_converged, "exit when the servo reports CONVERGED");
   sv->add_option("--trace", svc_trace, "folder for trace.csv");
+  sv->add_option("--scenarios", svc.scenarios_dir,
+                 "the folder LOAD_SCENARIO may read scenarios from, links resolved (default: the served scenario's)");
 
   std::string calib_out;
   auto* cal = app.add_subcommand("calibration", "write the projector calibration the servo triangulates with");

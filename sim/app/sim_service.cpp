@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <deque>
 #include <fstream>
+#include <future>
 #include <iomanip>
 #include <mutex>
 #include <optional>
@@ -112,6 +113,45 @@ void announce_conditions(const sim::Scenario& s, TimingMode mode) {
                 s.file.filename().c_str(), describe({}, s.latency).c_str());
 }
 
+// Where LOAD_SCENARIO may read from, and what it may say (issue 18, item 10): a remote peer
+// names the file, so the path is resolved (links followed) and must lie under the allowed
+// folder, and an error never quotes the file's content (an /etc/shadow line once reached the log).
+std::filesystem::path allowed_scenario(const std::filesystem::path& requested, const std::filesystem::path& allowed) {
+  const std::filesystem::path p = requested.is_relative() ? allowed / requested : requested;
+  std::error_code ec;
+  const std::filesystem::path real = std::filesystem::canonical(p, ec);
+  if (ec) throw std::runtime_error(requested.string() + ": scenario not found under " + allowed.string());
+  const std::string a = allowed.string(), r = real.string();
+  if (r.size() <= a.size() || r.compare(0, a.size(), a) != 0 || r[a.size()] != '/')
+    throw std::runtime_error(requested.string() + ": outside the folder LOAD_SCENARIO may read (" + a +
+                             "; cellsim serve --scenarios DIR names another)");
+  return real;
+}
+
+// Everything between quotes goes: values quoted from the file are its content.
+std::string without_quoted_content(const std::string& message) {
+  std::string out;
+  bool in_quote = false;
+  for (char ch : message) {
+    if (ch == '\'') {
+      out += in_quote ? "...'" : "'";
+      in_quote = !in_quote;
+    } else if (!in_quote) {
+      out += ch;
+    }
+  }
+  if (in_quote) out += "...'";
+  return out;
+}
+
+// A scenario read and built off the service loop: a slow or large one (6-8 s) must not stop
+// the status, the watchdog or the other commands.
+struct LoadResult {
+  std::unique_ptr<sim::Cell> cell;
+  std::unique_ptr<sim::Robot> robot;
+  std::string error;
+};
+
 class SimService {
  public:
   explicit SimService(const ServiceOptions& o) : o_(o) {
@@ -124,6 +164,14 @@ class SimService {
     cp.max_frames = o.max_frames;
     cp.exit_on_converged = o.exit_on_converged;
     machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cp, sim::make_robot(*cell_));
+    {
+      std::error_code ec;
+      const std::filesystem::path dir = o.scenarios_dir.empty() ? std::filesystem::absolute(o.scenario).parent_path()
+                                                                : o.scenarios_dir;
+      allowed_dir_ = std::filesystem::canonical(dir, ec);
+      if (ec || !std::filesystem::is_directory(allowed_dir_))
+        throw std::runtime_error(dir.string() + ": not a folder (--scenarios)");
+    }
     cell_dds::ParticipantOptions po;
     po.domain_id = o.domain_id;
     po.name = "cellsim";
@@ -237,8 +285,13 @@ class SimService {
       for (const auto& s : statuses) machine_->on_servo_status(to_report(s), now);
       for (const auto& c : commands) machine_->on_command(to_command(c), now);
       for (const auto& t : twists) machine_->on_twist(to_twist(t), now);
+      finish_load();
       sim::CellOutput out = machine_->poll(now);
       if (carry_out(out)) break;
+      if (loading_.valid() && now - last_loading_status_s_ >= 0.1) {
+        publish_loading_status();
+        last_loading_status_s_ = now;
+      }
       std::unique_lock<std::mutex> lock(inbox_.m);
       const double deadline = std::max(now + 1e-4, std::min(machine_->next_deadline(now), now + 0.05));
       inbox_.cv.wait_until(lock, t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(deadline)),
@@ -247,6 +300,7 @@ class SimService {
                                     !inbox_.statuses.empty();
                            });
     }
+    if (loading_.valid()) loading_.wait();  // a load is bounded by its files' limits; its objects must not outlive us
     summary(seconds_since(t0));
     return 0;
   }
@@ -255,22 +309,59 @@ class SimService {
   // Does what the state machine asked; returns true when the session is over.
   bool carry_out(sim::CellOutput& out) {
     for (const auto& line : out.log) std::fprintf(stderr, "%s\n", line.c_str());
-    if (out.load) {
-      try {
-        auto cell = sim::build_cell(sim::load_scenario(*out.load));
-        auto robot = sim::make_robot(*cell);
-        cell_ = std::move(cell);
-        machine_->loaded(cell_->scenario, std::move(robot));
-        announce_conditions(cell_->scenario, o_.mode);
-        publish_camera_info();
-        publish_description();
-      } catch (const std::exception& e) {
-        machine_->load_failed(e.what());
-      }
-    }
+    if (out.load) start_load(*out.load);
     for (const auto& f : out.frames) publish_frame(f);
     for (const auto& r : out.trace) record(r);
     return out.done;
+  }
+
+  void start_load(const std::filesystem::path& requested) {
+    std::filesystem::path file;
+    try {
+      file = allowed_scenario(requested, allowed_dir_);
+    } catch (const std::exception& e) {
+      machine_->load_failed(without_quoted_content(e.what()));
+      return;
+    }
+    std::fprintf(stderr, "cellsim: loading %s (status LOADING until it is done)\n", file.c_str());
+    loading_ = std::async(std::launch::async, [file] {
+      LoadResult r;
+      try {
+        r.cell = sim::build_cell(sim::load_scenario(file));
+        r.robot = sim::make_robot(*r.cell);
+      } catch (const std::exception& e) {
+        r.cell.reset();
+        r.error = without_quoted_content(e.what());
+      }
+      return r;
+    });
+    last_loading_status_s_ = -1;
+  }
+
+  void finish_load() {
+    if (!loading_.valid() || loading_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
+    LoadResult r = loading_.get();
+    if (!r.cell) {
+      machine_->load_failed(r.error);
+      return;
+    }
+    cell_ = std::move(r.cell);
+    machine_->loaded(cell_->scenario, std::move(r.robot));
+    announce_conditions(cell_->scenario, o_.mode);
+    publish_camera_info();
+    publish_description();
+  }
+
+  // While a load runs there is no frame: the status says so, ten times a second.
+  void publish_loading_status() {
+    namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
+    cell_msgs::msg::dds_::SimStatus_ st;
+    st.header().stamp(cell_dds::stamp_of(machine_->next_frame(), dt()));
+    st.header().frame_id(cell_dds::kCameraFrame);
+    st.state(SST::LOADING);
+    st.applies_twist(false);
+    st.frame(machine_->next_frame());
+    sim_status_->write(st);
   }
 
   double dt() const { return cell_->scenario.dt_s; }
@@ -438,6 +529,9 @@ class SimService {
 
   std::string topic(const char* t) const { return cell_dds::namespaced(o_.ns, t); }
   ServiceOptions o_;
+  std::filesystem::path allowed_dir_;
+  std::future<LoadResult> loading_;
+  double last_loading_status_s_ = -1;
   std::unique_ptr<sim::Cell> cell_;
   std::unique_ptr<sim::CellStateMachine> machine_;
   sim::RenderScratch scratch_;

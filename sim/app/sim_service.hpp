@@ -24,6 +24,9 @@ struct ServiceOptions {
   long max_frames = 0;          // stop after this many frames (0: no limit)
   bool exit_on_converged = false;
   std::filesystem::path trace_dir;  // trace.csv of the run (lockstep: one row per step)
+  // LOAD_SCENARIO (a remote peer's command) reads scenario files only from under this folder,
+  // links resolved; empty: the folder of `scenario` (--scenarios DIR)
+  std::filesystem::path scenarios_dir;
 };
 
 // Runs until SIGINT/SIGTERM, max_frames or convergence (with exit_on_converged). Returns the

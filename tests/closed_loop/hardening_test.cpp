@@ -3,7 +3,11 @@
 #include <cmath>
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <filesystem>
 #include <fstream>
+#include <mutex>
 
 #include "closed_loop/watcher.hpp"
 #include "sensor_msgsPubSubTypes.h"
@@ -62,7 +66,7 @@ TEST(Hardening, CellsimSurvivesBadCommandsAndKeepsObeying) {
 
   Watcher w(domain);
   Rogue rogue(w);
-  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep"}, domain, dir + "/sim.log");
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep", "--scenarios", dir}, domain, dir + "/sim.log");
   ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() > 0; }, 60s));
   rogue.send(SC::LOAD_SCENARIO, dir + "/short.yaml");
   rogue.send(SC::RESET, "1e300 0 0 0 0 0");
@@ -89,6 +93,69 @@ TEST(Hardening, CellsimSurvivesBadCommandsAndKeepsObeying) {
   EXPECT_NE(log.find("LOAD_SCENARIO refused: " + dir + "/short.ply: PLY body ends early"), std::string::npos) << log;
   EXPECT_NE(log.find("RESET refused: pose '1e300 0 0 0 0 0'"), std::string::npos) << log;
   EXPECT_NE(log.find("no answer to the teach frame"), std::string::npos) << log;
+}
+
+// Issue 18, items 9 and 10: remote loads of hostile files. A FIFO, a link to /proc/kmsg, a
+// file outside the allowed folder (through a link too) and /etc/shadow are refused in one
+// line each, without quoting a byte of them; a valid load is read off the service loop; and
+// all the while the simulator's status keeps coming (no gap of a second) and SIGINT ends it.
+TEST(Hardening, RemoteLoadsOfHostileFilesAreRefusedAndTheStatusGoesOn) {
+  const int domain = unique_domain(23);
+  const std::string dir = tmp_dir("hostile_loads"), allowed = dir + "/scenarios";
+  std::filesystem::create_directories(allowed);
+  std::string text = read_file(kPlane);
+  for (std::size_t p; (p = text.find("../../")) != std::string::npos;) text.replace(p, 6, kSrc + "/");
+  std::ofstream(allowed + "/plane_copy.yaml") << text;
+  std::ofstream(dir + "/outside.yaml") << "name: secret-content-xyzzy\n";
+  ASSERT_EQ(::mkfifo((allowed + "/fifo.yaml").c_str(), 0600), 0);
+  std::filesystem::create_symlink("/proc/kmsg", allowed + "/kmsg.yaml");
+  std::filesystem::create_symlink(dir + "/outside.yaml", allowed + "/link_out.yaml");
+
+  Watcher w(domain);
+  Rogue rogue(w);
+  std::mutex m;
+  std::vector<std::chrono::steady_clock::time_point> statuses;
+  cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType> status(
+      *w.participant, cell_dds::kSimStatusTopic, cell_dds::reader_qos(cell_dds::Stream::kFrame),
+      [&](cell_msgs::msg::dds_::SimStatus_&&) {
+        std::lock_guard<std::mutex> l(m);
+        statuses.push_back(std::chrono::steady_clock::now());
+      });
+  Process sim({kBin + "cellsim", "serve", allowed + "/plane_copy.yaml", "--mode", "realtime"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() > 0 && w.poses > 5; }, 60s));
+  const auto from = std::chrono::steady_clock::now();
+  for (const std::string f : {allowed + "/fifo.yaml", allowed + "/kmsg.yaml", allowed + "/link_out.yaml",
+                              dir + "/outside.yaml", std::string("/etc/shadow"), allowed + "/../outside.yaml",
+                              allowed + "/plane_copy.yaml", allowed + "/fifo.yaml"})
+    rogue.send(SC::LOAD_SCENARIO, f);
+  rogue.send(SC::RESET, "initial");  // behind the loads: obeyed once they are done
+  const sim::Scenario s = sim::load_scenario(kPlane);
+  EXPECT_TRUE(w.wait_for(
+      [&] { return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_initial()) < 1e-5; }, 60s))
+      << "RESET after the loads was not obeyed";
+  const auto to = std::chrono::steady_clock::now();
+  {
+    std::lock_guard<std::mutex> l(m);
+    double worst = 0;
+    auto last = from;
+    for (const auto& t : statuses)
+      if (t > from && t < to) {
+        worst = std::max(worst, std::chrono::duration<double>(t - last).count());
+        last = t;
+      }
+    EXPECT_LT(worst, 1.0) << "the simulator's status stopped for " << worst << " s during the loads";
+  }
+  EXPECT_TRUE(sim.running());
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(20s), 0) << "SIGINT did not end cellsim";
+  const std::string log = read_file(dir + "/sim.log");
+  EXPECT_NE(log.find("fifo.yaml: scenario file is a FIFO, not a regular file"), std::string::npos) << log;
+  EXPECT_NE(log.find("kmsg.yaml: outside the folder LOAD_SCENARIO may read"), std::string::npos) << log;
+  EXPECT_NE(log.find("link_out.yaml: outside the folder LOAD_SCENARIO may read"), std::string::npos) << log;
+  EXPECT_NE(log.find("/etc/shadow: outside the folder"), std::string::npos) << log;
+  EXPECT_NE(log.find("loaded " + std::filesystem::canonical(allowed + "/plane_copy.yaml").string()), std::string::npos) << log;
+  EXPECT_EQ(log.find("xyzzy"), std::string::npos) << "a refused file's content reached the log: " << log;
+  EXPECT_EQ(log.find("root:"), std::string::npos) << log;
 }
 
 // item 7: a flood of twists at an idle sim no longer grows its memory

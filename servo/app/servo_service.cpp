@@ -216,7 +216,8 @@ class ServoService {
       namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
       // a LOADING status belongs to no frame
       if (s.state() != SST::LOADING)
-        machine_->on_sim_status({to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING});
+        machine_->on_sim_status(
+            {to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING, s.state() == SST::RUNNING});
       in_.sim_statuses.pop_front();
     }
     while (!in_.poses.empty()) {

@@ -21,6 +21,9 @@ ServoStateMachine::ServoStateMachine(std::unique_ptr<ServoPipeline> pipeline, Se
 }
 
 void ServoStateMachine::on_command(int command) {
+  // a START in force (servoing, or waiting for the teach frame to take effect)
+  const bool was_running = started_;
+  jump_pending_ = false;
   switch (command) {
     case static_cast<int>(Command::kTeach): state_ = ServoState::kTeaching; break;
     case static_cast<int>(Command::kStart):
@@ -38,9 +41,13 @@ void ServoStateMachine::on_command(int command) {
       break;
     case static_cast<int>(Command::kReset):
     case static_cast<int>(Command::kLoadScenario):
-      // the robot jumps: what was servoing must be started again
+      // the robot jumps: what was servoing must be started again, unless the simulator
+      // refused the command and runs on (see jump_pending_)
       started_ = false;
       if (state_ != ServoState::kTeaching) state_ = ServoState::kIdle;
+      jump_pending_ = was_running;
+      running_frames_since_jump_ = 0;
+      last_running_stamp_.reset();
       break;
     default: break;  // the simulator refuses it; nothing changes here
   }
@@ -209,6 +216,20 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     ServoReply r = with_spots(reply(img.stamp, "taught " + std::to_string(n) + " features"));
     r.taught = true;
     return r;
+  }
+  if (jump_pending_ && sim) {
+    if (!sim->running || !sim->applies_twist) {
+      jump_pending_ = false;  // the simulator obeyed: START is needed again
+    } else if (!last_running_stamp_ || !(*last_running_stamp_ == img.stamp)) {
+      last_running_stamp_ = img.stamp;
+      if (++running_frames_since_jump_ >= kRefusalFrames && pipeline_->taught()) {
+        jump_pending_ = false;
+        started_ = true;
+        state_ = ServoState::kServoing;
+        std::fprintf(stderr, "servo: the simulator runs on after RESET/LOAD_SCENARIO (it refused the command): "
+                             "servoing on\n");
+      }
+    }
   }
   if (state_ == ServoState::kTeaching) return with_spots(reply(img.stamp, "waiting for the teach frame"));
   if (state_ != ServoState::kServoing && state_ != ServoState::kConverged)

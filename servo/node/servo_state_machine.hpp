@@ -54,6 +54,7 @@ struct SimFrameStatus {
   Stamp stamp;
   bool applies_twist = false;
   bool teach = false;
+  bool running = false;  // the simulator's state is RUNNING (START in force)
 };
 
 enum class Command : std::uint8_t { kLoadScenario = 0, kReset = 1, kTeach = 2, kStart = 3, kPause = 4, kStep = 5 };
@@ -125,6 +126,15 @@ class ServoStateMachine {
   ServoState state_ = ServoState::kIdle;
   bool lost_ = false;
   bool started_ = false;
+  // A RESET or LOAD_SCENARIO idles the servo, but the simulator may refuse it (issue 18,
+  // item 11: LOAD_SCENARIO "" right after START stopped the run 6-10 mm off). Frames that the
+  // simulator renders running and applying twists after the command prove it refused: after
+  // kRefusalFrames of them the servo goes on as it was. A frame that is not running proves
+  // the command was obeyed.
+  static constexpr int kRefusalFrames = 3;
+  bool jump_pending_ = false;
+  int running_frames_since_jump_ = 0;
+  std::optional<Stamp> last_running_stamp_;
   std::optional<CameraInfoMsg> info_;
   std::deque<SimFrameStatus> sim_statuses_;
   std::deque<std::pair<Stamp, Eigen::Isometry3d>> poses_;

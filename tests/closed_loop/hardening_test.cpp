@@ -158,6 +158,31 @@ TEST(Hardening, RemoteLoadsOfHostileFilesAreRefusedAndTheStatusGoesOn) {
   EXPECT_EQ(log.find("root:"), std::string::npos) << log;
 }
 
+// Issue 18, item 11: LOAD_SCENARIO "" right after START is refused by cellsim, and has no
+// effect anywhere: the servo goes on and the run converges.
+TEST(Hardening, ARefusedCommandDoesNotEndTheRun) {
+  const int domain = unique_domain(24);
+  const std::string dir = tmp_dir("refused_command");
+  Watcher w(domain);
+  Rogue rogue(w);
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep", "--max-frames", "2000"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() >= 2 && w.status->matched() > 0; }, 60s));
+  rogue.send(SC::TEACH);
+  rogue.send(SC::RESET, "initial");
+  rogue.send(SC::START);
+  rogue.send(SC::LOAD_SCENARIO, "");
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 180s))
+      << "the run did not converge after a refused command; see " << dir;
+  {
+    const sim::Scenario s = sim::load_scenario(kPlane);
+    EXPECT_LT(sim::translation_error(w.pose_now(), s.world_T_desired), 1e-3);
+  }
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(20s), 0);
+  EXPECT_NE(read_file(dir + "/sim.log").find("LOAD_SCENARIO refused"), std::string::npos);
+}
+
 // item 7: a flood of twists at an idle sim no longer grows its memory
 TEST(Hardening, TwistFloodAtAnIdleSimIsBounded) {
   const int domain = unique_domain(22);

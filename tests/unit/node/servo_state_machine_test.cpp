@@ -147,6 +147,41 @@ TEST_F(Frames, LostDoesNotUndoAStartThatCameMeanwhile) {
   EXPECT_EQ(m->state(), ServoState::kServoing);
 }
 
+// Issue 18, item 11: a RESET or LOAD_SCENARIO the simulator refuses changes nothing. The servo
+// idles on the command, but frames rendered running after it prove the refusal, and it goes
+// on servoing; a frame that is not running proves the command was obeyed, and START is needed.
+TEST_F(Frames, ARefusedResetOrLoadDoesNotStopTheRun) {
+  for (const Command jump : {Command::kLoadScenario, Command::kReset}) {
+    auto m = make();
+    m->on_command(static_cast<int>(Command::kTeach));
+    m->on_command(static_cast<int>(Command::kStart));
+    m->on_sim_status({at(0), false, true});
+    ASSERT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
+    m->on_sim_status({at(1), true, false, true});
+    EXPECT_FALSE(m->on_image(view(initial, at(1)), 0.04).twist.isZero());
+    m->on_command(static_cast<int>(jump));  // refused by the simulator: it runs on
+    EXPECT_EQ(m->state(), ServoState::kIdle);
+    ServoReply r;
+    for (int k = 2; k < 2 + 3; ++k) {
+      m->on_sim_status({at(k), true, false, true});
+      r = m->on_image(view(initial, at(k)), 0.04 * k);
+    }
+    EXPECT_EQ(m->state(), ServoState::kServoing) << static_cast<int>(jump);
+    EXPECT_FALSE(r.twist.isZero()) << "the run did not go on after a refused command";
+
+    // obeyed: the next frame is not running, and the servo waits for START
+    m->on_command(static_cast<int>(jump));
+    m->on_sim_status({at(10), false, false, false});
+    m->on_image(view(initial, at(10)), 1.0);
+    for (int k = 11; k < 15; ++k) {
+      m->on_sim_status({at(k), true, false, true});
+      r = m->on_image(view(initial, at(k)), 0.04 * k);
+    }
+    EXPECT_EQ(m->state(), ServoState::kIdle);
+    EXPECT_TRUE(r.twist.isZero());
+  }
+}
+
 TEST_F(Frames, PauseStopsAndResetNeedsANewStart) {
   auto m = make(true);
   m->on_command(static_cast<int>(Command::kTeach));

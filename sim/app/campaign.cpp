@@ -1,8 +1,10 @@
 #include "sim/app/campaign.hpp"
 
+#include "servo/config/regular_file.hpp"
 #include "servo/config/strict_yaml.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -35,7 +37,7 @@ namespace {
 
 // One run of a campaign as campaign.csv holds it (the line itself, and what the summary needs).
 struct CampaignRow {
-  std::string line, model;
+  std::string line, model, stop_reason;
   int run = 0;
   bool converged = false, diverged = false;
   double error_rise = 0;
@@ -47,7 +49,23 @@ constexpr const char* kCsvHeader =
     "model,run,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,converged,iterations,final_translation_mm,final_rotation_deg,"
     "decoded_initial,diverged,error_rise,stop_reason";
 
+// Strict numbers for rows read back from a file (a merge reads shards it did not write).
+bool whole_number(const std::string& t, long long lo, long long hi, long long& v) {
+  if (t.empty() || t.size() > 19 || t.find_first_not_of("0123456789-") != std::string::npos) return false;
+  char* end = nullptr;
+  errno = 0;
+  v = std::strtoll(t.c_str(), &end, 10);
+  return errno == 0 && *end == '\0' && v >= lo && v <= hi;
+}
+bool finite_number(const std::string& t, double& v) {
+  if (t.empty() || t.size() > 40 || t.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
+  char* end = nullptr;
+  v = std::strtod(t.c_str(), &end);
+  return *end == '\0' && std::isfinite(v);
+}
+
 CampaignRow parse_row(const std::string& line, const std::string& where) {
+  if (line.size() > 4096) throw std::invalid_argument(where + ": a row longer than 4096 characters");
   std::vector<std::string> f;
   std::size_t a = 0;
   for (int i = 0; i < 15; ++i) {
@@ -59,21 +77,39 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
   CampaignRow r;
   r.line = line;
   r.model = f[0];
-  try {
-    r.run = std::stoi(f[1]);
-    r.converged = f[8] == "1";
-    r.iterations = std::stoi(f[9]);
-    r.translation_mm = std::stod(f[10]);
-    r.rotation_deg = std::stod(f[11]);
-    r.diverged = f[13] == "1";
-    r.error_rise = std::stod(f[14]);
-  } catch (const std::exception&) {
-    throw std::invalid_argument(where + ": a row with a malformed number: " + line.substr(0, 80));
-  }
+  const auto bad = [&](const char* field) {
+    return std::invalid_argument(where + ": " + field + " '" + config::printable(f[0] == r.model ? line : line, 60) +
+                                 "' is malformed");
+  };
+  long long v = 0;
+  double d = 0;
+  if (!whole_number(f[1], 0, 100000000, v)) throw std::invalid_argument(where + ": run '" + config::printable(f[1]) + "' is not a run index");
+  r.run = static_cast<int>(v);
+  for (int i = 2; i < 8; ++i)
+    if (!finite_number(f[i], d)) throw std::invalid_argument(where + ": run " + f[1] + ": initial offset '" + config::printable(f[i]) + "' is not a finite number");
+  if (f[8] != "0" && f[8] != "1") throw std::invalid_argument(where + ": run " + f[1] + ": converged '" + config::printable(f[8]) + "' is not 0 or 1");
+  r.converged = f[8] == "1";
+  if (!whole_number(f[9], 0, 100000000, v)) throw std::invalid_argument(where + ": run " + f[1] + ": iterations '" + config::printable(f[9]) + "' is not a count");
+  r.iterations = static_cast<int>(v);
+  if (!finite_number(f[10], r.translation_mm) || r.translation_mm < 0)
+    throw std::invalid_argument(where + ": run " + f[1] + ": final_translation_mm '" + config::printable(f[10]) + "' is not a finite distance");
+  if (!finite_number(f[11], r.rotation_deg) || r.rotation_deg < 0)
+    throw std::invalid_argument(where + ": run " + f[1] + ": final_rotation_deg '" + config::printable(f[11]) + "' is not a finite angle");
+  if (!whole_number(f[12], 0, 100000000, v)) throw std::invalid_argument(where + ": run " + f[1] + ": decoded_initial '" + config::printable(f[12]) + "' is not a count");
+  if (f[13] != "0" && f[13] != "1") throw std::invalid_argument(where + ": run " + f[1] + ": diverged '" + config::printable(f[13]) + "' is not 0 or 1");
+  r.diverged = f[13] == "1";
+  if (!finite_number(f[14], r.error_rise) || r.error_rise < 0)
+    throw std::invalid_argument(where + ": run " + f[1] + ": error_rise '" + config::printable(f[14]) + "' is not a finite rise");
+  (void)bad;
+  r.stop_reason = line.substr(a);
   return r;
 }
 
 struct CampaignMeta {
+  // every parameter that changes a run's outcome, and a hash of the scenario's content and of
+  // every file it names: shards merge only when all of it is equal (issue 18, item 17)
+  nlohmann::json parameters = nlohmann::json::object();
+  std::string scenario_hash;
   std::string scenario, source, conditions = "none";
   std::uint64_t seed = 0;
   int runs = 0, max_iterations = 0, redrawn = 0, visible_desired = 0, shard_index = 1, shard_count = 1;
@@ -81,18 +117,45 @@ struct CampaignMeta {
   double scale = 1;
 };
 
-bool same_campaign(const CampaignMeta& a, const CampaignMeta& b) {
-  return a.scenario == b.scenario && a.source == b.source && a.conditions == b.conditions && a.seed == b.seed && a.runs == b.runs &&
-         a.max_iterations == b.max_iterations && a.models == b.models && a.scale == b.scale &&
-         a.shard_count == b.shard_count && a.redrawn == b.redrawn && a.visible_desired == b.visible_desired;
+// The first field in which two shards' records differ, as "field: A against B"; "" when equal.
+std::string campaign_difference(const CampaignMeta& a, const CampaignMeta& b) {
+  const auto differ = [](const std::string& field, const nlohmann::json& x, const nlohmann::json& y) {
+    return field + " is " + config::printable(x.dump(), 80) + ", the first shard's " + config::printable(y.dump(), 80);
+  };
+  if (a.scenario_hash != b.scenario_hash)
+    return differ("scenario_sha (the scenario's content and its files)", b.scenario_hash, a.scenario_hash);
+  const std::pair<const char*, std::pair<nlohmann::json, nlohmann::json>> fields[] = {
+      {"scenario", {a.scenario, b.scenario}},         {"features", {a.source, b.source}},
+      {"conditions", {a.conditions, b.conditions}},   {"seed", {a.seed, b.seed}},
+      {"runs", {a.runs, b.runs}},                     {"max_iterations", {a.max_iterations, b.max_iterations}},
+      {"models", {a.models, b.models}},               {"scale", {a.scale, b.scale}},
+      {"shard count", {a.shard_count, b.shard_count}}, {"redrawn", {a.redrawn, b.redrawn}},
+      {"visible_desired", {a.visible_desired, b.visible_desired}}};
+  for (const auto& [name, v] : fields)
+    if (v.first != v.second) return differ(name, v.second, v.first);
+  for (const auto& [key, value] : a.parameters.items())
+    if (!b.parameters.contains(key) || b.parameters.at(key) != value)
+      return differ("parameters." + key, b.parameters.contains(key) ? b.parameters.at(key) : nlohmann::json(), value);
+  for (const auto& [key, value] : b.parameters.items())
+    if (!a.parameters.contains(key)) return differ("parameters." + key, value, nlohmann::json());
+  return "";
 }
 
 CampaignMeta read_meta(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::invalid_argument(file.string() + ": cannot read (is this a campaign folder?)");
+  std::string text;
   try {
-    const nlohmann::json j = nlohmann::json::parse(in);
+    text = config::read_regular_file(file, 1u << 20, "campaign description");
+  } catch (const config::FileError& e) {
+    throw std::invalid_argument(file.string() + ": cannot read (is this a campaign folder?): " + config::printable(e.what(), 120));
+  }
+  try {
+    const nlohmann::json j = nlohmann::json::parse(text);
     CampaignMeta m;
+    if (!j.contains("parameters") || !j.contains("scenario_sha"))
+      throw std::invalid_argument("no parameters or scenario_sha (written before they were recorded: run it again)");
+    m.parameters = j.at("parameters");
+    if (!m.parameters.is_object() || m.parameters.size() > 64) throw std::invalid_argument("parameters is not a record");
+    m.scenario_hash = j.at("scenario_sha").get<std::string>();
     m.scenario = j.at("scenario").get<std::string>();
     m.source = j.at("features").get<std::string>();
     m.seed = j.at("seed").get<std::uint64_t>();
@@ -105,8 +168,11 @@ CampaignMeta read_meta(const std::filesystem::path& file) {
     m.conditions = j.at("conditions").get<std::string>();
     m.shard_index = j.at("shard").at(0).get<int>();
     m.shard_count = j.at("shard").at(1).get<int>();
-    if (m.runs < 1 || m.shard_count < 1 || m.shard_index < 1 || m.shard_index > m.shard_count || m.models.empty())
+    if (m.runs < 1 || m.runs > 10000000 || m.shard_count < 1 || m.shard_count > m.runs || m.shard_index < 1 ||
+        m.shard_index > m.shard_count || m.models.empty() || m.models.size() > 16 || m.max_iterations < 1 ||
+        !std::isfinite(m.scale))
       throw std::invalid_argument("inconsistent values");
+    for (const auto& model : m.models) control::parse_interaction_model(model);  // throws for an unknown one
     return m;
   } catch (const std::exception& e) {
     throw std::invalid_argument(file.string() + ": not a campaign description (" + config::printable(e.what()) + ")");
@@ -114,14 +180,45 @@ CampaignMeta read_meta(const std::filesystem::path& file) {
 }
 
 std::vector<CampaignRow> read_rows(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::invalid_argument(file.string() + ": cannot read");
+  std::string text;
+  try {
+    text = config::read_regular_file(file, 256u << 20, "campaign table");
+  } catch (const config::FileError& e) {
+    throw std::invalid_argument(e.what());
+  }
+  std::istringstream in(text);
   std::string line;
   if (!std::getline(in, line) || line != kCsvHeader) throw std::invalid_argument(file.string() + ": not a campaign.csv");
   std::vector<CampaignRow> rows;
   while (std::getline(in, line))
     if (!line.empty()) rows.push_back(parse_row(line, file.string()));
   return rows;
+}
+
+// A shard's rows against its record: known models, runs of this shard, each once, no more
+// iterations than the cap (a tampered or mixed-up table is refused, naming the row).
+void check_shard_rows(const std::filesystem::path& file, const CampaignMeta& m, const std::vector<CampaignRow>& rows) {
+  std::set<std::pair<std::string, int>> seen;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const CampaignRow& r = rows[i];
+    const std::string at = file.string() + ": row " + std::to_string(i + 2) + ": ";
+    if (std::find(m.models.begin(), m.models.end(), r.model) == m.models.end())
+      throw std::invalid_argument(at + "model '" + config::printable(r.model, 40) + "' is not one of the campaign's");
+    if (r.run >= m.runs) throw std::invalid_argument(at + "run " + std::to_string(r.run) + " is past the campaign's " + std::to_string(m.runs) + " runs");
+    if (r.run % m.shard_count != m.shard_index - 1)
+      throw std::invalid_argument(at + "run " + std::to_string(r.run) + " belongs to shard " +
+                                  std::to_string(r.run % m.shard_count + 1) + "/" + std::to_string(m.shard_count) +
+                                  ", not to this shard " + std::to_string(m.shard_index) + "/" + std::to_string(m.shard_count));
+    if (!seen.insert({r.model, r.run}).second)
+      throw std::invalid_argument(at + "run " + std::to_string(r.run) + " of " + r.model + " is given twice");
+    if (r.iterations > m.max_iterations)
+      throw std::invalid_argument(at + "iterations " + std::to_string(r.iterations) + " past the cap of " + std::to_string(m.max_iterations));
+  }
+  const std::size_t mine = static_cast<std::size_t>((m.runs - (m.shard_index - 1) + m.shard_count - 1) / m.shard_count);
+  if (rows.size() != mine * m.models.size())
+    throw std::invalid_argument(file.string() + ": " + std::to_string(rows.size()) + " rows, shard " +
+                                std::to_string(m.shard_index) + "/" + std::to_string(m.shard_count) + " has " +
+                                std::to_string(mine * m.models.size()) + " (a run missing: was the shard killed?)");
 }
 
 std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const std::vector<CampaignRow>& rows) {
@@ -198,6 +295,8 @@ void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, con
   j["scale"] = m.scale;
   j["conditions"] = m.conditions;
   j["shard"] = {m.shard_index, m.shard_count};
+  j["parameters"] = m.parameters;
+  j["scenario_sha"] = m.scenario_hash;
   std::ofstream(dir / "campaign.json") << j.dump(1) << "\n";
   std::ofstream(dir / "summary.md") << md;
 }
@@ -216,6 +315,42 @@ std::string describe(const sim::CalibrationErrors& e, const sim::Latency& l) {
   put("processing_frames", l.processing_frames);
   put("actuation_s", l.actuation_s);
   return d.tellp() > 0 ? d.str() : "none";
+}
+
+std::string scenario_fingerprint(const sim::Scenario& sc) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  const auto add = [&](const std::string& bytes) {
+    for (unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
+    h = (h ^ 0xff) * 0x100000001b3ull;  // a separator: "ab"+"c" is not "a"+"bc"
+  };
+  const auto add_file = [&](const std::filesystem::path& f) {
+    add(f.filename().string());
+    try {
+      add(config::read_regular_file(f, 256u << 20, "file"));
+    } catch (const config::FileError&) {
+      add("(unreadable)");
+    }
+  };
+  add_file(sc.file);
+  for (const auto& obj : sc.objects) add_file(obj.mesh);
+  add_file(sc.projector.pattern);
+  if (sc.robot.arm_enabled) {
+    add_file(sc.robot.arm.urdf);
+    // the link meshes the URDF names, in the order it names them
+    const std::string urdf = sc.robot.model ? sc.robot.model->urdf : std::string();
+    for (std::size_t at = 0; (at = urdf.find("filename=\"", at)) != std::string::npos;) {
+      at += 10;
+      const std::size_t end = urdf.find('"', at);
+      if (end == std::string::npos) break;
+      std::filesystem::path mesh(urdf.substr(at, end - at));
+      if (mesh.is_relative()) mesh = sc.robot.arm.urdf.parent_path() / mesh;
+      add_file(mesh);
+      at = end;
+    }
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
 }
 
 std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
@@ -325,6 +460,18 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   meta.visible_desired = visible_desired;
   meta.shard_index = o.shard_index;
   meta.shard_count = o.shard_count;
+  meta.scenario_hash = scenario_fingerprint(sc);
+  const control::ControlLawParams& law = o.base.law;
+  meta.parameters = {{"gain", {law.gain.lambda_zero, law.gain.lambda_inf, law.gain.slope_zero}},
+                     {"z_hat_m", law.z_hat_m},
+                     {"points", o.base.points},
+                     {"divergence_ratio", o.divergence_ratio},
+                     {"convergence_translation_m", law.convergence_translation_m},
+                     {"convergence_rotation_rad", law.convergence_rotation_rad},
+                     {"max_linear_mps", law.max_linear_mps},
+                     {"max_angular_radps", law.max_angular_radps},
+                     {"min_points", law.min_points},
+                     {"epipolar", o.base.decoder.epipolar.enabled}};
   const std::string md = summarize(meta, rows);
   if (!o.out_dir.empty()) write_campaign(o.out_dir, meta, rows, md);
   return md;
@@ -339,19 +486,24 @@ std::string merge_campaigns(const std::vector<std::filesystem::path>& dirs, cons
     const CampaignMeta meta = read_meta(dir / "campaign.json");
     if (!first) {
       first = meta;
-    } else if (!same_campaign(*first, meta)) {
-      throw std::invalid_argument((dir / "campaign.json").string() +
-                                  ": another campaign than the first folder's (scenario, seed, runs, models, features, "
-                                  "scale, iteration cap and shard count must match)");
+    } else if (const std::string d = campaign_difference(*first, meta); !d.empty()) {
+      throw std::invalid_argument((dir / "campaign.json").string() + ": another campaign than the first folder's (" +
+                                  dirs.front().string() + "): " + d);
     }
     if (!shards.insert(meta.shard_index).second)
       throw std::invalid_argument((dir / "campaign.json").string() + ": shard " + std::to_string(meta.shard_index) +
                                   " given twice");
-    for (auto& r : read_rows(dir / "campaign.csv")) rows.push_back(std::move(r));
+    auto shard_rows = read_rows(dir / "campaign.csv");
+    check_shard_rows(dir / "campaign.csv", meta, shard_rows);
+    for (auto& r : shard_rows) rows.push_back(std::move(r));
   }
-  if (static_cast<int>(shards.size()) != first->shard_count)
+  if (static_cast<int>(shards.size()) != first->shard_count) {
+    std::string missing;
+    for (int i = 1; i <= first->shard_count && missing.size() < 200; ++i)
+      if (!shards.count(i)) missing += (missing.empty() ? "" : ", ") + std::to_string(i) + "/" + std::to_string(first->shard_count);
     throw std::invalid_argument("campaign merge: " + std::to_string(shards.size()) + " of the " +
-                                std::to_string(first->shard_count) + " shards given");
+                                std::to_string(first->shard_count) + " shards given; missing: shard " + missing);
+  }
   // the unsharded order: by model (in the campaign's order), then by run
   const auto model_index = [&](const std::string& m) {
     return std::find(first->models.begin(), first->models.end(), m) - first->models.begin();

@@ -35,6 +35,10 @@ struct CampaignOptions {
 // "focal_pct=1 processing_frames=2" ("none" when all are zero).
 std::string describe(const sim::CalibrationErrors& errors, const sim::Latency& latency);
 
+// A hash (16 hex digits, FNV-1a) of the scenario file and of every file it names (meshes,
+// pattern, URDF and the URDF's meshes): two shards with the same name: but another scene differ.
+std::string scenario_fingerprint(const sim::Scenario& scenario);
+
 // Returns the summary table as Markdown (also written to out_dir/summary.md).
 // Writes campaign.csv (one row per run, numbers to 17 digits), campaign.json (what was run)
 // and summary.md into out_dir.

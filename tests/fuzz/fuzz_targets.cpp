@@ -4,7 +4,7 @@
 // a crash, a sanitizer report or a hang is a defect. ctest runs each target for a bounded
 // number of inputs; bin/fuzz runs them for long under AddressSanitizer and UBSan.
 //
-//   fuzz_targets --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr --iterations N [--seconds S] [--seed K]
+//   fuzz_targets --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign --iterations N [--seconds S] [--seed K]
 #include <cmath>
 #include <chrono>
 #include <cstdio>
@@ -22,6 +22,7 @@
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/arm/arm_robot.hpp"
 #include "sim/cell/cell_state_machine.hpp"
+#include "sim/app/campaign.hpp"
 #include "sim/app/experiment.hpp"
 #include "sim/render/renderer.hpp"
 #include "sim/scene/mesh_check.hpp"
@@ -141,7 +142,13 @@ struct UrdfTarget : Target {
   void one(std::mt19937_64& rng) override {
     static const char* xml[] = {"<", ">", "/>", "</link>", "<link name='x'>", "<joint name='j' type='revolute'>",
                                 "<!DOCTYPE r>", "<!--", "<![CDATA[", "\"", "<x><x><x><x><x><x><x><x>", "&amp;",
-                                "type='prismatic'", "type='floating'", "<limit/>", "<axis xyz='0 0 0'/>"};
+                                "type='prismatic'", "type='floating'", "<limit/>", "<axis xyz='0 0 0'/>",
+                                // geometry (issue 18, item 14): broken origins, sizes and scales
+                                "<visual><origin rpy='nan 0 0'/><geometry><box size='0.1 0.1 0.1'/></geometry></visual>",
+                                "<collision><geometry><box size='99 99'/></geometry></collision>",
+                                "<visual><geometry><cylinder radius='abc' length='1'/></geometry></visual>",
+                                "<visual><geometry><mesh filename='meshes/base.obj' scale='nan 1 1'/></geometry></visual>",
+                                "<visual><geometry></geometry></visual>", "<visual><origin xyz='1e300 0 0'/>"};
     std::string text = mutated(seed, rng);
     for (int i = static_cast<int>(rng() % 3); i > 0; --i)
       text.insert(rng() % (text.size() + 1), xml[rng() % (sizeof xml / sizeof *xml)]);
@@ -162,6 +169,42 @@ struct UrdfTarget : Target {
       if (v.allFinite()) arm.move(v, 0.01, sim::Workspace{});
       if (!arm.world_T_camera().matrix().allFinite()) std::abort();  // a NaN pose must never come out
     } catch (const std::exception&) {
+    }
+  }
+};
+
+// campaign merge (issue 18, item 17): two real shards, the second's campaign.json or
+// campaign.csv mutated; the merge refuses it in one line or merges it, never anything else.
+struct CampaignTarget : Target {
+  std::filesystem::path dir = std::filesystem::temp_directory_path() / ("fuzz_campaign_" + std::to_string(getpid()));
+  std::string json, csv;
+  CampaignTarget() {
+    const auto cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/fig5.yaml"));
+    for (int shard = 1; shard <= 2; ++shard) {
+      cellsim::CampaignOptions o;
+      o.runs = 3;
+      o.models = {control::InteractionModel::kCurrent};
+      o.base = cellsim::servo_config_for(*cell);
+      o.source = cellsim::FeatureSource::kIdeal;
+      o.max_iterations = 5;
+      o.threads = 1;
+      o.shard_index = shard;
+      o.shard_count = 2;
+      o.out_dir = dir / std::to_string(shard);
+      cellsim::run_campaign(*cell, o);
+    }
+    json = read((dir / "2" / "campaign.json").string());
+    csv = read((dir / "2" / "campaign.csv").string());
+  }
+  ~CampaignTarget() override { std::filesystem::remove_all(dir); }
+  void one(std::mt19937_64& rng) override {
+    const bool mutate_json = rng() % 2;
+    std::ofstream(dir / "2" / "campaign.json", std::ios::binary) << (mutate_json ? mutated(json, rng) : json);
+    std::ofstream(dir / "2" / "campaign.csv", std::ios::binary) << (mutate_json ? csv : mutated(csv, rng));
+    try {
+      cellsim::merge_campaigns({dir / "1", dir / "2"}, dir / "merged");
+    } catch (const std::invalid_argument& e) {
+      if (std::strchr(e.what(), '\n')) std::abort();  // one line
     }
   }
 };
@@ -456,8 +499,9 @@ int main(int argc, char** argv) {
   else if (target == "servo") t = std::make_unique<ServoTarget>();
   else if (target == "cell") t = std::make_unique<CellTarget>();
   else if (target == "cdr") t = std::make_unique<CdrTarget>();
+  else if (target == "campaign") t = std::make_unique<CampaignTarget>();
   else {
-    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr\n");
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign\n");
     return 2;
   }
   std::mt19937_64 rng(seed);

@@ -460,6 +460,12 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
                              (secured ? " (check the enclave: a certificate or permissions that do not verify against "
                                         "the keystore's CA, or have expired)"
                                       : ""));
+  // a secured participant says so once: a run that is secured looks like any other otherwise
+  if (secured)
+    std::printf("%s: DDS-Security on: enclave /%s, %s, keystore %s\n", o.name.c_str(),
+                 (o.security.enclave_override.empty() ? (o.enclave.empty() ? o.name : o.enclave) : o.security.enclave_override).c_str(),
+                 o.security.enforce ? "Enforce" : "Permissive", o.security.keystore.c_str());
+  if (secured) std::fflush(stdout);
   return ParticipantPtr(p);
 }
 

@@ -40,14 +40,14 @@ struct CampaignRow {
   std::string line, model, stop_reason;
   int run = 0;
   bool converged = false, diverged = false;
-  double error_rise = 0;
+  double error_rise = 0, max_error_ratio = 0;
   int iterations = 0;
   double translation_mm = 0, rotation_deg = 0;
 };
 
 constexpr const char* kCsvHeader =
     "model,run,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,converged,iterations,final_translation_mm,final_rotation_deg,"
-    "decoded_initial,diverged,error_rise,stop_reason";
+    "decoded_initial,diverged,error_rise,max_error_ratio,stop_reason";
 
 // Strict numbers for rows read back from a file (a merge reads shards it did not write).
 bool whole_number(const std::string& t, long long lo, long long hi, long long& v) {
@@ -68,9 +68,9 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
   if (line.size() > 4096) throw std::invalid_argument(where + ": a row longer than 4096 characters");
   std::vector<std::string> f;
   std::size_t a = 0;
-  for (int i = 0; i < 15; ++i) {
+  for (int i = 0; i < 16; ++i) {
     const std::size_t b = line.find(',', a);
-    if (b == std::string::npos) throw std::invalid_argument(where + ": a row with fewer than 16 fields");
+    if (b == std::string::npos) throw std::invalid_argument(where + ": a row with fewer than 17 fields");
     f.push_back(line.substr(a, b - a));
     a = b + 1;
   }
@@ -100,6 +100,8 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
   r.diverged = f[13] == "1";
   if (!finite_number(f[14], r.error_rise) || r.error_rise < 0)
     throw std::invalid_argument(where + ": run " + f[1] + ": error_rise '" + config::printable(f[14]) + "' is not a finite rise");
+  if (!finite_number(f[15], r.max_error_ratio) || r.max_error_ratio < 0)
+    throw std::invalid_argument(where + ": run " + f[1] + ": max_error_ratio '" + config::printable(f[15]) + "' is not a finite ratio");
   (void)bad;
   r.stop_reason = line.substr(a);
   return r;
@@ -221,6 +223,18 @@ void check_shard_rows(const std::filesystem::path& file, const CampaignMeta& m, 
                                 std::to_string(mine * m.models.size()) + " (a run missing: was the shard killed?)");
 }
 
+// a run "rose" when |e| passed this x its first value, or climbed in all (the sum of its rises,
+// an oscillation's) at least its first value
+constexpr double kRoseRatio = 2.0;
+
+// A median or worst value of a table: "-" when no run gave one (not "nan").
+std::string shown_number(double v, int decimals) {
+  if (!std::isfinite(v)) return "-";
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  return b;
+}
+
 std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const std::vector<CampaignRow>& rows) {
   std::vector<ModelStats> out;
   for (const std::string& model : models) {
@@ -231,6 +245,13 @@ std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const s
       if (r.model != model) continue;
       ++m.runs;
       m.diverged += r.diverged;
+      // what stopped the run: its stop reason as the runner wrote it ("converged: ...",
+      // "iteration cap (N) reached", "safe stop: ...", "diverging: ...")
+      const std::string& why = r.stop_reason;
+      const bool capped = why.find("iteration cap") != std::string::npos;
+      m.capped += capped;
+      m.safe_stops += why.find("safe stop") != std::string::npos;
+      m.rose += !r.diverged && (r.max_error_ratio > kRoseRatio || r.error_rise >= 1.0);
       rise.push_back(r.error_rise);
       if (!r.converged) continue;
       ++m.converged;
@@ -251,15 +272,22 @@ std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const s
 
 std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& rows) {
   std::ostringstream md;
-  md << "| model | converged | diverged | median iterations | median final error, converged runs (mm / deg) | worst "
-        "final error, converged runs (mm / deg) | median rise of the error |\n"
-     << "|---|---|---|---|---|---|---|\n";
+  // every run is counted by what stopped it (converged, a diverging stop, the iteration cap, a
+  // safe stop): the columns add up to the runs; "rose" counts the runs not stopped as diverging
+  // whose |e| still rose: past twice its first value, or by its first value in all (issue 18,
+  // item 6); medians of no run: -
+  md << "| model | converged | diverging (stopped) | iteration cap | safe stop | rose, not stopped | median "
+        "iterations | median final error, converged runs (mm / deg) | worst final error, converged runs (mm / deg) "
+        "| median rise of the error |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|\n";
   for (const ModelStats& m : stats_of(meta.models, rows)) {
-    char line[320];
-    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %d | %.0f | %.3f / %.4f | %.3f / %.4f | %.3f |\n",
+    char line[400];
+    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %d | %d | %d | %d | %s | %s / %s | %s / %s | %s |\n",
                   m.model.c_str(), m.converged, m.runs, m.runs ? 100.0 * m.converged / m.runs : 0.0, m.diverged,
-                  m.median_iterations, m.median_translation_mm, m.median_rotation_deg, m.worst_translation_mm,
-                  m.worst_rotation_deg, m.median_error_rise);
+                  m.capped, m.safe_stops, m.rose, shown_number(m.median_iterations, 0).c_str(),
+                  shown_number(m.median_translation_mm, 3).c_str(), shown_number(m.median_rotation_deg, 4).c_str(),
+                  shown_number(m.worst_translation_mm, 3).c_str(), shown_number(m.worst_rotation_deg, 4).c_str(),
+                  shown_number(m.median_error_rise, 3).c_str());
     md << line;
   }
   char note[260];
@@ -443,7 +471,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       line << std::setprecision(17) << control::to_string(o.models[m]) << ',' << job.run;
       for (double x : offsets[static_cast<std::size_t>(job.run)]) line << ',' << x;
       line << ',' << r.converged << ',' << r.iterations << ',' << 1e3 * r.final_translation_error_m << ','
-           << r.final_rotation_error_deg << ',' << r.decoded_initial << ',' << r.diverged << ',' << r.error_rise << ",\""
+           << r.final_rotation_error_deg << ',' << r.decoded_initial << ',' << r.diverged << ',' << r.error_rise << ',' << r.max_error_ratio << ",\""
            << r.stop_reason << "\"";
       rows.push_back(parse_row(line.str(), "campaign"));
     }

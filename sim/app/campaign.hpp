@@ -53,6 +53,8 @@ std::string merge_campaigns(const std::vector<std::filesystem::path>& shard_dirs
 struct ModelStats {
   std::string model;
   int runs = 0, converged = 0, diverged = 0;
+  int capped = 0, safe_stops = 0;  // stopped by the iteration cap, by a safe stop
+  int rose = 0;  // not stopped as diverging, yet |e| rose: past 2x its first value, or by 1x in all
   double median_iterations = 0, median_translation_mm = 0, median_rotation_deg = 0;  // converged runs
   double worst_translation_mm = 0, worst_rotation_deg = 0;                           // converged runs
   double median_error_rise = 0;                                                      // all runs

@@ -522,10 +522,17 @@ int main(int argc, char** argv) {
       const auto cell = sim::build_cell(sim::load_scenario(scenario));
       cellsim::CampaignOptions o = camp.options(*cell);
       if (!shard.empty()) {
-        int i = 0, n = 0;
-        char extra = 0;
-        if (std::sscanf(shard.c_str(), "%d/%d%c", &i, &n, &extra) != 2 || n < 1 || n > 100000 || i < 1 || i > n)
-          throw std::invalid_argument("--shard '" + config::printable(shard) + "': expected I/N with 1 <= I <= N");
+        // digits only, at most six each: sscanf's %d wrapped 1/4294967297 to 1/1 (issue 18, item 18)
+        const std::size_t slash = shard.find('/');
+        const auto digits = [](const std::string& t) {
+          return !t.empty() && t.size() <= 6 && t.find_first_not_of("0123456789") == std::string::npos;
+        };
+        const std::string is = slash == std::string::npos ? "" : shard.substr(0, slash),
+                          ns = slash == std::string::npos ? "" : shard.substr(slash + 1);
+        const int i = digits(is) ? std::stoi(is) : 0, n = digits(ns) ? std::stoi(ns) : 0;
+        if (!digits(is) || !digits(ns) || n < 1 || n > 100000 || i < 1 || i > n)
+          throw std::invalid_argument("--shard '" + config::printable(shard) +
+                                      "': expected I/N with 1 <= I <= N <= 100000");
         o.shard_index = i;
         o.shard_count = n;
       }
@@ -538,6 +545,9 @@ int main(int argc, char** argv) {
       cellsim::StudyOptions so;
       for (const auto& a : study_axes) so.axes.push_back(cellsim::parse_study_axis(a));
       if (so.axes.size() > 2) throw std::invalid_argument("study: at most two --axis");
+      if (so.axes.size() == 2 && so.axes[0].name == so.axes[1].name)
+        throw std::invalid_argument("study: --axis " + config::printable(so.axes[0].name) +
+                                    " given twice (give its values once: NAME=V1,V2,...)");
       if (study.dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
       const sim::Scenario sc = sim::load_scenario(scenario);
       const auto cell = sim::build_cell(sc);

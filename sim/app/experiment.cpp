@@ -150,7 +150,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   try {
     robot.reset(o.initial.value_or(sc.world_T_initial()));
   } catch (const std::invalid_argument& e) {
-    res.stop_reason = std::string("initial pose refused: ") + e.what();
+    res.stop_reason = "initial pose refused (" + sc.file.filename().string() + "): " + e.what();
     return res;
   }
   std::ofstream trace, features, occlusion;
@@ -252,7 +252,12 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   if (res.stop_reason.empty()) res.stop_reason = "iteration cap (" + std::to_string(o.max_iterations) + ") reached";
   for (std::size_t i = 1; i < res.trace.size(); ++i)
     res.error_rise += std::max(0.0, res.trace[i].error_norm - res.trace[i - 1].error_norm);
-  if (!res.trace.empty() && res.trace.front().error_norm > 0) res.error_rise /= res.trace.front().error_norm;
+  if (!res.trace.empty() && res.trace.front().error_norm > 0) {
+    res.error_rise /= res.trace.front().error_norm;
+    double top = 0;
+    for (const auto& r : res.trace) top = std::max(top, r.error_norm);
+    res.max_error_ratio = top / res.trace.front().error_norm;
+  }
   res.final_translation_error_m = sim::translation_error(robot.world_T_camera(), sc.world_T_desired);
   res.final_rotation_error_deg = sim::rotation_error(robot.world_T_camera(), sc.world_T_desired) * kRadToDeg;
   return res;

@@ -52,6 +52,8 @@ struct ExperimentResult {
   // how much |e| rose on its way, summed over the iterations where it rose, relative to its
   // first value: 0 for a monotonic decrease; an oscillating loop piles it up
   double error_rise = 0;
+  // the largest |e| of the run over its first: > 1 when the error ever rose above where it began
+  double max_error_ratio = 0;
   std::vector<IterationRecord> trace;
 };
 

@@ -506,21 +506,21 @@ class SimService {
   void summary(double wall_s) {
     const auto& c = machine_->counters();
     const Eigen::Isometry3d wTc = machine_->world_T_camera();
-    if (machine_->run_started_at() && c.applied > 0) {
-      const double secs = wall_s - *machine_->run_started_at();
-      std::printf("cellsim: loop rate %.0f iterations/s (%ld steps in %.2f s of wall time, after teaching)\n",
-                  c.applied / secs, c.applied, secs);
-    }
+    (void)wall_s;
+    if (c.applied > 0 && c.stepping_s > 0)
+      std::printf("cellsim: loop rate %.0f iterations/s (%ld steps in %.2f s of stepping time; idle and paused time "
+                  "not counted)\n",
+                  c.applied / c.stepping_s, c.applied, c.stepping_s);
     long dropped;
     {
       std::lock_guard<std::mutex> l(inbox_.m);
       dropped = inbox_.dropped;
     }
     std::printf("cellsim: %ld frames, %ld twists applied, rejected %ld NaN/Inf, %ld wrong frame, %ld stale, %ld out of "
-                "the workspace; %ld watchdog stops; %ld robot stops (collision); %ld commands (%ld refused); %ld inputs "
-                "dropped; final error %.3f mm, %.4f deg\n",
+                "the workspace; %ld late answers (to frames already stepped); %ld watchdog stops; %ld robot stops "
+                "(collision); %ld commands (%ld refused); %ld inputs dropped; final error %.3f mm, %.4f deg\n",
                 c.frames, c.applied, c.rejected_nan, c.rejected_frame, c.rejected_stale, c.rejected_workspace,
-                c.watchdog_stops, c.robot_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
+                c.late_answers, c.watchdog_stops, c.robot_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
                 1e3 * sim::translation_error(wTc, cell_->scenario.world_T_desired),
                 sim::rotation_error(wTc, cell_->scenario.world_T_desired) * 180.0 / 3.14159265358979323846);
     if (trace_.is_open()) trace_.flush();

@@ -131,6 +131,9 @@ StudyAxis parse_study_axis(const std::string& spec) {
     if (used == 0 || used != item.size() || !std::isfinite(v))
       throw std::invalid_argument("study axis " + config::printable(a.name.substr(0, 60)) + ": '" +
                                   config::printable(item.substr(0, 40)) + "' is not a number");
+    if (std::find(a.values.begin(), a.values.end(), v) != a.values.end())
+      throw std::invalid_argument("study axis " + config::printable(a.name.substr(0, 60)) + ": value '" +
+                                  config::printable(item.substr(0, 40)) + "' given twice");
     a.values.push_back(v);
     if (a.values.size() > kMaxAxisValues)
       throw std::invalid_argument("study axis " + config::printable(a.name.substr(0, 60)) + ": more than " +
@@ -164,15 +167,18 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
   std::ofstream csv(o.out_dir / "study.csv");
   if (!csv) throw std::runtime_error((o.out_dir / "study.csv").string() + ": cannot write");
   for (const auto& a : o.axes) csv << a.name << ',';
-  csv << "depth_spread_m,model,runs,converged,diverged,converged_pct,median_iterations,median_translation_mm,"
-         "median_rotation_deg,median_error_rise,folder\n"
+  csv << "depth_spread_m,model,runs,converged,diverged,capped,safe_stops,rose,converged_pct,median_iterations,"
+         "median_translation_mm,median_rotation_deg,median_error_rise,folder\n"
       << std::setprecision(10);
   std::ostringstream md;
   md << "| ";
   for (const auto& a : o.axes) md << a.name << " | ";
-  md << "depth spread (mm) | model | converged | diverged | median iterations | median final error (mm / deg) | "
-        "median rise of the error |\n|";
-  for (std::size_t i = 0; i < o.axes.size() + 7; ++i) md << "---|";
+  // every run counted by what stopped it; "rose": not stopped as diverging, yet |e| rose (past
+  // twice its first value, or by it in all): a study without --divergence-ratio counts its
+  // runaways and oscillations there
+  md << "depth spread (mm) | model | converged | diverging (stopped) | iteration cap | safe stop | rose, not "
+        "stopped | median iterations | median final error (mm / deg) | median rise of the error |\n|";
+  for (std::size_t i = 0; i < o.axes.size() + 10; ++i) md << "---|";
   md << "\n";
 
   for (std::size_t g = 0; g < grid.size(); ++g) {
@@ -188,14 +194,22 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
     const double spread = depth_spread(cell);
     for (const ModelStats& m : campaign_stats(c.out_dir)) {
       for (double v : grid[g]) csv << v << ',';
-      csv << spread << ',' << m.model << ',' << m.runs << ',' << m.converged << ',' << m.diverged << ','
+      csv << spread << ',' << m.model << ',' << m.runs << ',' << m.converged << ',' << m.diverged << ',' << m.capped
+          << ',' << m.safe_stops << ',' << m.rose << ','
           << (m.runs ? 100.0 * m.converged / m.runs : 0.0) << ',' << m.median_iterations << ','
           << m.median_translation_mm << ',' << m.median_rotation_deg << ',' << m.median_error_rise << ",\"" << name
           << "\"\n";
       char row[400];
-      std::snprintf(row, sizeof row, "| %.1f | %s | %d/%d | %d | %.0f | %.3f / %.4f | %.3f |\n", 1e3 * spread,
-                    m.model.c_str(), m.converged, m.runs, m.diverged, m.median_iterations, m.median_translation_mm,
-                    m.median_rotation_deg, m.median_error_rise);
+      const auto num = [](double v, int d) {
+        if (!std::isfinite(v)) return std::string("-");
+        char b[48];
+        std::snprintf(b, sizeof b, "%.*f", d, v);
+        return std::string(b);
+      };
+      std::snprintf(row, sizeof row, "| %.1f | %s | %d/%d | %d | %d | %d | %d | %s | %s / %s | %s |\n", 1e3 * spread,
+                    m.model.c_str(), m.converged, m.runs, m.diverged, m.capped, m.safe_stops, m.rose,
+                    num(m.median_iterations, 0).c_str(), num(m.median_translation_mm, 3).c_str(),
+                    num(m.median_rotation_deg, 4).c_str(), num(m.median_error_rise, 3).c_str());
       md << "| ";
       for (double v : grid[g]) md << v << " | ";
       md << (row + 2);

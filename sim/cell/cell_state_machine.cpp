@@ -196,8 +196,12 @@ bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
   const std::optional<std::uint64_t> k = frame_of(t.stamp_sec, t.stamp_nanosec, why);
   if (k) {
     if (p_.timing == Timing::kLockstep) {
-      if (!awaited_) why = "no frame is waiting for a twist";
-      else if (*k != awaited_->frame.index)
+      // an answer to a frame already stepped or given up is the normal echo of a repeated frame
+      if (!awaited_ || *k < awaited_->frame.index) {
+        ++counters_.late_answers;
+        return false;
+      }
+      if (*k != awaited_->frame.index)
         why = "answers frame " + std::to_string(*k) + ", frame " + std::to_string(awaited_->frame.index) + " is awaited";
     } else {
       const std::uint64_t newest = newest_sent_frame_.value_or(0);
@@ -456,8 +460,11 @@ void CellStateMachine::realtime(double now_s) {
 }
 
 CellOutput CellStateMachine::poll(double now_s) {
+  if (last_poll_s_ && moving_at_last_poll_ && now_s > *last_poll_s_) counters_.stepping_s += now_s - *last_poll_s_;
   if (p_.timing == Timing::kLockstep) lockstep(now_s);
   else realtime(now_s);
+  last_poll_s_ = now_s;
+  moving_at_last_poll_ = !loading_ && (running_ || steps_ > 0 || (awaited_ && awaited_->frame.applies_twist));
   if (done_ && !awaited_) {
     flush_trace(true);
     out_.done = true;

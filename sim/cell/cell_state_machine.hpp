@@ -112,6 +112,12 @@ struct TraceRow {
 struct CellCounters {
   long frames = 0, applied = 0, rejected_nan = 0, rejected_frame = 0, rejected_stale = 0, rejected_workspace = 0,
        watchdog_stops = 0, robot_stops = 0, commands = 0, commands_refused = 0, dropped_inputs = 0;
+  // lockstep: answers that came after their frame was stepped (a repeated frame answered twice,
+  // a frame given up): normal traffic, counted and not logged (issue 18, item 6)
+  long late_answers = 0;
+  // wall time during which the robot was asked to move (running, stepping, or a frame awaited
+  // whose twist applies): the loop rate is measured over it, not over idle time
+  double stepping_s = 0;
 };
 
 struct CellOutput {
@@ -192,6 +198,8 @@ class CellStateMachine {
   std::uint64_t run_first_frame_ = 0;
   std::uint64_t steps_ = 0;          // STEP frames still to make
   bool running_ = false;
+  std::optional<double> last_poll_s_;
+  bool moving_at_last_poll_ = false;
   bool teach_requested_ = false;
   bool loading_ = false;
   bool done_ = false;

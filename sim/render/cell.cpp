@@ -94,7 +94,12 @@ std::unique_ptr<Robot> make_robot(const Cell& cell) {
                                         1.0 / a.physics_hz);
   arm->pin(s.world_T_desired, s.robot.desired_q);
   arm->pin(s.world_T_initial(), s.robot.initial_q);
-  arm->reset(s.world_T_desired);
+  try {
+    arm->reset(s.world_T_desired);
+  } catch (const std::invalid_argument& e) {
+    // the file whose pose it is (issue 18, item 18): "the arm would be in collision there" alone named none
+    throw std::invalid_argument(s.file.string() + ": desired_pose: " + e.what());
+  }
   if (s.errors.any()) arm->set_belief(scenario_errors(s).robot);
   return arm;
 }

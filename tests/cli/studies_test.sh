@@ -39,5 +39,16 @@ one_line_error "three axes" "at most two" "$cellsim" study "$fig5" --axis gain=1
 one_line_error "error out of range" "is outside .0, 50" "$cellsim" experiment "$fig5" --error focal_pct=80
 one_line_error "unknown error" "unknown" "$cellsim" experiment "$fig5" --error lens_pct=1
 one_line_error "delay beyond the queue bound" "is outside .0, 50" "$cellsim" campaign "$fig5" --latency processing_frames=1000000 -o "$tmp/x"
+one_line_error "an axis twice" "given twice" "$cellsim" study "$fig5" --axis gain=1 --axis gain=2 -o "$tmp/x"
+one_line_error "a value twice" "value '1' given twice" "$cellsim" study "$fig5" --axis gain=1,2,1 -o "$tmp/x"
+one_line_error "a shard count that wraps" "expected I/N" "$cellsim" campaign "$fig5" --shard 1/4294967297 -o "$tmp/x"
 [ ! -e "$tmp/x" ] || fail "a refused study or campaign left a folder"
+
+# issue 18, item 6: summaries say what stopped each run, and count rises and stalls as such
+out=$("$cellsim" campaign "$fig5" --features ideal --runs 3 --models desired --max-iterations 3 --no-plot -o "$tmp/capped" 2>/dev/null)
+grep -q "| desired | 0/3 (0 %) | 0 | 3 | 0 | 0 | - | - / - | - / - |" <<<"$out" || fail "runs stopped by the cap not counted as such: $out"
+grep -qi "nan" <<<"$out" && fail "a campaign summary shows nan: $out"
+out=$("$cellsim" study "$fig5" --features ideal --axis gain=16 --axis processing_frames=2 --models desired --runs 2 \
+  --max-iterations 150 -o "$tmp/rising" 2>/dev/null)
+grep -q "| 16 | 2 | [0-9.]* | desired | 0/2 | 0 | 2 | 0 | 2 |" <<<"$out" || fail "a study cell whose |e| rose does not say so: $out"
 echo "studies: tables and plots written, fig5 search reproducible, errors and delays applied, bad values refused"

@@ -45,6 +45,13 @@ TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
   ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s)) << "no CONVERGED status received";
   expect_converged_pose("plane", w);
+  {
+    // issue 18, item 6: a normal run logs no rejected twist, and measures its rate over stepping
+    std::ifstream f(dir + "/sim.log");
+    const std::string log{std::istreambuf_iterator<char>(f), {}};
+    EXPECT_EQ(log.find("rejected a twist"), std::string::npos) << log;
+    EXPECT_NE(log.find("s of stepping time"), std::string::npos) << log;
+  }
 
   // the same scenario and seed in the in-process runner: the same trace, number for number
   const auto cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml"));

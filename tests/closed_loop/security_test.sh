@@ -33,6 +33,9 @@ fi
   --max-frames 800 > "$tmp/sim1.log" 2>&1 || fail "secured run: cellsim exit $? ($(tail -1 "$tmp/sim1.log"))"
 converged_at_goal "$tmp/sim1.log" || fail "secured run did not converge: $final"
 grep -o "loop rate [0-9]* iterations/s" "$tmp/sim1.log"
+# issue 18, item 6: a secured run says so
+grep -q "cellsim: DDS-Security on: enclave /cellsim, Enforce" "$tmp/sim1.log" || fail "the secured cellsim never said security is on"
+grep -q "servo: DDS-Security on: enclave /servo" "$tmp/servo1.log" || fail "the secured servo never said security is on"
 if [ -n "$cyclone" ]; then
   wait "$eavesdropper" && fail "an unauthenticated Cyclone DDS client was served by the secured cell"
   grep -q "matched 0 of the 2\|: 0 images" "$tmp/cyclone.log" || fail "the unauthenticated client saw the cell: $(tail -1 "$tmp/cyclone.log")"

@@ -55,6 +55,34 @@ struct Fixture : ::testing::Test {
 using Lockstep = Fixture;
 using Realtime = Fixture;
 
+// Issue 18, item 6: the loop rate is measured over stepping time. A run driven by hand, with
+// a long idle wait before START and after PAUSE, counts only the time frames were stepped,
+// and an answer to a frame already stepped is counted as late, not logged as a rejection.
+TEST_F(Lockstep, SteppingTimeLeavesIdleTimeOutAndLateAnswersAreNotRejections) {
+  auto m = make(Timing::kLockstep);
+  m->poll(0);
+  m->poll(100);  // idle for 100 s
+  m->on_command(cmd(CellCommand::kStart), 100);
+  double now = 100;
+  CellOutput out = m->poll(now);
+  for (int k = 0; k < 10; ++k) {
+    ASSERT_EQ(out.frames.size(), 1u) << k;
+    const std::uint64_t frame = out.frames[0].index;
+    now += 0.01;
+    m->on_twist(twist_for(frame, dt, vx(0.01)), now);
+    out = m->poll(now);  // steps, and sends the next frame
+    EXPECT_FALSE(m->on_twist(twist_for(frame, dt, vx(0.01)), now));  // the same answer again: late
+    for (const auto& line : out.log) EXPECT_EQ(line.find("rejected"), std::string::npos) << line;
+  }
+  m->on_command(cmd(CellCommand::kPause), now);
+  m->poll(now);
+  m->poll(now + 500);  // paused for 500 s
+  EXPECT_EQ(m->counters().applied, 10);
+  EXPECT_GT(m->counters().late_answers, 0);
+  EXPECT_LT(m->counters().stepping_s, 1.0) << "idle time counted as stepping";
+  EXPECT_GT(m->counters().stepping_s, 0.05);
+}
+
 TEST_F(Lockstep, IdleMakesNoFramesAndAppliesNoTwist) {
   auto m = make(Timing::kLockstep);
   EXPECT_TRUE(m->poll(0).frames.empty());

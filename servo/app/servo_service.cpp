@@ -114,7 +114,7 @@ class ServoService {
     po.name = "servo";
     po.discovery = o.discovery;
     po.security = o.security;
-    po.enclave = "servo";
+    po.enclave = o.ns.empty() ? std::string("servo") : o.ns + "/servo";  // as bin/keystore --namespace lays them out
     participant_ = cell_dds::make_participant(po);
     auto& p = *participant_;
     using cell_dds::Stream;

@@ -47,7 +47,7 @@ int run_viewer(const ViewOptions& o) {
   po.name = "servo_view";
   po.discovery = o.discovery;
   po.security = o.security;
-  po.enclave = "viewer";
+  po.enclave = o.ns.empty() ? std::string("viewer") : o.ns + "/viewer";
   auto p = cell_dds::make_participant(po);
   using cell_dds::Stream;
   cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(

@@ -177,7 +177,8 @@ class SimService {
     po.name = "cellsim";
     po.discovery = o.discovery;
     po.security = o.security;
-    po.enclave = "cellsim";
+    // SROS2 lays enclaves out by node path: /NAME/cellsim under --namespace NAME (bin/keystore --namespace)
+    po.enclave = o.ns.empty() ? std::string("cellsim") : o.ns + "/cellsim";
     participant_ = cell_dds::make_participant(po);
     auto& p = *participant_;
     using cell_dds::Stream;

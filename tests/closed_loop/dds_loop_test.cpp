@@ -43,7 +43,7 @@ TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
                "--max-frames", "800", "--trace", dir},
               domain, dir + "/sim.log");
   ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
-  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s)) << "no CONVERGED status received";
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 30s)) << "no CONVERGED status received";
   expect_converged_pose("plane", w);
   {
     // issue 18, item 6: a normal run logs no rejected twist, and measures its rate over stepping
@@ -133,7 +133,7 @@ void expect_lockstep_convergence(int domain, const std::string& dir, const std::
                "--exit-on-converged", "--max-frames", max_frames},
               domain, dir + "/sim.log");
   ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
-  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 30s));
   expect_converged_pose(scenario, w);
 }
 
@@ -165,12 +165,17 @@ TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {
   Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun", "--exit-on-converged",
                "--max-frames", "2000", "--republish-ms", "300"},
               domain, dir + "/sim.log");
-  ASSERT_TRUE(w.wait_for([&] { return w.poses > 60; }, 60s)) << "the run did not start";
+  // generous bounds, and events rather than fixed times: on a loaded 2-core machine the start
+  // (discovery, teaching) took more than 60 s (issue 18, item 2)
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 60; }, 240s)) << "the run did not start; see " << dir;
   servo->kill(SIGKILL);  // dies without a word
   servo.reset();
-  std::this_thread::sleep_for(150ms);  // more than one watchdog period
+  // lockstep: with nobody answering, cellsim sends the awaited frame again every 300 ms. Two
+  // repeats mean a twist the servo sent before it died has landed or never will
+  const long at_kill = w.pose_count();
+  ASSERT_TRUE(w.wait_for([&] { return w.poses >= at_kill + 2; }, 120s)) << "no frame repeated after the servo died";
   const Eigen::Isometry3d stopped = w.pose_now();
-  std::this_thread::sleep_for(700ms);
+  ASSERT_TRUE(w.wait_for([&] { return w.poses >= at_kill + 4; }, 120s)) << "no frame repeated after the servo died";
   EXPECT_LT(sim::translation_error(stopped, w.pose_now()), 1e-12) << "the robot moved without a servo";
   EXPECT_FALSE(w.converged);
   // a new servo with the saved reference picks the run up where it stopped
@@ -183,7 +188,7 @@ TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {
                                std::to_string(w.poses) + ", twists " + std::to_string(w.twists)
                          : std::string("none");
   }();
-  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 30s));
   expect_converged_pose("plane", w);
 }
 
@@ -195,10 +200,10 @@ TEST(DdsLoop, KilledSimMakesTheServoReportLostAndPublishZero) {
   auto sim = std::make_unique<Process>(
       std::vector<std::string>{kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun"}, domain,
       dir + "/sim.log");
-  ASSERT_TRUE(w.wait_for([&] { return w.twists > 30; }, 60s));
+  ASSERT_TRUE(w.wait_for([&] { return w.twists > 30; }, 240s));
   sim->kill(SIGKILL);
   sim.reset();
-  ASSERT_TRUE(w.wait_for([&] { return w.lost; }, 5s)) << "no LOST status";
+  ASSERT_TRUE(w.wait_for([&] { return w.lost; }, 30s)) << "no LOST status";
   std::lock_guard<std::mutex> l(w.m);
   const auto& t = w.last_twist->twist();
   EXPECT_EQ(t.linear().x() + t.linear().y() + t.linear().z() + t.angular().x() + t.angular().y() + t.angular().z(), 0.0);
@@ -212,20 +217,18 @@ TEST(DdsLoop, RealtimeWatchdogStopsTheRobotWhenTheServoDies) {
   Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--mode", "realtime", "--autorun",
                "--watchdog-ms", "100"},
               domain, dir + "/sim.log");
-  const auto moved = [&] {
-    const sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
-    return sim::translation_error(w.pose_now(), s.world_T_initial()) > 0.02;
-  };
-  ASSERT_TRUE(w.wait_for([&] { return w.poses > 10; }, 60s));
-  ASSERT_TRUE([&] {
-    for (int i = 0; i < 300 && !moved(); ++i) std::this_thread::sleep_for(50ms);
-    return moved();
-  }()) << "the robot never moved towards the goal";
+  const sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
+  const auto moved_unlocked = [&] { return sim::translation_error(w.pose_now_unlocked(), s.world_T_initial()) > 0.02; };
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 10; }, 240s));
+  ASSERT_TRUE(w.wait_for([&] { return moved_unlocked(); }, 120s)) << "the robot never moved towards the goal";
   servo->kill(SIGKILL);
   servo.reset();
-  std::this_thread::sleep_for(250ms);  // one watchdog period and a frame or two
+  // realtime frames go on at 25 Hz: ten of them (400 ms of cellsim's clock) are four watchdog
+  // periods, and ten more must show the same pose (events, not sleeps: issue 18, item 2)
+  const long at_kill = w.pose_count();
+  ASSERT_TRUE(w.wait_for([&] { return w.poses >= at_kill + 10; }, 120s));
   const Eigen::Isometry3d a = w.pose_now();
-  std::this_thread::sleep_for(500ms);
+  ASSERT_TRUE(w.wait_for([&] { return w.poses >= at_kill + 20; }, 120s));
   EXPECT_LT(sim::translation_error(a, w.pose_now()), 1e-12) << "the robot kept moving after the watchdog period";
 }
 
@@ -240,7 +243,7 @@ TEST(DdsLoop, NanTwistIsRejectedAndTheRobotDoesNotMove) {
                                                                          cell_dds::writer_qos(cell_dds::Stream::kCommand));
   cell_dds::Writer<geometry_msgs::msg::dds_::TwistStamped_PubSubType> twist(*w.participant, cell_dds::kTwistTopic,
                                                                             cell_dds::writer_qos(cell_dds::Stream::kFrame));
-  ASSERT_TRUE(w.wait_for([&] { return w.poses > 3 && control.matched() > 0 && twist.matched() > 0; }, 60s));
+  ASSERT_TRUE(w.wait_for([&] { return w.poses > 3 && control.matched() > 0 && twist.matched() > 0; }, 240s));
   cell_msgs::msg::dds_::SimControl_ start;
   start.command(SC::START);
   control.write(start);
@@ -283,7 +286,7 @@ TEST(DdsLoop, ServoRejectsBadImagesWithAReasonAndExitsCleanly) {
                                                                        cell_dds::writer_qos(Stream::kLatched));
   cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType> image(*w.participant, cell_dds::kImageTopic,
                                                                    cell_dds::writer_qos(Stream::kFrame));
-  ASSERT_TRUE(w.wait_for([&] { return image.matched() > 0 && info.matched() > 0 && w.status->matched() > 0; }, 60s));
+  ASSERT_TRUE(w.wait_for([&] { return image.matched() > 0 && info.matched() > 0 && w.status->matched() > 0; }, 240s));
   sensor_msgs::msg::dds_::CameraInfo_ ci;
   ci.width(640);
   ci.height(480);
@@ -332,7 +335,7 @@ TEST(DdsLoop, ServoRejectsBadImagesWithAReasonAndExitsCleanly) {
   const long twists_before = [&] { std::lock_guard<std::mutex> l(w.m); return w.twists; }();
   servo.kill(SIGTERM);
   EXPECT_EQ(servo.wait_exit(10s), 0);
-  EXPECT_TRUE(w.wait_for([&] { return w.twists > twists_before && w.last_status && w.last_status->state() == SS::STOPPED; }, 5s));
+  EXPECT_TRUE(w.wait_for([&] { return w.twists > twists_before && w.last_status && w.last_status->state() == SS::STOPPED; }, 30s));
 }
 
 }  // namespace

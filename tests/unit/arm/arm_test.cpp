@@ -3,6 +3,8 @@
 // (motors, a scripted collision, bit-for-bit determinism). Two different arms.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include <fstream>
 #include <random>
 
@@ -304,6 +306,83 @@ TEST(RobotModel, HugeAxisComponentsGiveAUnitAxis) {
   const RobotModel m = load_robot_model(file, "camera");
   ASSERT_EQ(m.chain.size(), 1u);
   EXPECT_TRUE(m.chain[0].axis.isApprox(Eigen::Vector3d::UnitX(), 1e-12)) << m.chain[0].axis.transpose();
+}
+
+// Issue 18, item 14: a <visual> or <collision> whose origin or size does not parse used to
+// vanish (urdfdom drops it, or reads NaN as the identity); each is refused naming the link
+// and the element.
+TEST(RobotModel, BrokenGeometryIsRefusedNamingTheLinkAndTheElement) {
+  const auto robot = [](const std::string& camera_link_body) {
+    return "<robot name='r'><link name='a'/><link name='camera'>" + camera_link_body +
+           "</link><joint name='j' type='revolute'><parent link='a'/><child link='camera'/><axis xyz='0 0 1'/>"
+           "<limit lower='-1' upper='1' velocity='1' effort='1'/></joint></robot>";
+  };
+  const std::string box = "<geometry><box size='0.1 0.1 0.1'/></geometry>";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"<visual><origin rpy='nan 0 0'/>" + box + "</visual>", "link 'camera' visual 1: <origin> rpy 'nan'"},
+      {"<collision><origin xyz='0 inf 0'/>" + box + "</collision>", "link 'camera' collision 1: <origin> xyz 'inf'"},
+      {"<visual>" + box + "</visual><collision><geometry><box size='99 99'/></geometry></collision>",
+       "link 'camera' collision 1: <box> size has 2 numbers, expected 3"},
+      // a box refused for its size must not load when its rpy is NaN
+      {"<visual><origin rpy='nan 0 0'/><geometry><box size='200 200 200'/></geometry></visual>", "rpy 'nan'"},
+      {"<visual><geometry><cylinder radius='abc' length='1'/></geometry></visual>", "<cylinder> radius 'abc'"},
+      {"<visual><geometry><sphere/></geometry></visual>", "<sphere> has no radius"},
+      {"<visual><geometry><mesh filename='m.obj' scale='nan 1 1'/></geometry></visual>", "<mesh> scale 'nan'"},
+      {"<visual><geometry></geometry></visual>", "<geometry> is empty"},
+      {"<visual></visual>", "no <geometry>"},
+  };
+  int i = 0;
+  for (const auto& [body, expected] : cases) {
+    const std::string file = write_temp("bad_geometry_" + std::to_string(i++) + ".urdf", robot(body));
+    try {
+      load_robot_model(file, "camera");
+      ADD_FAILURE() << "accepted: " << body;
+    } catch (const RobotModelError& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.rfind(file, 0), 0u) << what;
+      EXPECT_NE(what.find(expected), std::string::npos) << what;
+    }
+  }
+  // and a box past the size limit is refused as before
+  const std::string big = write_temp("big_box.urdf", robot("<visual><geometry><box size='200 200 200'/></geometry></visual>"));
+  EXPECT_THROW(load_robot_model(big, "camera"), RobotModelError);
+}
+
+// Issue 18, item 15: the arm's triangle limit holds while the meshes load: a URDF of twelve
+// visuals of one large mesh is refused at the second, before assimp reads it.
+TEST(RobotModel, MeshBombIsRefusedAtTheFirstMeshPastTheLimit) {
+  const std::string dir = std::string(CELL_BINARY_DIR) + "/mesh_bomb";
+  std::filesystem::create_directories(dir);
+  {
+    // a binary PLY of 300 000 triangles (the arm's limit is 400 000)
+    std::ofstream f(dir + "/big.ply", std::ios::binary);
+    const int n = 300000;
+    f << "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nelement face " << n << "\nproperty list uchar int vertex_indices\nend_header\n";
+    const float v[9] = {0, 0, 0, 0.01f, 0, 0, 0, 0.01f, 0};
+    f.write(reinterpret_cast<const char*>(v), sizeof v);
+    for (int k = 0; k < n; ++k) {
+      const unsigned char c = 3;
+      const int idx[3] = {0, 1, 2};
+      f.write(reinterpret_cast<const char*>(&c), 1);
+      f.write(reinterpret_cast<const char*>(idx), sizeof idx);
+    }
+  }
+  std::string visuals;
+  for (int k = 0; k < 12; ++k) visuals += "<visual><geometry><mesh filename='big.ply'/></geometry></visual>";
+  const std::string file = dir + "/bomb.urdf";
+  std::ofstream(file) << "<robot name='r'><link name='a'/><link name='camera'>" << visuals
+                      << "</link><joint name='j' type='revolute'><parent link='a'/><child link='camera'/>"
+                         "<axis xyz='0 0 1'/><limit lower='-1' upper='1' velocity='1' effort='1'/></joint></robot>";
+  try {
+    load_robot_model(file, "camera");
+    FAIL() << "a URDF of 3.6 M triangles was accepted";
+  } catch (const std::exception& e) {
+    const std::string what = e.what();
+    // refused while counting the second mesh, before assimp reads it
+    EXPECT_NE(what.find("big.ply: 300000 triangles, more than the 100000 left"), std::string::npos) << what;
+    EXPECT_NE(what.find("link 'camera' visual"), std::string::npos) << what;
+  }
 }
 
 TEST(RobotModel, MalformedDescriptionsAreRefusedInOneLineNamingTheFile) {

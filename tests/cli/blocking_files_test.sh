@@ -15,6 +15,7 @@ one_line_error "decode /proc" "kernel file" bounded "$servo" decode /proc/self/s
 one_line_error "pattern a FIFO" "pattern file is a FIFO" bounded "$servo" decode "$tmp/fifo.png" --pattern "$tmp/fifo.yaml"
 one_line_error "render a FIFO scenario" "fifo.yaml: scenario file is a FIFO" bounded "$cellsim" render "$tmp/fifo.yaml" -o "$tmp/x.png"
 one_line_error "render a /proc scenario" "kernel file" bounded "$cellsim" render /proc/self/status -o "$tmp/x.png"
+one_line_error "render a folder" "scenario file is a folder, not a regular file" bounded "$cellsim" render "$tmp" -o "$tmp/x.png"
 one_line_error "experiment on a FIFO" "scenario file is a FIFO" bounded "$cellsim" experiment "$tmp/fifo.yaml" --no-plot
 # a folder with a good image, a link to /proc/kmsg, and an image whose sidecar pose is a FIFO
 mkdir -p "$tmp/frames"

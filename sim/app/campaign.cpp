@@ -77,10 +77,6 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
   CampaignRow r;
   r.line = line;
   r.model = f[0];
-  const auto bad = [&](const char* field) {
-    return std::invalid_argument(where + ": " + field + " '" + config::printable(f[0] == r.model ? line : line, 60) +
-                                 "' is malformed");
-  };
   long long v = 0;
   double d = 0;
   if (!whole_number(f[1], 0, 100000000, v)) throw std::invalid_argument(where + ": run '" + config::printable(f[1]) + "' is not a run index");
@@ -102,7 +98,6 @@ CampaignRow parse_row(const std::string& line, const std::string& where) {
     throw std::invalid_argument(where + ": run " + f[1] + ": error_rise '" + config::printable(f[14]) + "' is not a finite rise");
   if (!finite_number(f[15], r.max_error_ratio) || r.max_error_ratio < 0)
     throw std::invalid_argument(where + ": run " + f[1] + ": max_error_ratio '" + config::printable(f[15]) + "' is not a finite ratio");
-  (void)bad;
   r.stop_reason = line.substr(a);
   return r;
 }
@@ -227,14 +222,6 @@ void check_shard_rows(const std::filesystem::path& file, const CampaignMeta& m, 
 // an oscillation's) at least its first value
 constexpr double kRoseRatio = 2.0;
 
-// A median or worst value of a table: "-" when no run gave one (not "nan").
-std::string shown_number(double v, int decimals) {
-  if (!std::isfinite(v)) return "-";
-  char b[48];
-  std::snprintf(b, sizeof b, "%.*f", decimals, v);
-  return b;
-}
-
 std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const std::vector<CampaignRow>& rows) {
   std::vector<ModelStats> out;
   for (const std::string& model : models) {
@@ -284,10 +271,10 @@ std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& 
     char line[400];
     std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %d | %d | %d | %d | %s | %s / %s | %s / %s | %s |\n",
                   m.model.c_str(), m.converged, m.runs, m.runs ? 100.0 * m.converged / m.runs : 0.0, m.diverged,
-                  m.capped, m.safe_stops, m.rose, shown_number(m.median_iterations, 0).c_str(),
-                  shown_number(m.median_translation_mm, 3).c_str(), shown_number(m.median_rotation_deg, 4).c_str(),
-                  shown_number(m.worst_translation_mm, 3).c_str(), shown_number(m.worst_rotation_deg, 4).c_str(),
-                  shown_number(m.median_error_rise, 3).c_str());
+                  m.capped, m.safe_stops, m.rose, table_number(m.median_iterations, 0).c_str(),
+                  table_number(m.median_translation_mm, 3).c_str(), table_number(m.median_rotation_deg, 4).c_str(),
+                  table_number(m.worst_translation_mm, 3).c_str(), table_number(m.worst_rotation_deg, 4).c_str(),
+                  table_number(m.median_error_rise, 3).c_str());
     md << line;
   }
   char note[260];
@@ -330,6 +317,13 @@ void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, con
 }
 
 }  // namespace
+
+std::string table_number(double v, int decimals) {
+  if (!std::isfinite(v)) return "-";
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  return b;
+}
 
 std::string describe(const sim::CalibrationErrors& e, const sim::Latency& l) {
   std::ostringstream d;

@@ -31,6 +31,9 @@ struct CampaignOptions {
   double divergence_ratio = 0;  // as ExperimentOptions
 };
 
+// A median or worst value as the summary tables show it: "-" when no run gave one (not "nan").
+std::string table_number(double v, int decimals);
+
 // The errors and delays as campaign.json and the study tables name them:
 // "focal_pct=1 processing_frames=2" ("none" when all are zero).
 std::string describe(const sim::CalibrationErrors& errors, const sim::Latency& latency);

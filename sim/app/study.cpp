@@ -200,16 +200,10 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
           << m.median_translation_mm << ',' << m.median_rotation_deg << ',' << m.median_error_rise << ",\"" << name
           << "\"\n";
       char row[400];
-      const auto num = [](double v, int d) {
-        if (!std::isfinite(v)) return std::string("-");
-        char b[48];
-        std::snprintf(b, sizeof b, "%.*f", d, v);
-        return std::string(b);
-      };
       std::snprintf(row, sizeof row, "| %.1f | %s | %d/%d | %d | %d | %d | %d | %s | %s / %s | %s |\n", 1e3 * spread,
                     m.model.c_str(), m.converged, m.runs, m.diverged, m.capped, m.safe_stops, m.rose,
-                    num(m.median_iterations, 0).c_str(), num(m.median_translation_mm, 3).c_str(),
-                    num(m.median_rotation_deg, 4).c_str(), num(m.median_error_rise, 3).c_str());
+                    table_number(m.median_iterations, 0).c_str(), table_number(m.median_translation_mm, 3).c_str(),
+                    table_number(m.median_rotation_deg, 4).c_str(), table_number(m.median_error_rise, 3).c_str());
       md << "| ";
       for (double v : grid[g]) md << v << " | ";
       md << (row + 2);

@@ -9,10 +9,7 @@ set -u
 probe="$1"; src="$2"
 source "$(dirname "$0")/services.sh"
 source "$src/tests/cli/lib.sh"
-export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
-unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY ROS_SECURITY_ENCLAVE_OVERRIDE
-claim_domain
-export ROS_DOMAIN_ID="$cell_domain"
+isolated_cell_domain
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 "$src/bin/keystore" "$tmp/ks" --namespace servo --namespace sim --namespace camera >/dev/null || fail "bin/keystore --namespace"
 grep -rl '<topic>[^<]*\*' "$tmp/ks/enclaves" && fail "a permissions file grants a topic pattern"

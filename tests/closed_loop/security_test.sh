@@ -7,10 +7,7 @@ set -u
 bin="$1"; src="$2"; client="$3"; cyclone="${4:-}"
 source "$(dirname "$0")/services.sh"
 source "$src/tests/cli/lib.sh"
-export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
-unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY ROS_SECURITY_ENCLAVE_OVERRIDE
-claim_domain
-export ROS_DOMAIN_ID="$cell_domain"
+isolated_cell_domain
 tmp=$(mktemp -d)
 pids=()
 trap 'kill -INT "${pids[@]}" 2>/dev/null; sleep 1; kill -KILL "${pids[@]}" 2>/dev/null; rm -rf "$tmp"' EXIT

@@ -39,3 +39,11 @@ converged_at_goal() {
   [ -n "$mm" ] && awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'
 }
 
+# A test's own cell: loopback discovery whatever the caller's environment, no static peers,
+# no enclave override, and a domain no other test of this machine holds (ROS_DOMAIN_ID).
+isolated_cell_domain() {
+  export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+  unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY ROS_SECURITY_ENCLAVE_OVERRIDE
+  claim_domain
+  export ROS_DOMAIN_ID="$cell_domain"
+}

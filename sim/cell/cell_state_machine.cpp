@@ -350,6 +350,18 @@ bool CellStateMachine::answer_complete(double now_s) const {
 void CellStateMachine::lockstep(double now_s) {
   drain_deferred(now_s);
   if (loading_) return;
+  if (awaited_ && answer_ && awaited_->frame.teach && answer_complete(now_s)) {
+    // a servo that answered the teach frame without taking s* from it (its camera_info not
+    // there yet, under load) gets the same frame again, not a new TEACH later: a new teach
+    // frame has another index, so other noise, and the run would no longer be the in-process
+    // one (issue 18: seen on a loaded machine)
+    const std::optional<ServoReport> st = status_for(awaited_->frame.index);
+    if (st && st->reason.rfind("taught", 0) != 0 && now_s - awaited_->first_sent_at_s <= p_.teach_timeout_s) {
+      answer_.reset();
+      awaited_->answered_at_s.reset();
+      statuses_.erase(awaited_->frame.index);  // the repeat's answer brings its own
+    }
+  }
   if (awaited_) {
     if (answer_) {
       if (answer_complete(now_s)) {

@@ -66,7 +66,7 @@ struct CellParams {
   double watchdog_s = 0.1;        // realtime: no valid twist for this long, the robot stops
   double physics_period_s = 0.001;  // realtime: motion and watchdog are integrated at this step
   double republish_s = 1.0;       // lockstep: frame k sent again when unanswered this long
-  double teach_timeout_s = 2.0;   // lockstep: the teach frame is given up after this long
+  double teach_timeout_s = 10.0;  // lockstep: the teach frame is given up after this long
   long max_frames = 0;            // done after this many new frames (0: no limit)
   bool exit_on_converged = false;
   // a CONVERGED status ends the run only when the camera really is this close to the goal

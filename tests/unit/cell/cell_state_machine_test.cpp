@@ -83,6 +83,39 @@ TEST_F(Lockstep, SteppingTimeLeavesIdleTimeOutAndLateAnswersAreNotRejections) {
   EXPECT_GT(m->counters().stepping_s, 0.05);
 }
 
+// A servo that answers the teach frame without being taught (no camera_info yet: seen under
+// load) gets the same teach frame again, with the same index, and the commands behind it wait
+// until it is taught: a new TEACH would render another frame, with other noise.
+TEST_F(Lockstep, AnUntaughtAnswerToTheTeachFrameGetsTheSameFrameAgain) {
+  CellParams p;
+  p.republish_s = 0.5;
+  auto m = make(Timing::kLockstep, p);
+  m->on_command(cmd(CellCommand::kTeach), 0);
+  m->on_command(cmd(CellCommand::kStart), 0);
+  CellOutput out = m->poll(0);
+  ASSERT_EQ(out.frames.size(), 1u);
+  ASSERT_TRUE(out.frames[0].teach);
+  const std::uint64_t teach = out.frames[0].index;
+  ServoReport waiting = status_for(teach, dt, 0);
+  waiting.reason = "waiting for camera_info";
+  m->on_servo_status(waiting, 0.1);
+  m->on_twist(twist_for(teach, dt, Vector6d::Zero()), 0.1);
+  out = m->poll(0.2);
+  EXPECT_TRUE(out.frames.empty()) << "the untaught answer was taken";
+  out = m->poll(0.7);
+  ASSERT_EQ(out.frames.size(), 1u) << "the teach frame was not sent again";
+  EXPECT_TRUE(out.frames[0].teach);
+  EXPECT_EQ(out.frames[0].index, teach);
+  ServoReport taught = status_for(teach, dt, 0);
+  taught.reason = "taught 368 features";
+  m->on_servo_status(taught, 0.8);
+  m->on_twist(twist_for(teach, dt, Vector6d::Zero()), 0.8);
+  out = m->poll(0.9);
+  ASSERT_EQ(out.frames.size(), 1u) << "START did not follow the taught teach frame";
+  EXPECT_FALSE(out.frames[0].teach);
+  EXPECT_EQ(out.frames[0].index, teach + 1);
+}
+
 TEST_F(Lockstep, IdleMakesNoFramesAndAppliesNoTwist) {
   auto m = make(Timing::kLockstep);
   EXPECT_TRUE(m->poll(0).frames.empty());
@@ -123,7 +156,7 @@ TEST_F(Lockstep, TeachWithNoServoGivesUpAndKeepsObeyingCommands) {
   m->poll(0);
   m->on_command(cmd(CellCommand::kReset, "initial"), 0.1);
   m->on_command(cmd(CellCommand::kStart), 0.1);
-  CellOutput o = m->poll(2.5);  // past the teach timeout
+  CellOutput o = m->poll(CellParams{}.teach_timeout_s + 0.5);  // past the teach timeout
   bool said = false;
   for (const auto& l : o.log) said |= l.find("teach frame") != std::string::npos;
   EXPECT_TRUE(said);

@@ -249,7 +249,9 @@ class AutorunSequence {
     std::vector<std::string> log;
     bool finished = false;
   };
-  explicit AutorunSequence(double wait_for_servo_s = 60, double teach_retry_s = 5, int teach_attempts = 5)
+  // the retry waits longer than the teach timeout (10 s): a TEACH sent while the first teach
+  // frame is still awaited would teach again from another frame
+  explicit AutorunSequence(double wait_for_servo_s = 60, double teach_retry_s = 15, int teach_attempts = 5)
       : wait_s_(wait_for_servo_s), retry_s_(teach_retry_s), attempts_(teach_attempts) {}
   // servo_seen: a status from the servo itself has arrived (not merely a matched reader);
   // taught: a status saying "taught" has arrived since the last TEACH was sent.

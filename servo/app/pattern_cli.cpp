@@ -35,7 +35,16 @@ int run_check(const std::string& file, pattern::WindowShape w, int colours) {
   std::printf("%s: %d x %d, k = %d, window %d x %d\n", file.c_str(), a.rows, a.cols, a.colours, w.rows, w.cols);
   std::printf("window property: %s\n", rep.holds ? "holds" : "FAILS");
   std::printf("distinct windows: %d of %d\n", rep.distinct_windows, rep.total_windows);
-  std::printf("min Hamming distance: %d\n", rep.min_hamming);
+  if (rep.pairs_at_min > 0)
+    std::printf("min Hamming distance: %d (%llu window pairs at that distance)\n", rep.min_hamming,
+                static_cast<unsigned long long>(rep.pairs_at_min));
+  else
+    std::printf("min Hamming distance: %d\n", rep.min_hamming);
+  // what the distance buys a decoder: d - 1 wrong colours detected, (d - 1) / 2 corrected,
+  // d - 1 missing spots of a window filled in by the one code that fits
+  if (rep.holds && rep.min_hamming >= 2)
+    std::printf("a window read with up to %d wrong colour%s is corrected; up to %d missing spots are completed\n",
+                (rep.min_hamming - 1) / 2, (rep.min_hamming - 1) / 2 == 1 ? "" : "s", rep.min_hamming - 1);
   if (rep.repeat) {
     const auto& [p, q] = *rep.repeat;
     std::printf("repeated window: top-left (%d, %d) and (%d, %d)\n", p.first, p.second, q.first, q.second);
@@ -84,7 +93,10 @@ int main(int argc, char** argv) {
   gen->add_option("--cols", gp.cols, "columns")->required()->check(CLI::PositiveNumber);
   gen->add_option("--colours,--colors", gp.colours, "alphabet size k")->required();
   gen->add_option("--window", window, "window size n (n x n)")->capture_default_str();
-  gen->add_option("--min-hamming", gp.min_hamming, "minimum Hamming distance between windows")->capture_default_str();
+  gen->add_option("--min-distance,--min-hamming", gp.min_hamming,
+                  "minimum Hamming distance between windows: 1 (the paper's), 2, or 3 (3 colours, 3 x 3 windows: the "
+                  "algebraic GF(3^6) array, up to 20 x 20)")
+      ->capture_default_str();
   gen->add_option("--seed", gp.seed, "random seed")->required();
   gen->add_option("--time-budget", gp.time_budget_s, "give up after this many CPU seconds")->capture_default_str();
   gen->add_option("-o,--output", out, "pattern file to write")->required();

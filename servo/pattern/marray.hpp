@@ -55,6 +55,11 @@ struct GenerationResult {
 // than codes, Hamming bound exceeded, time budget exhausted) come back as a failure value.
 GenerationResult generate_marray(const GenerationParams& params);
 
+// The algebraic distance-3 array over 3 colours (3 x 3 windows): A[r][c] = Tr(x^(offset + r +
+// 107 c)) over GF(3^6) with modulus x^6 + x^5 + 2. At 20 x 20 its 324 windows are distinct and
+// pairwise at Hamming distance >= 3 (issue 19); generate_marray checks it for other sizes.
+MArray trace_marray(int rows, int cols, int offset);
+
 // Window code: the window's colours read row-major, as base-k digits (least significant first).
 std::uint64_t window_code(const MArray& array, WindowShape window, int top, int left);
 
@@ -63,6 +68,7 @@ struct WindowPropertyReport {
   int total_windows = 0;
   int distinct_windows = 0;
   int min_hamming = 0;          // minimum Hamming distance between any two windows (0 if a repeat)
+  std::uint64_t pairs_at_min = 0;  // window pairs at that distance (0 when not counted)
   // first repeated window found, as top-left corners of the two occurrences
   std::optional<std::pair<std::pair<int, int>, std::pair<int, int>>> repeat;
 };

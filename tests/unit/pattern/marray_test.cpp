@@ -130,10 +130,13 @@ TEST(CheckWindowProperty, PapersBinaryExampleIsAPerfectSubmap) {
   EXPECT_EQ(rep.total_windows, 15);
 }
 
-// The committed pattern is exactly what the recorded parameters generate.
-TEST(CommittedPattern, RegeneratesBitForBit) {
+// The committed patterns are exactly what their recorded parameters generate: the paper's
+// (distance 1) and the error-correcting one (distance 3).
+class CommittedPattern : public ::testing::TestWithParam<std::string> {};
+INSTANTIATE_TEST_SUITE_P(Both, CommittedPattern, ::testing::Values("marray_20x20_k3_w3", "marray_20x20_k3_w3_d3"));
+TEST_P(CommittedPattern, RegeneratesBitForBit) {
   const std::string dir = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/";
-  std::ifstream params(dir + "marray_20x20_k3_w3.params");
+  std::ifstream params(dir + GetParam() + ".params");
   ASSERT_TRUE(params) << "missing parameter file";
   GenerationParams p;
   std::string key;
@@ -148,10 +151,56 @@ TEST(CommittedPattern, RegeneratesBitForBit) {
   }
   const auto r = generate_marray(p);
   ASSERT_TRUE(r.array) << r.failure;
-  std::ifstream committed(dir + "marray_20x20_k3_w3.txt", std::ios::binary);
+  std::ifstream committed(dir + GetParam() + ".txt", std::ios::binary);
   std::stringstream text;
   text << committed.rdbuf();
   EXPECT_EQ(format_marray(*r.array), text.str());
+  EXPECT_EQ(check_window_property(*r.array, p.window).min_hamming, p.min_hamming);
+}
+
+// Issue 19: the algebraic array. 324 distinct windows, pairwise >= 3 apart (checked here by
+// brute force over all pairs, not by the masked search), 2145 pairs at distance 3, colours
+// 135 / 129 / 136; the pair count of the masked search equals the brute-force count, for
+// this array and the paper's.
+TEST(TraceMArray, TwentyByTwentyIsAtDistanceThree) {
+  const MArray a = trace_marray(20, 20, 0);
+  int count[3] = {0, 0, 0};
+  for (auto c : a.cells) ++count[c];
+  EXPECT_EQ(count[0], 135);
+  EXPECT_EQ(count[1], 129);
+  EXPECT_EQ(count[2], 136);
+  for (const MArray& m : {a, load_pattern(std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3.txt", {3, 3})}) {
+    const auto rep = check_window_property(m, {3, 3});
+    ASSERT_TRUE(rep.holds);
+    std::uint64_t pairs = 0;
+    int best = 9;
+    std::vector<std::vector<int>> ws;
+    for (int r = 0; r + 3 <= m.rows; ++r)
+      for (int c = 0; c + 3 <= m.cols; ++c) {
+        std::vector<int> w;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) w.push_back(m.at(r + i, c + j));
+        ws.push_back(w);
+      }
+    for (std::size_t i = 0; i < ws.size(); ++i)
+      for (std::size_t j = i + 1; j < ws.size(); ++j) {
+        int d = 0;
+        for (int k = 0; k < 9; ++k) d += ws[i][k] != ws[j][k];
+        if (d < best) best = d, pairs = 0;
+        if (d == best) ++pairs;
+      }
+    EXPECT_EQ(rep.min_hamming, best);
+    EXPECT_EQ(rep.pairs_at_min, pairs);
+  }
+  EXPECT_EQ(check_window_property(a, {3, 3}).min_hamming, 3);
+  EXPECT_EQ(check_window_property(a, {3, 3}).pairs_at_min, 2145u);
+  // too large for the construction: refused with its reason, not a weaker array
+  GenerationParams big;
+  big.rows = big.cols = 30;
+  big.min_hamming = 3;
+  const auto r = generate_marray(big);
+  EXPECT_FALSE(r.array);
+  EXPECT_NE(r.failure.find("GF(3^6)"), std::string::npos) << r.failure;
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Plots an experiment's trace.csv like the paper's Fig. 4c-d / 5d-i:
 velocities.png (camera velocities vs time) and error_norm.png (norm of the task function);
-with an arm, occlusion.png from occlusion.csv (spots the arm hides or catches, per frame).
+with an arm, occlusion.png from occlusion.csv (spots the arm hides or catches, per frame);
+with the robust law, weights.png from features.jsonl (genuine and swapped matches).
 Usage: plot_trace.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
 import csv
 import os
@@ -43,6 +44,42 @@ def plot_occlusion(directory, title, trace=None):
     save(fig, os.path.join(directory, "occlusion.png"))
 
 
+def plot_weights(directory, title):
+    """weights.png from features.jsonl: the robust law's weight of the genuine matches and of
+    the ones the outlier injection made wrong (issue 19), per iteration."""
+    import json
+    path = os.path.join(directory, "features.jsonl")
+    if not os.path.exists(path):
+        return
+    t, good, bad, bad_max = [], [], [], []
+    with open(path) as f:
+        for line in f:
+            j = json.loads(line)
+            pts = [p for p in j.get("points", []) if p.get("weight") is not None]
+            if not pts:
+                continue
+            g = sorted(p["weight"] for p in pts if not p.get("swapped"))
+            b = sorted(p["weight"] for p in pts if p.get("swapped"))
+            t.append(j["k"])
+            good.append(g[len(g) // 2] if g else float("nan"))
+            bad.append(b[len(b) // 2] if b else float("nan"))
+            bad_max.append(b[-1] if b else float("nan"))
+    if not t:
+        return
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(t, good, color="tab:green", label="genuine matches (median)")
+    if any(v == v for v in bad):
+        ax.plot(t, bad, color="tab:red", label="swapped ids (median)")
+        ax.plot(t, bad_max, ":", color="tab:red", label="swapped ids (largest)")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("robust weight")
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_title(f"{title}: robust weights" if title else "robust weights")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    save(fig, os.path.join(directory, "weights.png"))
+
+
 def main():
     args = dir_and_title()
     trace = os.path.join(args.dir, "trace.csv")
@@ -69,6 +106,7 @@ def main():
     ax.grid(True, which="both", alpha=0.3)
     save(fig, os.path.join(args.dir, "error_norm.png"))
     plot_occlusion(args.dir, args.title, t)
+    plot_weights(args.dir, args.title)
 
 
 if __name__ == "__main__":

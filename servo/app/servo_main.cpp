@@ -341,6 +341,10 @@ int main(int argc, char** argv) {
                   "desired, current and mean models, and decoding with the epipolar check");
   run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
   double divergence_ratio = -1;
+  std::string robust;
+  run->add_option("--robust", robust,
+                  "tukey | huber | none: M-estimator weights on the points (v = -lambda (W L)^+ W (s - s*); config "
+                  "key robust)");
   run->add_option("--divergence-ratio", divergence_ratio,
                   "stop (zero twist, STOPPED) when |e| rises above this x its first value after START (0: never)")
       ->check(CLI::Range(0.0, 1e6));
@@ -409,6 +413,7 @@ int main(int argc, char** argv) {
       svc.config.decoder.epipolar.enabled = !no_epipolar;
       if (points >= 0) svc.config.points = points;
       if (divergence_ratio >= 0) svc.config.divergence_ratio = divergence_ratio;
+      if (!robust.empty()) svc.config.law.robust = control::parse_robust_estimator(robust);
       return servo::run_servo_service(svc);
     }
     if (*decode) {

@@ -317,7 +317,7 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     const Reader top(file, config::load_yaml_file(file, "servo configuration"));
     top.only_keys({"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps", "min_points",
                    "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant", "epipolar_px",
-                   "segment_length", "propagate_sources", "points", "divergence_ratio"});
+                   "segment_length", "propagate_sources", "points", "divergence_ratio", "robust"});
     constexpr double kDeg = 3.14159265358979323846 / 180;
     if (top.has("model")) {
       const Reader m = top.at("model");
@@ -352,6 +352,14 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     if (top.has("segment_length")) c.decoder.epipolar.segment_length = top.at("segment_length").integer_in(0, 15);
     if (top.has("points")) c.points = top.at("points").integer_in(0, 4096);
     if (top.has("divergence_ratio")) c.divergence_ratio = top.at("divergence_ratio").in_range(0, 1e6);
+    if (top.has("robust")) {
+      const Reader r = top.at("robust");
+      try {
+        c.law.robust = control::parse_robust_estimator(r.text(16));
+      } catch (const std::invalid_argument&) {
+        r.fail("must be tukey, huber or none, got " + r.spelling());
+      }
+    }
     if (top.has("propagate_sources")) c.decoder.epipolar.min_sources = top.at("propagate_sources").integer_in(1, 9);
   } catch (const config::ConfigError& e) {
     throw std::runtime_error(e.what());

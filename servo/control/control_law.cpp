@@ -1,5 +1,7 @@
 #include "servo/control/control_law.hpp"
 
+#include <algorithm>
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <cmath>
@@ -87,6 +89,8 @@ void check_params(const ControlLawParams& p) {
   if (!(p.max_linear_mps > 0) || !(p.max_angular_radps > 0)) bad("velocity limits must be positive");
   if (p.min_points < 3) bad("min_points must be at least 3 (6 degrees of freedom)");
   if (!(p.convergence_translation_m > 0) || !(p.convergence_rotation_rad > 0)) bad("convergence thresholds must be positive");
+  if (p.robust_iterations < 1 || p.robust_iterations > 50) bad("robust iterations must be in 1..50");
+  if (!(p.robust_min_scale > 0) || !std::isfinite(p.robust_min_scale)) bad("robust minimum scale must be positive");
 }
 
 // The depth each model uses for a point's current and desired rows; nullopt when the model
@@ -106,6 +110,56 @@ Depths model_depths(const MatchedPoint& p, const ControlLawParams& params) {
 }
 
 }  // namespace
+
+RobustEstimator parse_robust_estimator(const std::string& name) {
+  if (name == "none") return RobustEstimator::kNone;
+  if (name == "tukey") return RobustEstimator::kTukey;
+  if (name == "huber") return RobustEstimator::kHuber;
+  std::string shown;
+  for (char c : name.substr(0, 40)) shown += (c >= 0x20 && c < 0x7f) ? c : '?';
+  throw std::invalid_argument("robust estimator '" + shown + "': expected tukey, huber or none");
+}
+
+std::string to_string(RobustEstimator e) {
+  switch (e) {
+    case RobustEstimator::kNone: return "none";
+    case RobustEstimator::kTukey: return "tukey";
+    case RobustEstimator::kHuber: return "huber";
+  }
+  return "?";
+}
+
+namespace {
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  const double upper = v[mid];
+  if (v.size() % 2 == 1) return upper;
+  return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid)));
+}
+}  // namespace
+
+std::vector<double> robust_weights(RobustEstimator e, const std::vector<double>& residuals, double min_scale) {
+  std::vector<double> w(residuals.size(), 1.0);
+  if (e == RobustEstimator::kNone || residuals.empty()) return w;
+  const double med = median_of(residuals);
+  std::vector<double> dev(residuals.size());
+  for (std::size_t i = 0; i < residuals.size(); ++i) dev[i] = std::abs(residuals[i] - med);
+  const double sigma = std::max(1.4826 * median_of(dev), min_scale);
+  for (std::size_t i = 0; i < residuals.size(); ++i) {
+    const double r = dev[i];
+    if (e == RobustEstimator::kTukey) {
+      const double c = 4.6851 * sigma;
+      const double u = r / c;
+      w[i] = r < c ? (1 - u * u) * (1 - u * u) : 0.0;
+    } else {
+      const double c = 1.345 * sigma;
+      w[i] = r <= c ? 1.0 : c / r;
+    }
+  }
+  return w;
+}
 
 ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
   check_params(params);
@@ -161,7 +215,41 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
     }
   }
   out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
-  out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+  out.weights.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
+  if (params.robust == RobustEstimator::kNone) {
+    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+    for (Eigen::Index i = 0; i < k; ++i) out.weights[index[i]] = 1.0;
+  } else {
+    // IRLS: weights from the residuals of the last estimate, e from the weighted system
+    std::vector<double> w(static_cast<std::size_t>(k), 1.0), residual(static_cast<std::size_t>(k));
+    Eigen::MatrixXd WL = L;
+    Eigen::VectorXd We = error;
+    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+    for (int it = 0; it < params.robust_iterations; ++it) {
+      const Eigen::VectorXd r = error - L * out.task;
+      for (Eigen::Index i = 0; i < k; ++i) residual[static_cast<std::size_t>(i)] = r.segment<2>(2 * i).norm();
+      w = robust_weights(params.robust, residual, params.robust_min_scale);
+      for (Eigen::Index i = 0; i < k; ++i) {
+        WL.row(2 * i) = w[static_cast<std::size_t>(i)] * L.row(2 * i);
+        WL.row(2 * i + 1) = w[static_cast<std::size_t>(i)] * L.row(2 * i + 1);
+        We[2 * i] = w[static_cast<std::size_t>(i)] * error[2 * i];
+        We[2 * i + 1] = w[static_cast<std::size_t>(i)] * error[2 * i + 1];
+      }
+      out.task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold);
+    }
+    int kept = 0;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      out.weights[index[i]] = w[static_cast<std::size_t>(i)];
+      kept += w[static_cast<std::size_t>(i)] > 0;
+    }
+    if (kept < params.min_points) {
+      out.status = ControlStatus::kTooFewPoints;
+      out.reason = std::to_string(kept) + " points with a non-zero robust weight (" + std::to_string(k) + " used), " +
+                   std::to_string(params.min_points) + " needed";
+      out.task.setZero();
+      return out;
+    }
+  }
   out.error_norm = out.task.norm();
   if (out.task.head<3>().norm() < params.convergence_translation_m &&
       out.task.tail<3>().norm() < params.convergence_rotation_rad) {

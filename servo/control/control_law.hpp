@@ -43,6 +43,21 @@ struct Gain {
   bool adaptive() const { return lambda_zero != lambda_inf; }
 };
 
+// M-estimators for the robust law (issue 19; Comport, Marchand & Chaumette 2006, ViSP's
+// vpRobust): each point's weight from its residual, the scale from the median absolute
+// deviation of the residuals.
+enum class RobustEstimator { kNone, kTukey, kHuber };
+RobustEstimator parse_robust_estimator(const std::string& name);  // "none" | "tukey" | "huber"; throws
+std::string to_string(RobustEstimator e);
+
+// The weights of `residuals` (non-negative: each point's residual norm) under `e`, with the
+// scale sigma = 1.4826 x the median absolute deviation from their median, floored at
+// `min_scale` so that a converged loop's noise is not taken for outliers:
+//   Tukey, c = 4.6851: w = (1 - (r / (c sigma))^2)^2 for |r| < c sigma, else 0
+//   Huber, c = 1.345:  w = 1 for |r| <= c sigma, else c sigma / |r|
+// with r the residual's deviation from the median. kNone: all 1.
+std::vector<double> robust_weights(RobustEstimator e, const std::vector<double>& residuals, double min_scale);
+
 struct ControlLawParams {
   InteractionModel model = InteractionModel::kDesiredConstantDepth;
   double z_hat_m = 0.9;               // the depth of kDesiredConstantDepth
@@ -56,6 +71,14 @@ struct ControlLawParams {
   // so this is a finer and steadier test than the feature error itself.
   double convergence_translation_m = 2e-4;
   double convergence_rotation_rad = 4e-4;
+  // The robust law v = -lambda (W L-hat)^+ W (s - s*), W diagonal, one weight per point on
+  // both of its rows (issue 19): a second line of defence against a wrong match. The weights
+  // come by iteratively reweighted least squares: a point's residual is what the motion
+  // estimated from the others leaves of its error, (s - s*) - L-hat e, so a point that moves
+  // against the rigid motion of the rest is the outlier, wherever it lies in the image.
+  RobustEstimator robust = RobustEstimator::kNone;
+  int robust_iterations = 4;
+  double robust_min_scale = 2e-4;  // normalised image units: ~0.16 px at 800 px focal length
 };
 
 enum class ControlStatus { kServoing, kConverged, kTooFewPoints, kNoDepth };
@@ -73,6 +96,8 @@ struct ControlOutput {
   // per input point, the depth the model used (kMean: the current one); NaN for points it
   // could not use (no depth)
   std::vector<double> z_model;
+  // per input point, its weight in the robust law (1 without one); NaN for points not used
+  std::vector<double> weights;
 };
 
 // Throws std::invalid_argument when a matched point has non-finite coordinates or the

@@ -440,6 +440,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       e.errors = o.errors;
       e.latency = o.latency;
       e.divergence_ratio = o.divergence_ratio;
+      e.outlier_fraction = o.outlier_fraction;
       job.result = run_experiment(cell, e);
       job.result.trace.clear();  // keep memory flat: only the outcome matters here
       const std::size_t n = ++done;
@@ -493,7 +494,9 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
                      {"max_linear_mps", law.max_linear_mps},
                      {"max_angular_radps", law.max_angular_radps},
                      {"min_points", law.min_points},
-                     {"epipolar", o.base.decoder.epipolar.enabled}};
+                     {"epipolar", o.base.decoder.epipolar.enabled},
+                     {"robust", control::to_string(law.robust)},
+                     {"outliers", o.outlier_fraction}};
   const std::string md = summarize(meta, rows);
   if (!o.out_dir.empty()) write_campaign(o.out_dir, meta, rows, md);
   return md;

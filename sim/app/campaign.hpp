@@ -29,6 +29,7 @@ struct CampaignOptions {
   std::optional<sim::CalibrationErrors> errors;
   std::optional<sim::Latency> latency;
   double divergence_ratio = 0;  // as ExperimentOptions
+  double outlier_fraction = 0;  // as ExperimentOptions
 };
 
 // A median or worst value as the summary tables show it: "-" when no run gave one (not "nan").

@@ -136,6 +136,7 @@ struct LawFlags {
   double converge_deg = control::ControlLawParams{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
   bool epipolar = false;
   int points = 0;
+  std::string robust = "none";
 
   void add(CLI::App* c) {
     c->add_option("--points", points,
@@ -147,6 +148,8 @@ struct LawFlags {
                 "decode with the projector's calibration (epipolar check and propagation), as `servo run "
                 "--projector` does");
     c->add_option("--model", model, "desired-constant-depth | desired | current | mean")->capture_default_str();
+    c->add_option("--robust", robust, "tukey | huber | none: M-estimator weights on the points against wrong matches")
+        ->capture_default_str();
     c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the mean depth of the lit spots "
                                     "at the desired pose, from the simulator (the paper's runs pass 0.9 or 0.6)")
         ->check(config::finite_in(0, 100));
@@ -169,6 +172,7 @@ struct LawFlags {
     cfg.law.convergence_rotation_rad = converge_deg * 3.14159265358979323846 / 180;
     cfg.decoder.epipolar.enabled = epipolar;
     cfg.points = points;
+    cfg.law.robust = control::parse_robust_estimator(robust);
   }
 };
 
@@ -176,6 +180,7 @@ struct LawFlags {
 struct ConditionFlags {
   std::vector<std::string> errors, latencies;
   double divergence_ratio = 0;
+  double outliers = 0;
 
   void add(CLI::App* c) {
     std::string names;
@@ -189,6 +194,11 @@ struct ConditionFlags {
     c->add_option("--divergence-ratio", divergence_ratio,
                   "stop as diverging when |e| exceeds this x its first value (0: never)")
         ->check(CLI::Range(0.0, 1e6))
+        ->capture_default_str();
+    c->add_option("--outliers", outliers,
+                  "swap the ids of this fraction of the spots at every frame (seeded; wrong matches for the robust "
+                  "law, issue 19)")
+        ->check(config::finite_in(0, 0.5))
         ->capture_default_str();
   }
   sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
@@ -241,6 +251,7 @@ struct CampaignFlags {
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
     c->add_flag("--epipolar", law.epipolar, "decode with the projector's calibration");
+    c->add_option("--robust", law.robust, "tukey | huber | none: M-estimator weights on the points")->capture_default_str();
     c->add_flag("--no-plot", no_plot, "do not draw the plots");
     conditions.add(c);
   }
@@ -258,6 +269,7 @@ struct CampaignFlags {
     c.errors = conditions.errors_for(cell.scenario);
     c.latency = conditions.latency_for(cell.scenario);
     c.divergence_ratio = conditions.divergence_ratio;
+    c.outlier_fraction = conditions.outliers;
     return c;
   }
 };
@@ -270,6 +282,7 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
   o.errors = conditions.errors_for(cell->scenario);
   o.latency = conditions.latency_for(cell->scenario);
   o.divergence_ratio = conditions.divergence_ratio;
+  o.outlier_fraction = conditions.outliers;
   o.servo = cellsim::servo_config_for(*cell);
   law.apply(o.servo, desired_depth(*cell));
   o.source = cellsim::parse_feature_source(source);

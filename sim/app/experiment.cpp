@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <stdexcept>
 
 #include "sim/cell/trace.hpp"
@@ -120,6 +121,27 @@ control::ProjectorModel believed_projector(const control::ProjectorModel& truth,
   return p;
 }
 
+int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
+                    std::vector<std::pair<int, int>>* wrong) {
+  if (!(fraction > 0) || spots.size() < 2) return 0;
+  const std::size_t n = std::min(spots.size(), std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(fraction * static_cast<double>(spots.size())))));
+  std::mt19937_64 rng(seed);
+  std::vector<std::size_t> pick(spots.size());
+  for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
+  for (std::size_t i = 0; i < n; ++i) std::swap(pick[i], pick[i + rng() % (pick.size() - i)]);
+  // a cycle over the chosen spots: each takes the next one's id, so none keeps its own
+  const int row0 = spots[pick[0]].row, col0 = spots[pick[0]].col;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    spots[pick[i]].row = spots[pick[i + 1]].row;
+    spots[pick[i]].col = spots[pick[i + 1]].col;
+  }
+  spots[pick[n - 1]].row = row0;
+  spots[pick[n - 1]].col = col0;
+  if (wrong)
+    for (std::size_t i = 0; i < n; ++i) wrong->emplace_back(spots[pick[i]].row, spots[pick[i]].col);
+  return static_cast<int>(n);
+}
+
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) {
   const sim::Scenario& sc = cell.scenario;
   const std::uint64_t seed = o.noise_seed ? o.noise_seed : sc.seed;
@@ -196,7 +218,11 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
     }
     if (k == 0) res.decoded_initial = static_cast<int>(spots.size());
-    const servo::StepResult step = pipeline.step(spots, robot.reported_world_T_camera());
+    std::vector<servo::ImageSpot> seen = spots;
+    std::vector<std::pair<int, int>> wrong_ids;
+    const int swapped =
+        inject_outliers(seen, o.outlier_fraction, sim::frame_seed(seed ^ 0x6f75746c69657273ull, frame), &wrong_ids);
+    const servo::StepResult step = pipeline.step(seen, robot.reported_world_T_camera());
 
     IterationRecord rec;
     rec.t_s = k * sc.dt_s;
@@ -207,6 +233,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     rec.matched = static_cast<int>(step.matched.size());
     rec.translation_error_m = sim::translation_error(wTc, sc.world_T_desired);
     rec.rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
+    rec.swapped = swapped;
     res.iterations = k + 1;
     bool last = step.control.status != control::ControlStatus::kServoing;
     if (!last) {
@@ -233,9 +260,17 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
         nlohmann::json p{{"row", m.row}, {"col", m.col}, {"x", m.x}, {"y", m.y}, {"x_star", m.x_star}, {"y_star", m.y_star}};
         const double z = i < step.control.z_model.size() ? step.control.z_model[i] : std::nan("");
         p["z_model"] = std::isfinite(z) ? nlohmann::json(z) : nlohmann::json(nullptr);
+        // the robust law's weight of the point (only with one: the plain law's are all 1)
+        if (o.outlier_fraction > 0)
+          p["swapped"] = std::find(wrong_ids.begin(), wrong_ids.end(), std::make_pair(m.row, m.col)) != wrong_ids.end();
+        if (o.servo.law.robust != control::RobustEstimator::kNone) {
+          const double w = i < step.control.weights.size() ? step.control.weights[i] : std::nan("");
+          p["weight"] = std::isfinite(w) ? nlohmann::json(w) : nlohmann::json(nullptr);
+        }
         j["points"].push_back(p);
       }
       j["v"] = std::vector<double>(step.control.twist.data(), step.control.twist.data() + 6);
+      if (o.outlier_fraction > 0) j["swapped"] = swapped;
       features << j.dump() << '\n';
     }
     if (step.control.status == control::ControlStatus::kConverged) {

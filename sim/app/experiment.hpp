@@ -31,6 +31,9 @@ struct ExperimentOptions {
   // Off by default: |e| may rise for a while when the set of matched spots changes (spots
   // coming into view), which is not divergence; the fig5 runs set it to 2.
   double divergence_ratio = 0;
+  // outlier injection (issue 19): at every frame the ids of this fraction of the spots are
+  // swapped among them, a cycle, so each of them is matched wrongly; seeded by the run's seed
+  double outlier_fraction = 0;
 };
 
 struct IterationRecord {
@@ -40,7 +43,14 @@ struct IterationRecord {
   int decoded = 0, matched = 0;
   double translation_error_m = 0, rotation_error_deg = 0;
   std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (sim::RobotLimit bits)
+  int swapped = 0;                 // spots given a wrong id by the outlier injection
 };
+
+// The outlier injection: the ids of `fraction` of `spots` (at least 2 when fraction > 0)
+// shifted along a seeded cycle, so each chosen spot carries another's id. Returns how many.
+// `wrong`, when given, receives the ids the chosen spots carry now.
+int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
+                    std::vector<std::pair<int, int>>* wrong = nullptr);
 
 struct ExperimentResult {
   bool converged = false;

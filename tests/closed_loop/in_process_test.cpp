@@ -35,6 +35,46 @@ TEST(InProcessLoop, PlaneConvergesUnder1mmAnd0_1Deg) {
   EXPECT_LT(r.trace.back().error_norm, 0.01 * r.trace.front().error_norm);
 }
 
+// Issue 19: the robust law against wrong matches. With 10 % of the decoded spots' ids swapped
+// at every frame, the plain law stalls far from the goal on the plane and the cylinder; Tukey
+// (and Huber on the plane) converge as without outliers, and the swapped points get weight ~0.
+TEST(InProcessLoop, RobustLawConvergesWithTenPercentOfTheMatchesSwapped) {
+  struct Case {
+    const char* scenario;
+    double z_hat;
+    int cap;
+    control::RobustEstimator robust;
+  };
+  for (const Case c : {Case{"plane", 0.9, 700, control::RobustEstimator::kTukey},
+                       Case{"plane", 0.9, 700, control::RobustEstimator::kHuber},
+                       Case{"cylinder", 0.6, 800, control::RobustEstimator::kTukey}}) {
+    const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string(c.scenario) + ".yaml"));
+    cellsim::ExperimentOptions o;
+    o.servo = cellsim::servo_config_for(*cell);
+    o.servo.law.z_hat_m = c.z_hat;
+    o.max_iterations = c.cap;
+    o.outlier_fraction = 0.1;
+    const auto plain = cellsim::run_experiment(*cell, o);
+    o.servo.law.robust = c.robust;
+    o.out_dir = std::filesystem::temp_directory_path() / ("_test_robust_" + std::string(c.scenario));
+    const auto robust = cellsim::run_experiment(*cell, o);
+    const std::string what = std::string(c.scenario) + " " + control::to_string(c.robust);
+    EXPECT_FALSE(plain.converged) << what << ": the plain law converged despite the swaps";
+    EXPECT_TRUE(robust.converged) << what << ": " << robust.stop_reason;
+    EXPECT_LT(robust.final_translation_error_m, 1e-3) << what;
+    EXPECT_GT(plain.final_translation_error_m, 10 * robust.final_translation_error_m) << what;
+    ASSERT_FALSE(robust.trace.empty());
+    EXPECT_GT(robust.trace[5].swapped, 0) << "the injection swapped nothing";
+    // the weights went into features.jsonl, swapped points near zero
+    std::ifstream f(o.out_dir / "features.jsonl");
+    std::string line;
+    ASSERT_TRUE(std::getline(f, line));
+    EXPECT_NE(line.find("\"weight\""), std::string::npos) << line.substr(0, 200);
+    EXPECT_NE(line.find("\"swapped\":true"), std::string::npos) << line.substr(0, 200);
+    std::filesystem::remove_all(o.out_dir);
+  }
+}
+
 // Issue 13, item 5: point selection. The plane converges on 8 best-conditioned points, the
 // law sees exactly those 8 at every iteration, and the run differs from the all-points one.
 TEST(InProcessLoop, PlaneConvergesOnEightBestConditionedPoints) {

@@ -101,6 +101,66 @@ TEST(ControlLaw, ExactCurrentModelDecaysExponentiallyAtRateLambda) {
   EXPECT_NEAR(feature_error(now) / expected, 1.0, 0.02);
 }
 
+// Issue 19: the M-estimators against hand-computed values. Residuals 1 2 3 4 100: median 3,
+// deviations 2 1 0 1 97, their median 1, so sigma = 1.4826.
+TEST(RobustWeights, TukeyAndHuberAgainstHandComputedValues) {
+  const std::vector<double> r = {1, 2, 3, 4, 100};
+  const auto t = robust_weights(RobustEstimator::kTukey, r, 1e-9);
+  // c sigma = 4.6851 x 1.4826 = 6.9461; w = (1 - (d / 6.9461)^2)^2
+  EXPECT_NEAR(t[0], 0.8410654988, 1e-9);
+  EXPECT_NEAR(t[1], 0.9589776807, 1e-9);
+  EXPECT_EQ(t[2], 1.0);
+  EXPECT_NEAR(t[3], 0.9589776807, 1e-9);
+  EXPECT_EQ(t[4], 0.0);
+  const auto h = robust_weights(RobustEstimator::kHuber, r, 1e-9);
+  // c sigma = 1.345 x 1.4826 = 1.9941; w = 1 within it, c sigma / d beyond
+  EXPECT_NEAR(h[0], 0.9970485, 1e-9);
+  EXPECT_EQ(h[1], 1.0);
+  EXPECT_EQ(h[2], 1.0);
+  EXPECT_EQ(h[3], 1.0);
+  EXPECT_NEAR(h[4], 0.0205577010, 1e-9);
+  for (double w : robust_weights(RobustEstimator::kNone, r, 1e-9)) EXPECT_EQ(w, 1.0);
+  // equal residuals have no spread: the floor keeps them all in
+  for (double w : robust_weights(RobustEstimator::kTukey, {0.5, 0.5, 0.5, 0.5}, 1e-4)) EXPECT_EQ(w, 1.0);
+  EXPECT_EQ(parse_robust_estimator("huber"), RobustEstimator::kHuber);
+  EXPECT_THROW(parse_robust_estimator("cauchy"), std::invalid_argument);
+}
+
+// The robust law against wrong matches: 40 points, the ids of 4 of them swapped in pairs. The
+// plain law's task function is pulled off the true motion; the robust one (Tukey and Huber)
+// recovers it and gives the swapped points (almost) no weight.
+TEST(ControlLaw, RobustLawIgnoresSwappedMatches) {
+  const auto goal = scene_points(40, 5);
+  Vector6d offset;
+  offset << 0.02, -0.01, 0.03, 0.02, -0.015, 0.01;
+  std::vector<Eigen::Vector3d> now;
+  for (const auto& X : goal) now.push_back(after_motion(X, offset, 1.0));
+  ControlLawParams p;
+  p.model = InteractionModel::kCurrent;
+  const ControlOutput clean = compute_control(matched(now, goal), p);
+  auto wrong = matched(now, goal);
+  for (int i : {3, 17}) {  // swap the current coordinates of (i, i+11): two wrong ids each
+    std::swap(wrong[i].x, wrong[i + 11].x);
+    std::swap(wrong[i].y, wrong[i + 11].y);
+    std::swap(wrong[i].z, wrong[i + 11].z);
+  }
+  const ControlOutput plain = compute_control(wrong, p);
+  const double plain_off = (plain.task - clean.task).norm() / clean.task.norm();
+  EXPECT_GT(plain_off, 0.05) << "the swaps did not disturb the plain law";
+  for (auto e : {RobustEstimator::kTukey, RobustEstimator::kHuber}) {
+    p.robust = e;
+    const ControlOutput robust = compute_control(wrong, p);
+    const double off = (robust.task - clean.task).norm() / clean.task.norm();
+    EXPECT_LT(off, 0.25 * plain_off) << to_string(e);
+    for (int i : {3, 14, 17, 28}) EXPECT_LT(robust.weights[i], e == RobustEstimator::kTukey ? 0.05 : 0.5) << to_string(e) << " " << i;
+    EXPECT_GT(robust.weights[0], 0.5);
+  }
+  // without outliers the robust law is the plain one, near enough
+  p.robust = RobustEstimator::kTukey;
+  const ControlOutput robust_clean = compute_control(matched(now, goal), p);
+  EXPECT_LT((robust_clean.task - clean.task).norm(), 1e-3 * clean.task.norm());
+}
+
 TEST(ControlLaw, SaturationKeepsTheScrewDirection) {
   const auto goal = scene_points(40, 4);
   Vector6d offset;

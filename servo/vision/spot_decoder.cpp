@@ -247,34 +247,43 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
         }
       }
     }
-    if (!tolerance.enabled || n_missing > 1) continue;
+    if (!tolerance.enabled || n_missing > tolerance.max_missing) continue;
     // error-tolerant: exactly one pattern window within one symbol of what was read (and, with
     // the epipolar check, on the epipolar lines)
     std::optional<pattern::SpotId> found;
-    int matches = 0;
-    const auto try_window = [&](std::array<std::uint8_t, 9> c) {
+    int matches = 0, found_wrong = -1;
+    const auto try_window = [&](std::array<std::uint8_t, 9> c, int wrong) {
       if (auto id = table.find(c.data())) {
         if (check && !check->confirms(w, *id)) return;
         if (!found || !(*found == *id)) ++matches;
         found = id;
+        found_wrong = wrong;
       }
     };
-    if (n_missing == 1) {
-      for (int c = 0; c < k; ++c) {
+    if (n_missing > 0) {
+      // every fill-in of the missing cells (k^n_missing of them): exactly one may fit
+      std::array<int, 9> holes{};
+      int h = 0;
+      for (int i = 0; i < 9; ++i)
+        if (w[i] < 0) holes[h++] = i;
+      int combos = 1;
+      for (int i = 0; i < h; ++i) combos *= k;
+      for (int m = 0; m < combos; ++m) {
         auto cc = colours;
-        cc[missing] = static_cast<std::uint8_t>(c);
-        try_window(cc);
+        for (int i = 0, v = m; i < h; ++i, v /= k) cc[holes[i]] = static_cast<std::uint8_t>(v % k);
+        try_window(cc, -1);
       }
+      (void)missing;
     } else {
       for (int i = 0; i < 9; ++i)
         for (int c = 0; c < k; ++c) {
           if (c == colours[i]) continue;
           auto cc = colours;
           cc[i] = static_cast<std::uint8_t>(c);
-          try_window(cc);
+          try_window(cc, i);
         }
     }
-    if (matches == 1) out.push_back({static_cast<int>(s), *found, true});
+    if (matches == 1) out.push_back({static_cast<int>(s), *found, true, found_wrong});
   }
   return out;
 }
@@ -284,7 +293,7 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
   for (const WindowReading& r : readings) {
     const Window& w = hoods.window[r.centre];
     for (int i = 0; i < 9; ++i)
-      if (w[i] >= 0)
+      if (w[i] >= 0 && i != r.wrong)  // the misread spot of a corrected window gets no vote from it
         votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}});
   }
 }
@@ -551,6 +560,13 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
 SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
     : table_(std::move(table)), options_(options) {
   options_.segmentation.colours = table_.array().colours;
+  // the distance of the pattern decides how much a window may be repaired
+  const pattern::WindowPropertyReport rep = pattern::check_window_property(table_.array(), {3, 3});
+  distance_ = rep.holds ? rep.min_hamming : 0;
+  if (options_.tolerance.by_pattern_distance && distance_ >= 3) {
+    options_.tolerance.enabled = true;
+    options_.tolerance.max_missing = std::max(options_.tolerance.max_missing, std::min(2, distance_ - 1));
+  }
 }
 
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {

@@ -33,6 +33,8 @@ struct WindowReading {
   int centre = 0;               // spot index
   pattern::SpotId id;           // the centre's (row, col)
   bool corrected = false;       // read by the error-tolerant mode
+  int wrong = -1;               // a corrected colour: the window cell (0..8) whose spot was misread;
+                                // the reading does not vote for that spot
 };
 
 // The detected spots against the frame's epipolar geometry (see epipolar.hpp).
@@ -50,6 +52,12 @@ struct EpipolarCheck {
 struct ToleranceOptions {
   bool enabled = false;  // beyond the paper: accept a window with one missing neighbour or one
                          // wrong colour when exactly one pattern window fits it
+  int max_missing = 1;   // neighbours a window may lack and still be completed
+  // Issue 19: the decoder reads the pattern's minimum window distance d at load and, when
+  // d >= 3, corrects one wrong colour and completes up to d - 1 = 2 missing neighbours: there
+  // the one fitting window is the pattern's guarantee, not a guess (with the paper's d = 1
+  // pattern, a misread window is often another valid one). false: only `enabled` decides.
+  bool by_pattern_distance = true;
 };
 
 // Step 3. With an epipolar check, a reading is kept only when every spot of its window lies on
@@ -163,10 +171,13 @@ class SpotDecoder {
   DecodeResult decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry = nullptr) const;
   const DecoderOptions& options() const { return options_; }
   const pattern::WindowTable& table() const { return table_; }
+  // the pattern's minimum window distance, read at construction
+  int pattern_distance() const { return distance_; }
 
  private:
   pattern::WindowTable table_;
   DecoderOptions options_;
+  int distance_ = 1;
   mutable SegmentationScratch scratch_;
 };
 

@@ -40,9 +40,24 @@ void write_png_rgb(const std::string& path, const cv::Mat& rgb) {
   if (!cv::imwrite(path, bgr)) throw std::runtime_error(path + ": cannot write image");
 }
 
+// --pattern FILE: the pattern the projector casts (and the in-process servo decodes),
+// instead of the scenario's (issue 19: both patterns stay runnable)
+std::string g_pattern_override;
+
+sim::Scenario load_scenario_for_run(const std::string& file) {
+  sim::Scenario s = sim::load_scenario(file);
+  if (!g_pattern_override.empty()) {
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::absolute(g_pattern_override, ec);
+    pattern::load_pattern(p, {3, 3});  // one line naming the file if it is not a pattern
+    s.projector.pattern = p;
+  }
+  return s;
+}
+
 int run_render(const std::string& scenario_file, const std::string& pose_spec, const std::string& out_png,
                const std::string& truth_file, std::uint64_t frame, const std::vector<double>& observer) {
-  const sim::Scenario scenario = sim::load_scenario(scenario_file);
+  const sim::Scenario scenario = load_scenario_for_run(scenario_file);
   const Eigen::Isometry3d wTc = sim::resolve_pose(scenario, pose_spec);
   const auto cell = sim::build_cell(scenario);
   // the robot at the pose: the arm's links are drawn, lit and cast shadows
@@ -99,7 +114,7 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
 }
 
 int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) {
-  const auto cell = sim::build_cell(sim::load_scenario(scenario_file));
+  const auto cell = sim::build_cell(load_scenario_for_run(scenario_file));
   if (o.projector)
     servo::check_projector_against_pattern(*o.projector, cell->projector->pattern(), cell->scenario.projector.pattern);
   if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
@@ -277,7 +292,7 @@ struct CampaignFlags {
 int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const ConditionFlags& conditions,
                        const std::string& source, int max_iterations, const std::string& initial,
                        const std::string& out_dir, bool plot) {
-  const auto cell = sim::build_cell(sim::load_scenario(scenario_file));
+  const auto cell = sim::build_cell(load_scenario_for_run(scenario_file));
   cellsim::ExperimentOptions o;
   o.errors = conditions.errors_for(cell->scenario);
   o.latency = conditions.latency_for(cell->scenario);
@@ -456,11 +471,15 @@ int main(int argc, char** argv) {
   cal->add_option("scenario", scenario, "scenario YAML file")->required();
   cal->add_option("-o,--output", calib_out, "calibration YAML to write")->required();
 
+  for (CLI::App* sub : {render, ds, ex, fs, cp, st, cal})
+    sub->add_option("--pattern", g_pattern_override,
+                    "pattern file the projector casts instead of the scenario's (e.g. "
+                    "servo/pattern/data/marray_20x20_k3_w3_d3.txt, the distance-3 one)");
   config::require_finite_numbers(app);
   if (const int rc = config::parse_command_line(app, argc, argv, "cellsim"); rc >= 0) return rc;
   try {
     if (*cal) {
-      const sim::Scenario s = sim::load_scenario(scenario);
+      const sim::Scenario s = load_scenario_for_run(scenario);
       const pattern::MArray a = pattern::read_marray(s.projector.pattern);
       const auto& k = s.projector.intrinsics;
       // what a calibration would give: off by the scenario's projector errors, if any
@@ -503,7 +522,7 @@ int main(int argc, char** argv) {
     if (*ex) return run_experiment_cli(scenario, law, ex_conditions, source, max_iterations, initial, exp_dir, !no_plot);
     if (*fs) {
       search.vary_spots = !keep_spots;
-      const sim::Scenario sc = sim::load_scenario(scenario);
+      const sim::Scenario sc = load_scenario_for_run(scenario);
       const auto r = cellsim::search_divergence(sc, search);
       int kept = 0;
       for (const auto& c : r.candidates) kept += c.kept;
@@ -532,7 +551,7 @@ int main(int argc, char** argv) {
       }
       if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
       if (camp.dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
-      const auto cell = sim::build_cell(sim::load_scenario(scenario));
+      const auto cell = sim::build_cell(load_scenario_for_run(scenario));
       cellsim::CampaignOptions o = camp.options(*cell);
       if (!shard.empty()) {
         // digits only, at most six each: sscanf's %d wrapped 1/4294967297 to 1/1 (issue 18, item 18)
@@ -562,7 +581,7 @@ int main(int argc, char** argv) {
         throw std::invalid_argument("study: --axis " + config::printable(so.axes[0].name) +
                                     " given twice (give its values once: NAME=V1,V2,...)");
       if (study.dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
-      const sim::Scenario sc = sim::load_scenario(scenario);
+      const sim::Scenario sc = load_scenario_for_run(scenario);
       const auto cell = sim::build_cell(sc);
       so.campaign = study.options(*cell);
       so.out_dir = study.dir;

@@ -230,8 +230,17 @@ struct DecoderTarget : Target {
   std::unique_ptr<sim::Cell> cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml"));
   cv::Mat image = sim::render_image(*cell, cell->scenario.world_T_initial(), 1);
   vision::SpotDecoder decoder{pattern::WindowTable(cell->projector->pattern(), {3, 3})};
+  // issue 19: the distance-3 pattern, cast and decoded with correction, every other input
+  std::unique_ptr<sim::Cell> cell_d3 = [] {
+    sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
+    s.projector.pattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3_d3.txt";
+    return sim::build_cell(s);
+  }();
+  cv::Mat image_d3 = sim::render_image(*cell_d3, cell_d3->scenario.world_T_initial(), 1);
+  vision::SpotDecoder decoder_d3{pattern::WindowTable(cell_d3->projector->pattern(), {3, 3})};
   void one(std::mt19937_64& rng) override {
-    cv::Mat img = image.clone();
+    const bool d3 = rng() % 2;
+    cv::Mat img = (d3 ? image_d3 : image).clone();
     // smear, blank, saturate and noise random patches: spots merge, vanish, change colour
     const int patches = 1 + static_cast<int>(rng() % 20);
     for (int i = 0; i < patches; ++i) {
@@ -260,7 +269,7 @@ struct DecoderTarget : Target {
                        0.5 + static_cast<double>(rng() % 100) / 10.0);
     }
     try {
-      decoder.decode(img, geometry ? &*geometry : nullptr);
+      (d3 ? decoder_d3 : decoder).decode(img, geometry ? &*geometry : nullptr);
     } catch (const std::exception&) {
     }
   }

@@ -51,6 +51,15 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
   } else if (name == "gain") {
     within(1e-6, 100);
     c.base.law.gain = control::Gain{v, v, 0};
+  } else if (name == "offset_scale") {
+    // the size of the initial offsets: the share that converges as it grows is the
+    // convergence domain (issue 19)
+    within(0, 100);
+    c.scale = v;
+  } else if (name == "outliers") {
+    // the fraction of the spots whose ids are swapped at every frame
+    within(0, 0.5);
+    c.outlier_fraction = v;
   } else if (name == "error_scale") {
     // every calibration error given (scenario or --error) times this factor
     within(0, 1000);
@@ -106,7 +115,8 @@ double depth_spread(const sim::Cell& cell) {
 }  // namespace
 
 std::vector<std::string> study_axis_names() {
-  std::vector<std::string> n{"z_hat", "gain", "object_scale_x", "object_scale_y", "object_scale_z", "object_yaw_deg", "error_scale"};
+  std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
+                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;

@@ -134,6 +134,36 @@ void BM_SimpleBlobDetectorGrey(benchmark::State& state) {
   state.counters["spots"] = static_cast<double>(keypoints.size());
 }
 
+// Issue 19: decoding with correction (the distance-3 pattern, read with one wrong colour
+// corrected and up to two missing neighbours completed) against today's decoding of the
+// paper's pattern, on the same scene.
+const Frame& frame_of_pattern(const std::string& scenario, const std::string& pattern_file) {
+  cv::setNumThreads(1);
+  static std::map<std::pair<std::string, std::string>, Frame> cache;
+  auto& f = cache[{scenario, pattern_file}];
+  if (!f.rgb.empty()) return f;
+  sim::Scenario s = sim::load_scenario(std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + scenario + ".yaml");
+  s.projector.pattern = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/" + pattern_file;
+  const auto cell = sim::build_cell(s);
+  f.rgb = sim::render_image(*cell, s.world_T_initial(), 1);
+  f.pattern = cell->projector->pattern();
+  return f;
+}
+
+void BM_DecodePattern(benchmark::State& state, const char* scenario, const char* file, bool correct) {
+  const Frame& f = frame_of_pattern(scenario, file);
+  vision::DecoderOptions o;
+  o.tolerance.by_pattern_distance = correct;
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), o);
+  std::size_t decoded = 0;
+  for (auto _ : state) {
+    const auto r = decoder.decode(f.rgb);
+    decoded = r.decoded.size();
+    benchmark::DoNotOptimize(r.decoded.data());
+  }
+  state.counters["decoded"] = static_cast<double>(decoded);
+}
+
 void BM_DecodeImageSize(benchmark::State& state) { decode(state, frame("plane", 20, state.range(0) / 480.0)); }
 void BM_DecodePatternSize(benchmark::State& state) {
   decode(state, frame("plane", static_cast<int>(state.range(0)), 1.0));
@@ -148,6 +178,16 @@ BENCHMARK_CAPTURE(BM_Decode, cylinder, "cylinder")->Name("decode_vga/ours_cylind
 BENCHMARK_CAPTURE(BM_DecodeCalibrated, plane, "plane")->Name("decode_vga/ours_plane_calibrated")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibrated, cylinder, "cylinder")->Name("decode_vga/ours_cylinder_calibrated")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SegmentOnly)->Name("decode_vga/ours_segmentation_only")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodePattern, d1, "cylinder", "marray_20x20_k3_w3.txt", true)
+    ->Name("decode_correction/baseline_cylinder_paper_pattern")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodePattern, d3, "cylinder", "marray_20x20_k3_w3_d3.txt", true)
+    ->Name("decode_correction/cylinder_distance3_corrected")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodePattern, d3_plain, "cylinder", "marray_20x20_k3_w3_d3.txt", false)
+    ->Name("decode_correction/cylinder_distance3_not_corrected")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodePattern, ham_d1, "ham", "marray_20x20_k3_w3.txt", true)
+    ->Name("decode_correction/ham_paper_pattern")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodePattern, ham_d3, "ham", "marray_20x20_k3_w3_d3.txt", true)
+    ->Name("decode_correction/ham_distance3_corrected")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/baseline_vga")->Arg(480)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/720p")->Arg(720)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/1080p")->Arg(1080)->Unit(benchmark::kMillisecond);

@@ -294,7 +294,7 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
     const Window& w = hoods.window[r.centre];
     for (int i = 0; i < 9; ++i)
       if (w[i] >= 0 && i != r.wrong)  // the misread spot of a corrected window gets no vote from it
-        votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}});
+        votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}, r.corrected});
   }
 }
 
@@ -371,7 +371,7 @@ std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, 
                                                 int min_votes) {
   struct Tally {
     pattern::SpotId id{-1, -1};
-    int count = 0;
+    int count = 0, exact = 0;
     bool conflict = false;
   };
   std::vector<Tally> tally(spots.size());
@@ -381,17 +381,23 @@ std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, 
     if (t.count == 0) t.id = v.id;
     else if (!(t.id == v.id)) t.conflict = true;
     ++t.count;
+    t.exact += !v.repaired;
     rows = std::max(rows, v.id.row + 1), cols = std::max(cols, v.id.col + 1);
   }
   // an id claimed by two spots is kept by neither
   std::vector<int> owners(static_cast<std::size_t>(rows) * cols, 0);
   const auto owner = [&](const pattern::SpotId& id) -> int& { return owners[static_cast<std::size_t>(id.row) * cols + id.col]; };
+  // repaired windows (corrected, completed) add votes and veto, but a spot that no exact
+  // window names is not named: at a depth edge a window read across two surfaces, columns
+  // shifted by one and one colour off, is the shifted window at distance 1, and repairs alone
+  // backed its shifted id (4 wrong ids in 1000 ham poses with the distance-3 pattern, issue 19)
+  const auto named = [&](const Tally& t) { return t.count >= min_votes && !t.conflict && t.exact > 0; };
   for (std::size_t s = 0; s < spots.size(); ++s)
-    if (tally[s].count >= min_votes && !tally[s].conflict) ++owner(tally[s].id);
+    if (named(tally[s])) ++owner(tally[s].id);
   std::vector<DecodedSpot> out;
   for (std::size_t s = 0; s < spots.size(); ++s) {
     const Tally& t = tally[s];
-    if (t.count < min_votes || t.conflict || owner(t.id) != 1) continue;
+    if (!named(t) || owner(t.id) != 1) continue;
     out.push_back({t.id.row, t.id.col, spots[s].u, spots[s].v, static_cast<int>(s)});
   }
   return out;

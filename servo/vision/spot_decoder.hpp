@@ -71,6 +71,7 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
 struct IdVote {
   int spot = 0;
   pattern::SpotId id;
+  bool repaired = false;  // from a corrected or completed window
 };
 // Each window reading votes for the id of its centre and of its 8 neighbours.
 void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,

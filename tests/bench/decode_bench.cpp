@@ -42,8 +42,8 @@ const Frame& frame(const std::string& scenario, int pattern_size = 20, double im
   return f;
 }
 
-void decode(benchmark::State& state, const Frame& f) {
-  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}));
+void decode(benchmark::State& state, const Frame& f, const vision::DecoderOptions& options = {}) {
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), options);
   std::size_t decoded = 0;
   for (auto _ : state) {
     const auto r = decoder.decode(f.rgb);
@@ -151,17 +151,9 @@ const Frame& frame_of_pattern(const std::string& scenario, const std::string& pa
 }
 
 void BM_DecodePattern(benchmark::State& state, const char* scenario, const char* file, bool correct) {
-  const Frame& f = frame_of_pattern(scenario, file);
   vision::DecoderOptions o;
   o.tolerance.by_pattern_distance = correct;
-  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), o);
-  std::size_t decoded = 0;
-  for (auto _ : state) {
-    const auto r = decoder.decode(f.rgb);
-    decoded = r.decoded.size();
-    benchmark::DoNotOptimize(r.decoded.data());
-  }
-  state.counters["decoded"] = static_cast<double>(decoded);
+  decode(state, frame_of_pattern(scenario, file), o);
 }
 
 void BM_DecodeImageSize(benchmark::State& state) { decode(state, frame("plane", 20, state.range(0) / 480.0)); }

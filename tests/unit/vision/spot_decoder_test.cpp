@@ -28,9 +28,8 @@ struct Lattice {
   std::vector<Spot> spots;
   std::vector<std::pair<int, int>> id;  // true (row, col) of each spot
 };
-Lattice lattice(double shear = 0.0) {
+Lattice lattice_of(const pattern::MArray& a, double shear = 0.0) {
   Lattice l;
-  const auto& a = paper_pattern();
   for (int r = 0; r < a.rows; ++r)
     for (int c = 0; c < a.cols; ++c) {
       Spot s;
@@ -43,6 +42,7 @@ Lattice lattice(double shear = 0.0) {
     }
   return l;
 }
+Lattice lattice(double shear = 0.0) { return lattice_of(paper_pattern(), shear); }
 
 // Every decoded id is the spot's true id; returns how many were decoded.
 int check_ids(const Lattice& l, const std::vector<DecodedSpot>& decoded) {
@@ -255,21 +255,6 @@ const pattern::MArray& d3_pattern() {
   static const pattern::MArray a = pattern::load_pattern(
       std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3_d3.txt", {3, 3}, 3);
   return a;
-}
-
-Lattice lattice_of(const pattern::MArray& a) {
-  Lattice l;
-  for (int r = 0; r < a.rows; ++r)
-    for (int c = 0; c < a.cols; ++c) {
-      Spot s;
-      s.u = 30 + 20 * c + 0.7 * std::sin(r * 3.1 + c);
-      s.v = 30 + 20 * r + 0.7 * std::cos(r + c * 2.3);
-      s.colour = a.at(r, c);
-      s.area_px = 20;
-      l.spots.push_back(s);
-      l.id.push_back({r, c});
-    }
-  return l;
 }
 
 TEST(CorrectingDecoder, ReadsTheDistanceOfItsPattern) {

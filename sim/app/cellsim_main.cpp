@@ -374,6 +374,12 @@ int main(int argc, char** argv) {
   bool no_propagate = false;
   ds->add_flag("--no-propagate", no_propagate, "with --projector: do not propagate ids to linked neighbours");
   ds->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
+  ds->add_option("--max-translation-cm", sweep.max_translation_cm,
+                 "draw each translation component in +-this (default: the scenario's initial offset per axis)")
+      ->check(config::finite_in(0, 100));
+  ds->add_option("--max-rotation-deg", sweep.max_rotation_deg,
+                 "draw each rotation component in +-this (default: the scenario's initial offset per axis)")
+      ->check(config::finite_in(0, 90));
   ds->add_option("-o,--output", sweep_dir, "folder for sweep.csv and overlays of poses with wrong ids");
   LawFlags law;
   std::string source = "decoded", initial, exp_dir;

@@ -25,8 +25,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const sim::Scenario& sc = cell.scenario;
   std::array<double, 6> range{};
   for (int i = 0; i < 3; ++i) {
-    range[i] = std::max(2.0, std::abs(sc.initial_translation_cm[i]));
-    range[3 + i] = std::max(2.0, std::abs(sc.initial_rotation_deg[i]));
+    range[i] = o.max_translation_cm.value_or(std::max(2.0, std::abs(sc.initial_translation_cm[i])));
+    range[3 + i] = o.max_rotation_deg.value_or(std::max(2.0, std::abs(sc.initial_rotation_deg[i])));
   }
   // all poses drawn up front from one seeded stream: the sweep does not depend on threading
   std::mt19937_64 rng(o.seed);

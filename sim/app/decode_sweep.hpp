@@ -23,6 +23,9 @@ struct SweepOptions {
   double match_tolerance_px = 2.0;
   std::filesystem::path out_dir;   // sweep.csv (and failure overlays) go here when set
   int threads = 2;
+  // the draw: each offset component uniform in +-this (default: the scenario's initial offset
+  // per axis, at least 2 cm / 2 deg); issue 19 widens it to find rare wrong ids
+  std::optional<double> max_translation_cm, max_rotation_deg;
 };
 
 struct SweepRow {

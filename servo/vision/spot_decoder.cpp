@@ -228,11 +228,10 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
   for (std::size_t s = 0; s < hoods.window.size(); ++s) {
     const Window& w = hoods.window[s];
     std::array<std::uint8_t, 9> colours{};
-    int missing = -1, n_missing = 0;
+    int n_missing = 0;
     for (int i = 0; i < 9; ++i) {
       if (w[i] < 0) {
         ++n_missing;
-        missing = i;
         colours[i] = 0;
       } else {
         colours[i] = static_cast<std::uint8_t>(spots[w[i]].colour);
@@ -273,7 +272,6 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
         for (int i = 0, v = m; i < h; ++i, v /= k) cc[holes[i]] = static_cast<std::uint8_t>(v % k);
         try_window(cc, -1);
       }
-      (void)missing;
     } else {
       for (int i = 0; i < 9; ++i)
         for (int c = 0; c < k; ++c) {

@@ -218,11 +218,17 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
     }
     if (k == 0) res.decoded_initial = static_cast<int>(spots.size());
-    std::vector<servo::ImageSpot> seen = spots;
+    // the outlier injection works on a copy, made only when it is on
+    std::vector<servo::ImageSpot> swapped_spots;
     std::vector<std::pair<int, int>> wrong_ids;
-    const int swapped =
-        inject_outliers(seen, o.outlier_fraction, sim::frame_seed(seed ^ 0x6f75746c69657273ull, frame), &wrong_ids);
-    const servo::StepResult step = pipeline.step(seen, robot.reported_world_T_camera());
+    int swapped = 0;
+    if (o.outlier_fraction > 0) {
+      swapped_spots = spots;
+      swapped = inject_outliers(swapped_spots, o.outlier_fraction,
+                                sim::frame_seed(seed ^ 0x6f75746c69657273ull, frame), &wrong_ids);
+    }
+    const servo::StepResult step =
+        pipeline.step(o.outlier_fraction > 0 ? swapped_spots : spots, robot.reported_world_T_camera());
 
     IterationRecord rec;
     rec.t_s = k * sc.dt_s;

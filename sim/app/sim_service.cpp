@@ -302,7 +302,7 @@ class SimService {
                            });
     }
     if (loading_.valid()) loading_.wait();  // a load is bounded by its files' limits; its objects must not outlive us
-    summary(seconds_since(t0));
+    summary();
     return 0;
   }
 
@@ -504,10 +504,9 @@ class SimService {
     if (o_.mode == TimingMode::kRealtime) trace_.flush();  // a realtime run usually ends by a signal
   }
 
-  void summary(double wall_s) {
+  void summary() {
     const auto& c = machine_->counters();
     const Eigen::Isometry3d wTc = machine_->world_T_camera();
-    (void)wall_s;
     if (c.applied > 0 && c.stepping_s > 0)
       std::printf("cellsim: loop rate %.0f iterations/s (%ld steps in %.2f s of stepping time; idle and paused time "
                   "not counted)\n",

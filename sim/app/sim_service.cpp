@@ -3,6 +3,7 @@
 #include "sim/app/campaign.hpp"
 #include "sim/app/experiment.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -121,9 +122,10 @@ std::filesystem::path allowed_scenario(const std::filesystem::path& requested, c
   std::error_code ec;
   const std::filesystem::path real = std::filesystem::canonical(p, ec);
   if (ec) throw std::runtime_error(requested.string() + ": scenario not found under " + allowed.string());
-  const std::string a = allowed.string(), r = real.string();
-  if (r.size() <= a.size() || r.compare(0, a.size(), a) != 0 || r[a.size()] != '/')
-    throw std::runtime_error(requested.string() + ": outside the folder LOAD_SCENARIO may read (" + a +
+  // component by component: "/a/bc" is not under "/a/b", and everything is under "/"
+  const auto [in_allowed, in_real] = std::mismatch(allowed.begin(), allowed.end(), real.begin(), real.end());
+  if (in_allowed != allowed.end() || in_real == real.end())
+    throw std::runtime_error(requested.string() + ": outside the folder LOAD_SCENARIO may read (" + allowed.string() +
                              "; cellsim serve --scenarios DIR names another)");
   return real;
 }

@@ -220,6 +220,167 @@ bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) con
   return true;
 }
 
+namespace {
+// how much a run's step may change from one spot to the next (fraction of the step)
+constexpr double kRunBend = 0.4;
+
+// Three spots a, b, c in a row of the lattice on one smooth surface: the step b -> c close to
+// a -> b. Across a depth edge the spot from the surface behind breaks it.
+bool bends_little(const Spot& a, const Spot& b, const Spot& c) {
+  const double su = c.u - 2 * b.u + a.u, sv = c.v - 2 * b.v + a.v;
+  const double lu = c.u - b.u, lv = c.v - b.v, pu = b.u - a.u, pv = b.v - a.v;
+  return su * su + sv * sv <= kRunBend * kRunBend * std::max(lu * lu + lv * lv, pu * pu + pv * pv);
+}
+
+// how unlike (fraction of the step) the opposite sides of a window's lattice cell may be
+constexpr double kCellSlack = 0.35;
+
+// every row and column of the window (where all three spots are there) bends little, and each
+// of its four lattice cells is near a parallelogram: a cell across a depth edge, with a spot
+// from the surface behind shifted along its row, is not
+bool smooth_window(const std::vector<Spot>& spots, const Window& w) {
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 2; ++c) {
+      const int a = w[3 * r + c], b = w[3 * r + c + 1], p = w[3 * r + c + 3], q = w[3 * r + c + 4];
+      if (a < 0 || b < 0 || p < 0 || q < 0) continue;
+      const double eu = spots[b].u - spots[a].u, ev = spots[b].v - spots[a].v;  // top side
+      const double fu = spots[q].u - spots[p].u, fv = spots[q].v - spots[p].v;  // bottom side
+      const double su = spots[p].u - spots[a].u, sv = spots[p].v - spots[a].v;  // left side
+      const double du = eu - fu, dv = ev - fv;
+      const double step2 = std::max(std::min(eu * eu + ev * ev, fu * fu + fv * fv), 0.0);
+      const double side2 = su * su + sv * sv;
+      // (the right side's difference from the left is the same vector)
+      if (du * du + dv * dv > kCellSlack * kCellSlack * std::max(step2, 0.25 * side2)) return false;
+    }
+  for (int k = 0; k < 3; ++k) {
+    const int r0 = w[3 * k], r1 = w[3 * k + 1], r2 = w[3 * k + 2];
+    if (r0 >= 0 && r1 >= 0 && r2 >= 0 && !bends_little(spots[r0], spots[r1], spots[r2])) return false;
+    const int c0 = w[k], c1 = w[k + 3], c2 = w[k + 6];
+    if (c0 >= 0 && c1 >= 0 && c2 >= 0 && !bends_little(spots[c0], spots[c1], spots[c2])) return false;
+  }
+  return true;
+}
+
+// the colours of a window whose nine spots are all there, or nothing
+std::optional<std::array<std::uint8_t, 9>> colours_of(const std::vector<Spot>& spots, const Window& w) {
+  std::array<std::uint8_t, 9> c{};
+  for (int i = 0; i < 9; ++i) {
+    if (w[i] < 0) return std::nullopt;
+    c[i] = static_cast<std::uint8_t>(spots[w[i]].colour);
+  }
+  return c;
+}
+// the window reads as a pattern window, on its epipolar lines when checked; `one_off`: or as
+// one within one symbol of it (a misread colour that correction will mend)
+bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::WindowTable& table,
+           const EpipolarCheck* check, bool one_off = false) {
+  auto c = colours_of(spots, w);
+  if (!c || !smooth_window(spots, w)) return false;
+  const auto fits = [&](const std::array<std::uint8_t, 9>& x) {
+    const auto id = table.find(x.data());
+    return id && (!check || check->confirms(w, *id));
+  };
+  if (fits(*c)) return true;
+  if (!one_off) return false;
+  for (int i = 0; i < 9; ++i) {
+    const std::uint8_t was = (*c)[i];
+    for (int k = 0; k < table.array().colours; ++k) {
+      if (k == was) continue;
+      (*c)[i] = static_cast<std::uint8_t>(k);
+      if (fits(*c)) return true;
+    }
+    (*c)[i] = was;
+  }
+  return false;
+}
+}  // namespace
+
+AdjacencyGraph resolve_column_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
+                                    const Neighbourhoods& hoods, const pattern::WindowTable& table,
+                                    const EpipolarCheck* check) {
+  AdjacencyGraph out = graph;
+  const std::size_t n = spots.size();
+  const auto step = [&](int i, Direction d) { return i < 0 ? -1 : graph.next[i][d]; };
+  // a row's three spots centred on c (or nothing when c lacks a row link)
+  const auto row_of = [&](int c) -> std::optional<std::array<int, 3>> {
+    if (c < 0 || graph.next[c][kWest] < 0 || graph.next[c][kEast] < 0) return std::nullopt;
+    return std::array<int, 3>{graph.next[c][kWest], c, graph.next[c][kEast]};
+  };
+  // the spots that may be the row above (below) centred over i: its linked one, and the ones
+  // reached through its row neighbours, each shifted by -1, 0, +1 along their row
+  const auto centres = [&](int i, Direction d, std::array<int, 9>& found) {
+    int m = 0;
+    for (const int x : {step(i, d), step(step(step(i, kWest), d), kEast), step(step(step(i, kEast), d), kWest)})
+      for (const int y : {x, step(x, kWest), step(x, kEast)})
+        if (y >= 0 && y != i && std::find(found.begin(), found.begin() + m, y) == found.begin() + m) found[m++] = y;
+    return m;
+  };
+  std::vector<std::array<int, 2>> proposal(n, {-1, -1});  // north, south
+  std::vector<char> proposed(n, 0);
+  std::array<int, 9> tops{}, bottoms{};
+  for (std::size_t s = 0; s < n; ++s) {
+    const int i = static_cast<int>(s);
+    if (reads(spots, hoods.window[s], table, check)) continue;  // its links read already
+    const auto middle = row_of(i);
+    if (!middle) continue;
+    const int nt = centres(i, kNorth, tops), nb = centres(i, kSouth, bottoms);
+    int matches = 0;
+    std::array<int, 2> best{-1, -1};
+    for (int a = 0; a < nt && matches <= 1; ++a)
+      for (int b = 0; b < nb && matches <= 1; ++b) {
+        const int t = tops[a], u = bottoms[b];
+        if (t == u) continue;
+        // the column through i goes straight on: a shear slants it, curvature bends it a little
+        const Spot &st = spots[t], &sm = spots[i], &sb = spots[u];
+        const double eu = st.u + sb.u - 2 * sm.u, ev = st.v + sb.v - 2 * sm.v;
+        const double lt = (st.u - sm.u) * (st.u - sm.u) + (st.v - sm.v) * (st.v - sm.v);
+        const double lb = (sb.u - sm.u) * (sb.u - sm.u) + (sb.v - sm.v) * (sb.v - sm.v);
+        if (eu * eu + ev * ev > 0.16 * std::max(lt, lb) || lt > 2.25 * lb || lb > 2.25 * lt) continue;
+        const auto above = row_of(t), below = row_of(u);
+        if (!above || !below) continue;
+        const Window w{(*above)[0], t, (*above)[2], (*middle)[0], i, (*middle)[2], (*below)[0], u, (*below)[2]};
+        if (!reads(spots, w, table, check)) continue;
+        ++matches;
+        best = {t, u};
+      }
+    if (matches != 1 || (best[0] == graph.next[s][kNorth] && best[1] == graph.next[s][kSouth])) continue;
+    proposal[s] = best;
+    proposed[s] = 1;
+  }
+  // A shear slants a region, not one spot: a choice is taken when a row neighbour's column
+  // links (its own choice, or the links it has) are the same choice moved along the row. A
+  // window that reads by chance after a shift (1 in 60 codes is valid) stands alone.
+  const auto links_of = [&](int x) { return proposed[x] ? proposal[x] : std::array<int, 2>{step(x, kNorth), step(x, kSouth)}; };
+  std::vector<char> taken(n, 0);
+  for (std::size_t s = 0; s < n; ++s) {
+    if (!proposed[s]) continue;
+    const auto [t, u] = proposal[s];
+    for (const Direction d : {kWest, kEast}) {
+      const int x = graph.next[s][d];
+      if (x < 0) continue;
+      const auto [xt, xu] = links_of(x);
+      if (xt >= 0 && xu >= 0 && xt == step(t, d) && xu == step(u, d)) taken[s] = 1;
+    }
+  }
+  for (std::size_t s = 0; s < n; ++s) proposed[s] = taken[s];
+  for (std::size_t s = 0; s < n; ++s) {
+    if (!proposed[s]) continue;
+    const auto [t, u] = proposal[s];
+    out.next[s][kNorth] = t;
+    out.next[s][kSouth] = u;
+    // the other end takes the link back unless it has a choice of its own
+    if (!proposed[t]) out.next[t][kSouth] = static_cast<int>(s);
+    if (!proposed[u]) out.next[u][kNorth] = static_cast<int>(s);
+  }
+  // keep the graph symmetric: a column link that lost its other end is dropped
+  for (std::size_t s = 0; s < n; ++s)
+    for (const Direction k : {kNorth, kSouth}) {
+      const int j = out.next[s][k];
+      if (j >= 0 && out.next[j][(k + 2) % 4] != static_cast<int>(s)) out.next[s][k] = -1;
+    }
+  return out;
+}
+
 std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
                                         const pattern::WindowTable& table, const ToleranceOptions& tolerance,
                                         const EpipolarCheck* check) {
@@ -227,6 +388,8 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
   const int k = table.array().colours;
   for (std::size_t s = 0; s < hoods.window.size(); ++s) {
     const Window& w = hoods.window[s];
+    // a window across a depth edge, however it reads, is not one lattice cell
+    if (!smooth_window(spots, w)) continue;
     std::array<std::uint8_t, 9> colours{};
     int n_missing = 0;
     for (int i = 0; i < 9; ++i) {
@@ -299,8 +462,6 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
 // how far (fraction of a lattice step) a propagated spot may be from where the lattice puts it
 constexpr double kLatticeSlack = 0.25;
 
-// how much a run's step may change from one spot to the next (fraction of the step)
-constexpr double kRunBend = 0.4;
 
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
                    const pattern::MArray& pattern, int length, std::vector<IdVote>& votes) {
@@ -333,12 +494,8 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
       // a run along one surface is smooth: each step close to the one before. At an object's
       // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
       bool smooth = true;
-      for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m) {
-        const Spot &a = spots[run[m - 1]], &b = spots[run[m]], &c = spots[run[m + 1]];
-        const double su = c.u - 2 * b.u + a.u, sv = c.v - 2 * b.v + a.v;
-        const double lu = c.u - b.u, lv = c.v - b.v, pu = b.u - a.u, pv = b.v - a.v;
-        smooth = su * su + sv * sv <= kRunBend * kRunBend * std::max(lu * lu + lv * lv, pu * pu + pv * pv);
-      }
+      for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m)
+        smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]]);
       if (!smooth) continue;
       // the run read straight along the axis, or sheared by one id across it per step (a
       // column seen obliquely links diagonal neighbours): a misread run that fits one way
@@ -454,6 +611,12 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   return out;
 }
 
+// how much fainter or smaller than its source a propagated spot may be
+constexpr double kAlike = 0.4;
+bool alike(const Spot& source, const Spot& s) {
+  return s.strength >= kAlike * source.strength && s.area_px >= kAlike * source.area_px;
+}
+
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
                                        const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
@@ -517,6 +680,9 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
         const pattern::SpotId id{from.row + kStep[k][0], from.col + kStep[k][1]};
         Proposal& p = proposals[j];
         if (!continues_lattice(from, j, k)) continue;  // j is not where this source's lattice goes
+        // j looks like a spot of the source's surface: a faint speck of noise, or the dim light
+        // of a surface behind an edge (defocused, oblique), is not
+        if (!alike(spots[from.spot], spots[j])) continue;
         if (!beyond_agrees(from, j, k, id)) continue;
         if (p.sources > 0 && !(p.id == id)) p.conflict = true;
         p.id = id;
@@ -576,12 +742,18 @@ SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;
   r.detected = std::move(spots);
-  const AdjacencyGraph graph = build_adjacency(r.detected);
-  const Neighbourhoods hoods = check_graph_consistency(graph);
+  AdjacencyGraph graph = build_adjacency(r.detected);
+  Neighbourhoods hoods = check_graph_consistency(graph);
   const int n = static_cast<int>(r.detected.size());
+  std::optional<EpipolarCheck> epipolar;
+  if (geometry) epipolar.emplace(*geometry, r.detected);
+  if (options_.resolve_shear) {
+    graph = resolve_column_shear(r.detected, graph, hoods, table_, epipolar ? &*epipolar : nullptr);
+    hoods = check_graph_consistency(graph);
+  }
   if (geometry) {
     const EpipolarOptions& e = options_.epipolar;
-    const EpipolarCheck check(*geometry, r.detected);
+    const EpipolarCheck& check = *epipolar;
     ToleranceOptions tolerance = options_.tolerance;
     tolerance.enabled = tolerance.enabled || e.tolerant;
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, tolerance, &check);

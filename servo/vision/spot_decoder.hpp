@@ -49,6 +49,23 @@ struct EpipolarCheck {
   std::vector<Eigen::Vector2d> xy;  // normalised coordinates of every spot
 };
 
+// Step 2b, beyond the paper. A lattice seen under shear (a surface whose depth changes along
+// the pattern's columns: the ham's flanks, the cylinder towards its silhouette) has its columns
+// slanted by up to a whole step per row, and the north/south link of step 1 then goes to a
+// diagonal neighbour. The lattices (row, column) and (row, column + row) are the same points:
+// geometry cannot tell which is the pattern's, but the code can. For every spot whose window
+// does not read, the rows above and below are tried shifted by -1, 0 and +1 along their row
+// links (the column through the spot kept straight); when exactly one choice reads as a
+// pattern window (and, with `check`, lies on its epipolar lines), the spot's north and south
+// links are rewritten to it. Links are kept symmetric. Returns the graph with those links.
+// A choice is taken when a row neighbour's column links are the same choice moved along the
+// row: a shear slants a region, a window that reads by chance after a shift stands alone.
+// Every window tried, and every window read afterwards, must be a smooth lattice cell: rows and
+// columns that bend little and cells near parallelograms (a cell across a depth edge is not).
+AdjacencyGraph resolve_column_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
+                                    const Neighbourhoods& hoods, const pattern::WindowTable& table,
+                                    const EpipolarCheck* check = nullptr);
+
 struct ToleranceOptions {
   bool enabled = false;  // beyond the paper: accept a window with one missing neighbour or one
                          // wrong colour when exactly one pattern window fits it
@@ -152,6 +169,7 @@ struct DecoderOptions {
   // (docs/decoding.md); the cost is the pattern's corners and their neighbours.
   int min_votes = 3;
   int min_island = 12;  // step 5; 0 turns it off (the paper's decoder)
+  bool resolve_shear = true;  // step 2b
   EpipolarOptions epipolar;  // used when decode() is given the frame's geometry
 };
 

@@ -137,6 +137,10 @@ int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) 
               "resolved\n",
               s.total_correct_readable, s.total_readable, 100 * s.mean_readable_rate, s.total_resolved,
               s.total_visible);
+  std::printf("  where the readable spots are lost: %d segmented (a blob of their colour), %d with their four "
+              "links right, %d with their whole window right after the graph check, %d identified\n",
+              s.total_readable_segmented, s.total_readable_linked, s.total_readable_windowed,
+              s.total_correct_readable);
   std::printf("  decode time median %.2f ms, p99 %.2f ms\n", s.median_ms, s.p99_ms);
   if (!o.out_dir.empty()) std::printf("  per-pose table: %s\n", (o.out_dir / "sweep.csv").c_str());
   return s.total_wrong == 0 ? 0 : 3;

@@ -122,6 +122,48 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
           right[static_cast<std::size_t>(d.row) * cols + d.col] = 1;
         }
       }
+      // the funnel: each detected blob's true id (the visible spot within the tolerance)
+      std::vector<int> truth_of(r.detected.size(), -1), blob_of(truth.size(), -1);
+      for (std::size_t b = 0; b < r.detected.size(); ++b) {
+        double best = o.match_tolerance_px;
+        for (std::size_t i = 0; i < truth.size(); ++i) {
+          if (!truth[i].visible) continue;
+          const double dist = std::hypot(truth[i].uv.x() - r.detected[b].u, truth[i].uv.y() - r.detected[b].v);
+          if (dist < best) best = dist, truth_of[b] = static_cast<int>(i);
+        }
+        const int i = truth_of[b];
+        if (i >= 0 && cell.projector->pattern().at(i / cols, i % cols) == r.detected[b].colour) blob_of[i] = static_cast<int>(b);
+      }
+      vision::AdjacencyGraph graph = vision::build_adjacency(r.detected);
+      vision::Neighbourhoods hoods = vision::check_graph_consistency(graph);
+      if (o.decoder.resolve_shear) {
+        std::optional<vision::EpipolarCheck> check;
+        if (geometry) check.emplace(*geometry, r.detected);
+        graph = vision::resolve_column_shear(r.detected, graph, hoods, decoder.table(), check ? &*check : nullptr);
+        hoods = vision::check_graph_consistency(graph);
+      }
+      for (std::size_t i = 0; i < truth.size(); ++i) {
+        if (!readable[i] || blob_of[i] < 0) continue;
+        ++row.readable_segmented;
+        const int pr = static_cast<int>(i) / cols, pc = static_cast<int>(i) % cols;
+        const auto truth_blob = [&](int rr, int cc) {
+          return rr < 0 || cc < 0 || rr >= rows_n || cc >= cols ? -2 : blob_of[static_cast<std::size_t>(rr) * cols + cc];
+        };
+        // image directions against pattern directions: east = +col, south = +row
+        const int dr[4] = {0, 1, 0, -1}, dc[4] = {1, 0, -1, 0};
+        bool linked = true;
+        for (int k = 0; k < 4 && linked; ++k) {
+          const int want = truth_blob(pr + dr[k], pc + dc[k]);
+          if (want != -2) linked = graph.next[blob_of[i]][k] == want && want >= 0;
+        }
+        row.readable_linked += linked;
+        bool windowed = true;
+        for (int w = 0; w < 9 && windowed; ++w) {
+          const int want = truth_blob(pr + w / 3 - 1, pc + w % 3 - 1);
+          if (want != -2) windowed = hoods.window[blob_of[i]][w] == want && want >= 0;
+        }
+        row.readable_windowed += windowed;
+      }
       for (std::size_t i = 0; i < truth.size(); ++i) {
         row.decodable += decodable[i];
         row.correct_decodable += decodable[i] && right[i];
@@ -157,6 +199,9 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     s.total_resolved += r.resolved;
     s.total_readable += r.readable;
     s.total_correct_readable += r.correct_readable;
+    s.total_readable_segmented += r.readable_segmented;
+    s.total_readable_linked += r.readable_linked;
+    s.total_readable_windowed += r.readable_windowed;
     if (r.readable > 0) {
       readable_rate_sum += static_cast<double>(r.correct_readable) / r.readable;
       ++rated_readable;
@@ -199,13 +244,15 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     std::ofstream csv(o.out_dir / "sweep.csv");
     csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
            "partial,"
-           "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable\n";
+           "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
+           "readable_windowed\n";
     for (const auto& r : rows) {
       csv << r.pose << ',' << r.noise_sigma;
       for (double x : r.offset) csv << ',' << x;
       csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
           << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable << ','
-          << r.resolved << ',' << r.readable << ',' << r.correct_readable << '\n';
+          << r.resolved << ',' << r.readable << ',' << r.correct_readable << ','
+          << r.readable_segmented << ',' << r.readable_linked << ',' << r.readable_windowed << '\n';
     }
   }
   return s;

@@ -45,6 +45,11 @@ struct SweepRow {
   // resolved: visible and not washed out by the projector's defocus (SpotTruth::resolved);
   // readable: resolved, in some 3 x 3 window whose nine spots are all resolved
   int resolved = 0, readable = 0, correct_readable = 0;
+  // where the readable spots are lost, step by step: segmented (a blob of the spot's colour
+  // within the match tolerance), linked (its four links, where the pattern has a neighbour, go
+  // to the blobs of the true neighbours), windowed (its 8-neighbourhood after the graph check
+  // is complete and right)
+  int readable_segmented = 0, readable_linked = 0, readable_windowed = 0;
   double decode_ms = 0;
 };
 
@@ -53,6 +58,7 @@ struct SweepSummary {
   int total_decoded = 0, total_wrong = 0, total_visible = 0, total_mislocated = 0, total_partial = 0;
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
+  int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;
   double mean_rate = 0, min_rate = 1;
   double mean_decodable_rate = 0;  // mean over poses of correct_decodable / decodable
   double mean_readable_rate = 0;   // mean over poses of correct_readable / readable

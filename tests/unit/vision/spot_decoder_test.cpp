@@ -395,3 +395,58 @@ TEST(CorrectingDecoder, TheDistanceOnePatternDecodesAsBefore) {
 
 }  // namespace
 }  // namespace vision
+
+namespace vision {
+namespace {
+
+// Columns slanted by 0.9 of a step per row (a surface whose depth changes along the columns):
+// the nearest spot below is the south-west diagonal, and step 1 links it. Resolving the shear
+// by the code relinks the columns, and the decoder names the lattice, every id right.
+TEST(ColumnShear, TheCodeTellsTheTrueColumnsOfAShearedLattice) {
+  for (const pattern::MArray* a : {&paper_pattern(), &d3_pattern()}) {
+    const pattern::WindowTable t(*a, {3, 3});
+    const Lattice l = lattice_of(*a, 0.9);
+    const AdjacencyGraph g = build_adjacency(l.spots);
+    int diagonal = 0;
+    for (std::size_t s = 0; s < l.spots.size(); ++s) {
+      const int j = g.next[s][kSouth];
+      diagonal += j >= 0 && l.id[j].second != l.id[s].second;
+    }
+    EXPECT_GT(diagonal, 200) << "the lattice is not sheared enough to mislead step 1";
+    const AdjacencyGraph resolved = resolve_column_shear(l.spots, g, check_graph_consistency(g), t);
+    int right = 0;
+    for (std::size_t s = 0; s < l.spots.size(); ++s) {
+      const int j = resolved.next[s][kSouth];
+      if (j < 0) continue;
+      EXPECT_EQ(l.id[j].second, l.id[s].second) << "spot " << s;
+      EXPECT_EQ(l.id[j].first, l.id[s].first + 1) << "spot " << s;
+      ++right;
+    }
+    EXPECT_GT(right, 300);
+    DecoderOptions off;
+    off.resolve_shear = false;
+    const int with = check_ids(l, SpotDecoder(t).decode_spots(l.spots).decoded);
+    const int without = check_ids(l, SpotDecoder(t, off).decode_spots(l.spots).decoded);
+    EXPECT_GT(with, 300);
+    EXPECT_LT(without, 100);
+  }
+}
+
+// A window across a depth edge: its top row comes from the surface behind, shifted along the
+// row by 0.6 of a step, colours intact. It is not a lattice cell, and it is not read.
+TEST(ColumnShear, AWindowAcrossADepthEdgeIsNotRead) {
+  Lattice l = lattice();
+  const Neighbourhoods h = check_graph_consistency(build_adjacency(l.spots));
+  const int centre = 5 * 20 + 5;
+  const auto reads_centre = [&](const std::vector<Spot>& spots) {
+    for (const auto& r : read_windows(spots, h, table()))
+      if (r.centre == centre) return true;
+    return false;
+  };
+  ASSERT_TRUE(reads_centre(l.spots));
+  for (int c = 4; c <= 6; ++c) l.spots[4 * 20 + c].u += 0.6 * 20 * (c - 3) / 2.0;
+  EXPECT_FALSE(reads_centre(l.spots));
+}
+
+}  // namespace
+}  // namespace vision

@@ -295,6 +295,21 @@ bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::Windo
 }
 }  // namespace
 
+// a blob smaller than this fraction of the median area of the spots linked to it is a fragment
+constexpr double kFragmentArea = 0.5;
+
+bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& graph, int i) {
+  std::array<int, 4> areas{};
+  std::size_t m = 0;
+  for (const int j : graph.next[i])
+    if (j >= 0) areas[m++] = spots[j].area_px;
+  if (m == 0) return false;
+  for (std::size_t a = 1; a < m; ++a)  // insertion sort of at most four
+    for (std::size_t b = a; b > 0 && areas[b - 1] > areas[b]; --b) std::swap(areas[b - 1], areas[b]);
+  const double median = m % 2 ? areas[m / 2] : 0.5 * (areas[m / 2 - 1] + areas[m / 2]);
+  return spots[i].area_px < kFragmentArea * median;
+}
+
 AdjacencyGraph resolve_column_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                     const Neighbourhoods& hoods, const pattern::WindowTable& table,
                                     const EpipolarCheck* check) {
@@ -776,8 +791,11 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, options_.min_island);
   }
   // a spot cut by the image border helps decode its neighbours, but its centroid is not
-  // where its centre is: it is not reported
-  std::erase_if(r.decoded, [&](const DecodedSpot& d) { return r.detected[d.spot].truncated; });
+  // where its centre is: it is not reported. Nor is a fragment, a blob far smaller than the
+  // spots linked to it: a spot cut by a depth edge or the object's silhouette
+  std::erase_if(r.decoded, [&](const DecodedSpot& d) {
+    return r.detected[d.spot].truncated || is_fragment(r.detected, graph, d.spot);
+  });
   return r;
 }
 

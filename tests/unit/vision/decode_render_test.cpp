@@ -17,20 +17,28 @@ TEST(DecodeRender, RecoversTrueIdsAtRandomPoses) {
     const vision::SpotDecoder decoder(pattern::WindowTable(cell->projector->pattern(), {3, 3}));
     std::mt19937_64 rng(42);
     std::uniform_real_distribution<double> t(-6, 6), r(-6, 6);
-    int decoded = 0, wrong = 0;
+    // wrong: the named spot is not the visible spot nearest the decoded blob; mislocated: it
+    // is, the centroid more than 2 px from its centre (a spot on a surface seen at a grazing
+    // angle, or cut by an edge: 2-4 px)
+    int decoded = 0, wrong = 0, mislocated = 0;
     for (int k = 0; k < 6; ++k) {
       const Eigen::Isometry3d wTc = sim::offset_pose(cell->scenario.world_T_desired, {t(rng), t(rng), t(rng)},
                                                      {r(rng), r(rng), r(rng)}, cell->scenario.offset_frame_rotation_deg);
       const auto truth = sim::compute_truth(*cell, wTc);
       const auto result = decoder.decode(sim::render_image(*cell, wTc, sim::frame_seed(7, k)));
       for (const auto& d : result.decoded) {
-        const auto& tr = truth[static_cast<std::size_t>(d.row) * 20 + d.col];
-        const bool ok = tr.visible && std::hypot(tr.uv.x() - d.u, tr.uv.y() - d.v) < 2.0;
-        wrong += !ok;
+        const sim::SpotTruth* nearest = nullptr;
+        double best = 1e18;
+        for (const auto& tr : truth)
+          if (tr.visible && std::hypot(tr.uv.x() - d.u, tr.uv.y() - d.v) < best)
+            best = std::hypot(tr.uv.x() - d.u, tr.uv.y() - d.v), nearest = &tr;
+        wrong += !nearest || nearest->row != d.row || nearest->col != d.col;
+        mislocated += best >= 2.0;
         ++decoded;
       }
     }
     EXPECT_EQ(wrong, 0) << name;
+    EXPECT_LE(mislocated, decoded / 100) << name;
     EXPECT_GT(decoded, 6 * 80) << name;
   }
 }

@@ -58,6 +58,90 @@ double median(std::vector<double> x) {
 
 }  // namespace
 
+// Rows are linked far more reliably than columns (the spacing along a row is regular; down a
+// column, shear and foreshortening make a diagonal neighbour compete with the true one). Two
+// rows of the pattern that lie one above the other are joined by one column offset: the links
+// between two row chains vote for it, and when most agree, every spot of the two chains is
+// linked by it (a link the nearest-spot rule got wrong or missed is mended). Which offset is
+// the pattern's own, not a shear of it, the code decides later (resolve_column_shear).
+void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
+  const auto back = static_cast<Direction>((along + 2) % 4), reverse = static_cast<Direction>((across + 2) % 4);
+  const std::size_t n = g.next.size();
+  std::vector<int> chain(n, -1), pos(n, 0);
+  std::vector<std::vector<int>> chains;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (chain[s] >= 0) continue;
+    int head = static_cast<int>(s);
+    // walk west to the chain's start (bounded: the links are mutual, a chain cannot loop back)
+    for (std::size_t guard = 0; g.next[head][back] >= 0 && guard < n; ++guard) head = g.next[head][back];
+    if (chain[head] >= 0) continue;
+    const int id = static_cast<int>(chains.size());
+    chains.emplace_back();
+    for (int x = head; x >= 0 && chain[x] < 0; x = g.next[x][along]) {
+      chain[x] = id;
+      pos[x] = static_cast<int>(chains.back().size());
+      chains.back().push_back(x);
+    }
+  }
+  // votes: (upper chain, lower chain, offset) from every south link
+  struct Vote {
+    int upper, lower, offset;
+    bool operator<(const Vote& o) const { return std::tie(upper, lower, offset) < std::tie(o.upper, o.lower, o.offset); }
+  };
+  std::vector<Vote> votes;
+  for (std::size_t s = 0; s < n; ++s) {
+    const int j = g.next[s][across];
+    if (j >= 0 && chain[j] >= 0 && chain[j] != chain[s]) votes.push_back({chain[s], chain[j], pos[j] - pos[static_cast<int>(s)]});
+  }
+  std::sort(votes.begin(), votes.end());
+  // per chain pair: the offset most links take, when at least 3 and three quarters of them do
+  struct Join {
+    int upper, lower, offset;
+  };
+  std::vector<Join> joins;
+  for (std::size_t a = 0; a < votes.size();) {
+    std::size_t b = a;
+    int total = 0, best = 0, best_offset = 0;
+    while (b < votes.size() && votes[b].upper == votes[a].upper && votes[b].lower == votes[a].lower) {
+      std::size_t c = b;
+      while (c < votes.size() && votes[c].upper == votes[b].upper && votes[c].lower == votes[b].lower &&
+             votes[c].offset == votes[b].offset)
+        ++c;
+      const int count = static_cast<int>(c - b);
+      total += count;
+      if (count > best) best = count, best_offset = votes[b].offset;
+      b = c;
+    }
+    if (best >= 3 && 4 * best >= 3 * total) joins.push_back({votes[a].upper, votes[a].lower, best_offset});
+    a = b;
+  }
+  // a spot joined to two lower chains (or two upper) keeps its links as they are
+  std::vector<int> south(n, -1), claims(n, 0), north_claims(n, 0);
+  for (const Join& j : joins) {
+    const auto& up = chains[j.upper];
+    const auto& low = chains[j.lower];
+    for (int k = 0; k < static_cast<int>(up.size()); ++k) {
+      const int m = k + j.offset;
+      if (m < 0 || m >= static_cast<int>(low.size())) continue;
+      south[up[k]] = low[m];
+      ++claims[up[k]];
+      ++north_claims[low[m]];
+    }
+  }
+  for (std::size_t s = 0; s < n; ++s) {
+    const int j = south[s];
+    if (j < 0 || claims[s] != 1 || north_claims[j] != 1 || g.next[s][across] == j) continue;
+    // unlink what each end had, then link them
+    if (g.next[s][across] >= 0) g.next[g.next[s][across]][reverse] = -1;
+    if (g.next[j][reverse] >= 0) g.next[g.next[j][reverse]][across] = -1;
+    g.next[s][across] = j;
+    g.next[j][reverse] = static_cast<int>(s);
+  }
+}
+
+// how far (fraction of a step) a completed link's spot may be from where its neighbours put it
+constexpr double kCompletionSlack = 0.3;
+
 AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
   AdjacencyGraph g;
   const std::size_t n = spots.size();
@@ -180,6 +264,52 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
       const int j = g.next[i][k];
       if (j >= 0 && g.next[j][(k + 2) % 4] != static_cast<int>(i)) g.next[i][k] = -1;
     }
+  align_chains(g, kEast, kSouth);  // columns between row chains
+  // Completion from the lattice around: a link the nearest-candidate rule missed (a column whose
+  // candidates two spots contend for, a row squeezed towards the silhouette past the spacing
+  // rule) is where the neighbours' links say it is. The spot missing its south link takes the
+  // step its east and west neighbours take south, and links the spot found there if that one
+  // has no north link yet. Two rounds: a completed link lends its step to the next.
+  for (int round = 0; round < 2; ++round) {
+    std::vector<std::array<int, 4>> add(n, {-1, -1, -1, -1});
+    for (std::size_t s = 0; s < n; ++s)
+      for (int k = 0; k < 4; ++k) {
+        if (g.next[s][k] >= 0) continue;
+        // the two directions across k: their spots' steps in k
+        double vu = 0, vv = 0;
+        int refs = 0;
+        for (const int across : {(k + 1) % 4, (k + 3) % 4}) {
+          const int x = g.next[s][across];
+          if (x < 0 || g.next[x][k] < 0) continue;
+          vu += spots[g.next[x][k]].u - spots[x].u;
+          vv += spots[g.next[x][k]].v - spots[x].v;
+          ++refs;
+        }
+        if (refs == 0) continue;
+        vu /= refs, vv /= refs;
+        const double pu = spots[s].u + vu, pv = spots[s].v + vv, step2 = vu * vu + vv * vv;
+        int found = -1;
+        double best = kCompletionSlack * kCompletionSlack * step2;
+        near.around(pu, pv, 1, [&](int j) {
+          const double du = spots[j].u - pu, dv = spots[j].v - pv;
+          if (j != static_cast<int>(s) && du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
+        });
+        if (found >= 0 && g.next[found][(k + 2) % 4] < 0) add[s][k] = found;
+      }
+    bool grew = false;
+    for (std::size_t s = 0; s < n; ++s)
+      for (int k = 0; k < 4; ++k) {
+        const int j = add[s][k];
+        // both ends must agree: j found s, or j had nothing to say in that direction
+        if (j < 0 || g.next[s][k] >= 0 || g.next[j][(k + 2) % 4] >= 0) continue;
+        const int back = add[j][(k + 2) % 4];
+        if (back >= 0 && back != static_cast<int>(s)) continue;
+        g.next[s][k] = j;
+        g.next[j][(k + 2) % 4] = static_cast<int>(s);
+        grew = true;
+      }
+    if (!grew) break;
+  }
   return g;
 }
 
@@ -310,67 +440,80 @@ bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& graph, in
   return spots[i].area_px < kFragmentArea * median;
 }
 
-AdjacencyGraph resolve_column_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
-                                    const Neighbourhoods& hoods, const pattern::WindowTable& table,
-                                    const EpipolarCheck* check) {
+AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
+                             const pattern::WindowTable& table, const EpipolarCheck* check, ShearAxis axis) {
+  // `along`: the direction of the lines trusted (rows when columns are resolved); `across`: the
+  // links rewritten, from the line before (reverse) to the line after (across)
+  const bool columns = axis == ShearAxis::kColumns;
+  const Direction along = columns ? kEast : kSouth, back = columns ? kWest : kNorth;
+  const Direction across = columns ? kSouth : kEast, reverse = columns ? kNorth : kWest;
+  // the window cell of position a across (0 before, 1 the spot's line, 2 after) and b along
+  const auto cell = [&](int a, int b) { return columns ? 3 * a + b : 3 * b + a; };
   AdjacencyGraph out = graph;
   const std::size_t n = spots.size();
   const auto step = [&](int i, Direction d) { return i < 0 ? -1 : graph.next[i][d]; };
-  // a row's three spots centred on c (or nothing when c lacks a row link)
-  const auto row_of = [&](int c) -> std::optional<std::array<int, 3>> {
-    if (c < 0 || graph.next[c][kWest] < 0 || graph.next[c][kEast] < 0) return std::nullopt;
-    return std::array<int, 3>{graph.next[c][kWest], c, graph.next[c][kEast]};
+  // a line's three spots centred on c (or nothing when c lacks a link along it)
+  const auto line_of = [&](int c) -> std::optional<std::array<int, 3>> {
+    if (c < 0 || graph.next[c][back] < 0 || graph.next[c][along] < 0) return std::nullopt;
+    return std::array<int, 3>{graph.next[c][back], c, graph.next[c][along]};
   };
-  // the spots that may be the row above (below) centred over i: its linked one, and the ones
-  // reached through its row neighbours, each shifted by -1, 0, +1 along their row
+  // the spots that may centre the line before (after) i: its linked one, and the ones reached
+  // through its neighbours along the line, each shifted by -1, 0, +1 along theirs
   const auto centres = [&](int i, Direction d, std::array<int, 9>& found) {
     int m = 0;
-    for (const int x : {step(i, d), step(step(step(i, kWest), d), kEast), step(step(step(i, kEast), d), kWest)})
-      for (const int y : {x, step(x, kWest), step(x, kEast)})
+    for (const int x : {step(i, d), step(step(step(i, back), d), along), step(step(step(i, along), d), back)})
+      for (const int y : {x, step(x, back), step(x, along)})
         if (y >= 0 && y != i && std::find(found.begin(), found.begin() + m, y) == found.begin() + m) found[m++] = y;
     return m;
   };
-  std::vector<std::array<int, 2>> proposal(n, {-1, -1});  // north, south
+  std::vector<std::array<int, 2>> proposal(n, {-1, -1});  // before, after
   std::vector<char> proposed(n, 0);
-  std::array<int, 9> tops{}, bottoms{};
+  std::array<int, 9> befores{}, afters{};
   for (std::size_t s = 0; s < n; ++s) {
     const int i = static_cast<int>(s);
     if (reads(spots, hoods.window[s], table, check)) continue;  // its links read already
-    const auto middle = row_of(i);
+    const auto middle = line_of(i);
     if (!middle) continue;
-    const int nt = centres(i, kNorth, tops), nb = centres(i, kSouth, bottoms);
+    const int nt = centres(i, reverse, befores), nb = centres(i, across, afters);
     int matches = 0;
     std::array<int, 2> best{-1, -1};
     for (int a = 0; a < nt && matches <= 1; ++a)
       for (int b = 0; b < nb && matches <= 1; ++b) {
-        const int t = tops[a], u = bottoms[b];
+        const int t = befores[a], u = afters[b];
         if (t == u) continue;
-        // the column through i goes straight on: a shear slants it, curvature bends it a little
+        // the line across i goes straight on: a shear slants it, curvature bends it a little
         const Spot &st = spots[t], &sm = spots[i], &sb = spots[u];
         const double eu = st.u + sb.u - 2 * sm.u, ev = st.v + sb.v - 2 * sm.v;
         const double lt = (st.u - sm.u) * (st.u - sm.u) + (st.v - sm.v) * (st.v - sm.v);
         const double lb = (sb.u - sm.u) * (sb.u - sm.u) + (sb.v - sm.v) * (sb.v - sm.v);
         if (eu * eu + ev * ev > 0.16 * std::max(lt, lb) || lt > 2.25 * lb || lb > 2.25 * lt) continue;
-        const auto above = row_of(t), below = row_of(u);
-        if (!above || !below) continue;
-        const Window w{(*above)[0], t, (*above)[2], (*middle)[0], i, (*middle)[2], (*below)[0], u, (*below)[2]};
+        const auto first = line_of(t), last = line_of(u);
+        if (!first || !last) continue;
+        Window w{};
+        for (int k = 0; k < 3; ++k) {
+          w[cell(0, k)] = (*first)[k];
+          w[cell(1, k)] = (*middle)[k];
+          w[cell(2, k)] = (*last)[k];
+        }
         if (!reads(spots, w, table, check)) continue;
         ++matches;
         best = {t, u};
       }
-    if (matches != 1 || (best[0] == graph.next[s][kNorth] && best[1] == graph.next[s][kSouth])) continue;
+    if (matches != 1 || (best[0] == graph.next[s][reverse] && best[1] == graph.next[s][across])) continue;
     proposal[s] = best;
     proposed[s] = 1;
   }
-  // A shear slants a region, not one spot: a choice is taken when a row neighbour's column
-  // links (its own choice, or the links it has) are the same choice moved along the row. A
-  // window that reads by chance after a shift (1 in 60 codes is valid) stands alone.
-  const auto links_of = [&](int x) { return proposed[x] ? proposal[x] : std::array<int, 2>{step(x, kNorth), step(x, kSouth)}; };
+  // A shear slants a region, not one spot: a choice is taken when a neighbour along the line
+  // has links across (its own choice, or the links it has) that are the same choice moved
+  // along. A window that reads by chance after a shift (1 in 60 codes is valid) stands alone.
+  const auto links_of = [&](int x) {
+    return proposed[x] ? proposal[x] : std::array<int, 2>{step(x, reverse), step(x, across)};
+  };
   std::vector<char> taken(n, 0);
   for (std::size_t s = 0; s < n; ++s) {
     if (!proposed[s]) continue;
     const auto [t, u] = proposal[s];
-    for (const Direction d : {kWest, kEast}) {
+    for (const Direction d : {back, along}) {
       const int x = graph.next[s][d];
       if (x < 0) continue;
       const auto [xt, xu] = links_of(x);
@@ -381,15 +524,15 @@ AdjacencyGraph resolve_column_shear(const std::vector<Spot>& spots, const Adjace
   for (std::size_t s = 0; s < n; ++s) {
     if (!proposed[s]) continue;
     const auto [t, u] = proposal[s];
-    out.next[s][kNorth] = t;
-    out.next[s][kSouth] = u;
+    out.next[s][reverse] = t;
+    out.next[s][across] = u;
     // the other end takes the link back unless it has a choice of its own
-    if (!proposed[t]) out.next[t][kSouth] = static_cast<int>(s);
-    if (!proposed[u]) out.next[u][kNorth] = static_cast<int>(s);
+    if (!proposed[t]) out.next[t][across] = static_cast<int>(s);
+    if (!proposed[u]) out.next[u][reverse] = static_cast<int>(s);
   }
-  // keep the graph symmetric: a column link that lost its other end is dropped
+  // keep the graph symmetric: a link across that lost its other end is dropped
   for (std::size_t s = 0; s < n; ++s)
-    for (const Direction k : {kNorth, kSouth}) {
+    for (const Direction k : {reverse, across}) {
       const int j = out.next[s][k];
       if (j >= 0 && out.next[j][(k + 2) % 4] != static_cast<int>(s)) out.next[s][k] = -1;
     }
@@ -763,8 +906,10 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   std::optional<EpipolarCheck> epipolar;
   if (geometry) epipolar.emplace(*geometry, r.detected);
   if (options_.resolve_shear) {
-    graph = resolve_column_shear(r.detected, graph, hoods, table_, epipolar ? &*epipolar : nullptr);
-    hoods = check_graph_consistency(graph);
+    for (const ShearAxis axis : {ShearAxis::kColumns, ShearAxis::kRows}) {
+      graph = resolve_shear(r.detected, graph, hoods, table_, epipolar ? &*epipolar : nullptr, axis);
+      hoods = check_graph_consistency(graph);
+    }
   }
   if (geometry) {
     const EpipolarOptions& e = options_.epipolar;
@@ -796,6 +941,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   std::erase_if(r.decoded, [&](const DecodedSpot& d) {
     return r.detected[d.spot].truncated || is_fragment(r.detected, graph, d.spot);
   });
+  r.graph = std::move(graph);
+  r.hoods = std::move(hoods);
   return r;
 }
 

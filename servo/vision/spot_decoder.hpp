@@ -62,9 +62,12 @@ struct EpipolarCheck {
 // row: a shear slants a region, a window that reads by chance after a shift stands alone.
 // Every window tried, and every window read afterwards, must be a smooth lattice cell: rows and
 // columns that bend little and cells near parallelograms (a cell across a depth edge is not).
-AdjacencyGraph resolve_column_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
-                                    const Neighbourhoods& hoods, const pattern::WindowTable& table,
-                                    const EpipolarCheck* check = nullptr);
+// kRows: the same with rows and columns exchanged (rows slanted against trusted columns: the
+// cylinder towards its silhouette), run after the columns.
+enum class ShearAxis { kColumns, kRows };
+AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
+                             const pattern::WindowTable& table, const EpipolarCheck* check = nullptr,
+                             ShearAxis axis = ShearAxis::kColumns);
 
 struct ToleranceOptions {
   bool enabled = false;  // beyond the paper: accept a window with one missing neighbour or one
@@ -176,6 +179,9 @@ struct DecoderOptions {
 struct DecodeResult {
   std::vector<Spot> detected;
   std::vector<DecodedSpot> decoded;
+  // the links the windows were read on (steps 1, 2 and 2b), to see where decoding lost a spot
+  AdjacencyGraph graph;
+  Neighbourhoods hoods;
   int readings = 0;  // windows read (step 3)
   int rejected_blobs = 0;
 };

@@ -134,14 +134,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
         const int i = truth_of[b];
         if (i >= 0 && cell.projector->pattern().at(i / cols, i % cols) == r.detected[b].colour) blob_of[i] = static_cast<int>(b);
       }
-      vision::AdjacencyGraph graph = vision::build_adjacency(r.detected);
-      vision::Neighbourhoods hoods = vision::check_graph_consistency(graph);
-      if (o.decoder.resolve_shear) {
-        std::optional<vision::EpipolarCheck> check;
-        if (geometry) check.emplace(*geometry, r.detected);
-        graph = vision::resolve_column_shear(r.detected, graph, hoods, decoder.table(), check ? &*check : nullptr);
-        hoods = vision::check_graph_consistency(graph);
-      }
+      const vision::AdjacencyGraph& graph = r.graph;
+      const vision::Neighbourhoods& hoods = r.hoods;
       for (std::size_t i = 0; i < truth.size(); ++i) {
         if (!readable[i] || blob_of[i] < 0) continue;
         ++row.readable_segmented;

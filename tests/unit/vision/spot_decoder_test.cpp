@@ -413,7 +413,7 @@ TEST(ColumnShear, TheCodeTellsTheTrueColumnsOfAShearedLattice) {
       diagonal += j >= 0 && l.id[j].second != l.id[s].second;
     }
     EXPECT_GT(diagonal, 200) << "the lattice is not sheared enough to mislead step 1";
-    const AdjacencyGraph resolved = resolve_column_shear(l.spots, g, check_graph_consistency(g), t);
+    const AdjacencyGraph resolved = resolve_shear(l.spots, g, check_graph_consistency(g), t);
     int right = 0;
     for (std::size_t s = 0; s < l.spots.size(); ++s) {
       const int j = resolved.next[s][kSouth];

@@ -91,7 +91,7 @@ one_line_error "empty folder" "no image files" "$servo" decode "$tmp/empty_dir" 
 # <stem>.json, as `cellsim render --truth` writes it, or --camera-pose)
 "$cellsim" calibration "$src/sim/scenarios/cylinder.yaml" -o "$tmp/cyl_proj.yaml" >/dev/null || fail "calibration"
 mkdir -p "$tmp/cal"
-"$cellsim" render "$src/sim/scenarios/cylinder.yaml" --pose initial -o "$tmp/cal/cyl.png" --truth "$tmp/cal/cyl.json" >/dev/null ||
+"$cellsim" render "$src/sim/scenarios/cylinder.yaml" --pose desired -o "$tmp/cal/cyl.png" --truth "$tmp/cal/cyl.json" >/dev/null ||
   fail "render cylinder"
 cam=(--camera 800 800 319.5 239.5 -0.08 0.02 0 0 0)
 plain=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" | grep -o '[0-9]* decoded' | cut -d' ' -f1)

@@ -142,7 +142,7 @@ void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
 // how far (fraction of a step) a completed link's spot may be from where its neighbours put it
 constexpr double kCompletionSlack = 0.3;
 
-AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
   AdjacencyGraph g;
   const std::size_t n = spots.size();
   g.next.assign(n, {-1, -1, -1, -1});
@@ -264,6 +264,7 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots) {
       const int j = g.next[i][k];
       if (j >= 0 && g.next[j][(k + 2) % 4] != static_cast<int>(i)) g.next[i][k] = -1;
     }
+  if (!mend) return g;
   align_chains(g, kEast, kSouth);  // columns between row chains
   // Completion from the lattice around: a link the nearest-candidate rule missed (a column whose
   // candidates two spots contend for, a row squeezed towards the silhouette past the spacing
@@ -405,10 +406,13 @@ std::optional<std::array<std::uint8_t, 9>> colours_of(const std::vector<Spot>& s
 bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::WindowTable& table,
            const EpipolarCheck* check, bool one_off = false) {
   auto c = colours_of(spots, w);
-  if (!c || !smooth_window(spots, w)) return false;
+  if (!c) return false;
+  int smooth = -1;  // tested once, and only for a window whose colours read (the code is cheaper)
   const auto fits = [&](const std::array<std::uint8_t, 9>& x) {
     const auto id = table.find(x.data());
-    return id && (!check || check->confirms(w, *id));
+    if (!id) return false;
+    if (smooth < 0) smooth = smooth_window(spots, w);
+    return smooth && (!check || check->confirms(w, *id));
   };
   if (fits(*c)) return true;
   if (!one_off) return false;
@@ -546,8 +550,6 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
   const int k = table.array().colours;
   for (std::size_t s = 0; s < hoods.window.size(); ++s) {
     const Window& w = hoods.window[s];
-    // a window across a depth edge, however it reads, is not one lattice cell
-    if (!smooth_window(spots, w)) continue;
     std::array<std::uint8_t, 9> colours{};
     int n_missing = 0;
     for (int i = 0; i < 9; ++i) {
@@ -558,8 +560,16 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
         colours[i] = static_cast<std::uint8_t>(spots[w[i]].colour);
       }
     }
+    // a window across a depth edge, however it reads, is not one lattice cell (tested after
+    // the code, which is cheaper, rejects most windows)
+    int smooth = -1;
+    const auto is_smooth = [&] {
+      if (smooth < 0) smooth = smooth_window(spots, w);
+      return smooth == 1;
+    };
     if (n_missing == 0) {
       if (auto id = table.find(colours.data())) {
+        if (!is_smooth()) continue;
         // a valid code on the wrong lines is a misread window: rejected, then maybe repaired
         if (!check || check->confirms(w, *id)) {
           out.push_back({static_cast<int>(s), *id, false});
@@ -567,7 +577,7 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
         }
       }
     }
-    if (!tolerance.enabled || n_missing > tolerance.max_missing) continue;
+    if (!tolerance.enabled || n_missing > tolerance.max_missing || !is_smooth()) continue;
     // error-tolerant: exactly one pattern window within one symbol of what was read (and, with
     // the epipolar check, on the epipolar lines)
     std::optional<pattern::SpotId> found;
@@ -900,12 +910,12 @@ SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;
   r.detected = std::move(spots);
-  AdjacencyGraph graph = build_adjacency(r.detected);
+  AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links);
   Neighbourhoods hoods = check_graph_consistency(graph);
   const int n = static_cast<int>(r.detected.size());
   std::optional<EpipolarCheck> epipolar;
   if (geometry) epipolar.emplace(*geometry, r.detected);
-  if (options_.resolve_shear) {
+  if (options_.mend_links) {
     for (const ShearAxis axis : {ShearAxis::kColumns, ShearAxis::kRows}) {
       graph = resolve_shear(r.detected, graph, hoods, table_, epipolar ? &*epipolar : nullptr, axis);
       hoods = check_graph_consistency(graph);

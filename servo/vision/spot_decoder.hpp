@@ -23,7 +23,9 @@ namespace vision {
 // Step 1. The pattern's grid direction is estimated from the nearest-neighbour vectors (their
 // angles modulo 90 deg); for each spot and each direction, the closest spot within +-40 deg of
 // it is the candidate; only mutual links are kept (B east of A and A west of B).
-AdjacencyGraph build_adjacency(const std::vector<Spot>& spots);
+// Step 1b (`mend`): two row chains one above the other are joined by the column offset most of
+// their links take, and a missing link is completed where the neighbours' links say it lies.
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend = true);
 
 // Step 2. A corner neighbour is kept only when both paths to it exist and agree.
 Neighbourhoods check_graph_consistency(const AdjacencyGraph& graph);
@@ -172,7 +174,9 @@ struct DecoderOptions {
   // (docs/decoding.md); the cost is the pattern's corners and their neighbours.
   int min_votes = 3;
   int min_island = 12;  // step 5; 0 turns it off (the paper's decoder)
-  bool resolve_shear = true;  // step 2b
+  // steps 1b (row chains align the columns, links completed from the lattice) and 2b (shear
+  // resolved by the code); false: the links as the nearest-spot rule makes them (issue 18's decoder)
+  bool mend_links = true;
   EpipolarOptions epipolar;  // used when decode() is given the frame's geometry
 };
 

@@ -150,9 +150,11 @@ const Frame& frame_of_pattern(const std::string& scenario, const std::string& pa
   return f;
 }
 
-void BM_DecodePattern(benchmark::State& state, const char* scenario, const char* file, bool correct) {
+void BM_DecodePattern(benchmark::State& state, const char* scenario, const char* file, bool correct,
+                      bool mend = true) {
   vision::DecoderOptions o;
   o.tolerance.by_pattern_distance = correct;
+  o.mend_links = mend;
   decode(state, frame_of_pattern(scenario, file), o);
 }
 
@@ -170,12 +172,18 @@ BENCHMARK_CAPTURE(BM_Decode, cylinder, "cylinder")->Name("decode_vga/ours_cylind
 BENCHMARK_CAPTURE(BM_DecodeCalibrated, plane, "plane")->Name("decode_vga/ours_plane_calibrated")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibrated, cylinder, "cylinder")->Name("decode_vga/ours_cylinder_calibrated")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SegmentOnly)->Name("decode_vga/ours_segmentation_only")->Unit(benchmark::kMillisecond);
+// the baseline: the decoder before issue 19 (the paper's pattern, links as the nearest-spot
+// rule makes them)
+BENCHMARK_CAPTURE(BM_DecodePattern, d1_unmended, "cylinder", "marray_20x20_k3_w3.txt", true, false)
+    ->Name("decode_correction/baseline_cylinder_paper_pattern_links_not_mended")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodePattern, d1, "cylinder", "marray_20x20_k3_w3.txt", true)
-    ->Name("decode_correction/baseline_cylinder_paper_pattern")->Unit(benchmark::kMillisecond);
+    ->Name("decode_correction/cylinder_paper_pattern")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodePattern, d3, "cylinder", "marray_20x20_k3_w3_d3.txt", true)
     ->Name("decode_correction/cylinder_distance3_corrected")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodePattern, d3_plain, "cylinder", "marray_20x20_k3_w3_d3.txt", false)
     ->Name("decode_correction/cylinder_distance3_not_corrected")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodePattern, ham_d1_unmended, "ham", "marray_20x20_k3_w3.txt", true, false)
+    ->Name("decode_correction/ham_paper_pattern_links_not_mended")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodePattern, ham_d1, "ham", "marray_20x20_k3_w3.txt", true)
     ->Name("decode_correction/ham_paper_pattern")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodePattern, ham_d3, "ham", "marray_20x20_k3_w3_d3.txt", true)

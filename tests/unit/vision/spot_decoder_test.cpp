@@ -424,7 +424,7 @@ TEST(ColumnShear, TheCodeTellsTheTrueColumnsOfAShearedLattice) {
     }
     EXPECT_GT(right, 300);
     DecoderOptions off;
-    off.resolve_shear = false;
+    off.mend_links = false;
     const int with = check_ids(l, SpotDecoder(t).decode_spots(l.spots).decoded);
     const int without = check_ids(l, SpotDecoder(t, off).decode_spots(l.spots).decoded);
     EXPECT_GT(with, 300);

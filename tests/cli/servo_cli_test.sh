@@ -5,6 +5,7 @@ servo="$1"; cellsim="$2"; src="$3"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 source "$(dirname "$0")/lib.sh"
 pattern="$src/servo/pattern/data/marray_20x20_k3_w3.txt"
+curved="$src/servo/pattern/data/marray_20x20_k3_w3_d3.txt"  # the one the cylinder scenario casts
 
 "$cellsim" render "$src/sim/scenarios/plane.yaml" -o "$tmp/plane.png" >/dev/null || fail "render"
 out=$("$servo" decode "$tmp/plane.png" --pattern "$pattern" --json "$tmp/d.json" --overlay "$tmp/o.png") || fail "decode: $out"
@@ -94,31 +95,31 @@ mkdir -p "$tmp/cal"
 "$cellsim" render "$src/sim/scenarios/cylinder.yaml" --pose desired -o "$tmp/cal/cyl.png" --truth "$tmp/cal/cyl.json" >/dev/null ||
   fail "render cylinder"
 cam=(--camera 800 800 319.5 239.5 -0.08 0.02 0 0 0)
-plain=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" | grep -o '[0-9]* decoded' | cut -d' ' -f1)
-calibrated=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" |
+plain=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" | grep -o '[0-9]* decoded' | cut -d' ' -f1)
+calibrated=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" |
   grep -o '[0-9]* decoded' | cut -d' ' -f1)
 [ -n "$plain" ] && [ -n "$calibrated" ] && [ "$calibrated" -gt "$plain" ] ||
   fail "the calibration did not identify more spots: $plain without, $calibrated with"
 pose=$(/usr/bin/python3 -c "
 import json; c = json.load(open('$tmp/cal/cyl.json'))['camera_pose']; print(*c['position_m'], *c['orientation_xyzw'])")
-given=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose $pose |
+given=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose $pose |
   grep -o '[0-9]* decoded' | cut -d' ' -f1)
 [ "$given" = "$calibrated" ] || fail "--camera-pose decoded $given, the sidecar pose $calibrated"
 one_line_error "projector without camera" "--projector needs --camera" \
-  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml"
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml"
 one_line_error "no pose" "no camera pose" \
   "$servo" decode "$tmp/plane.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
 one_line_error "pose quaternion" "unit quaternion" \
-  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose 0 0 1 0 0 0 0.5
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose 0 0 1 0 0 0 0.5
 one_line_error "pose 1e300" "finite" \
-  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose 1e300 0 1 0 0 0 1
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose 1e300 0 1 0 0 0 1
 one_line_error "camera focal" "fx and fy must be > 0" \
-  "$servo" decode "$tmp/cal/cyl.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" --camera 0 800 319.5 239.5
+  "$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" --camera 0 800 319.5 239.5
 cp "$tmp/cal/cyl.png" "$tmp/cal/broken.png"
 printf '{"camera_pose": {"position_m": [0, 0]}}' > "$tmp/cal/broken.json"
 one_line_error "short sidecar" "broken.json" \
-  "$servo" decode "$tmp/cal/broken.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
+  "$servo" decode "$tmp/cal/broken.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
 printf '{"camera_pose": ' > "$tmp/cal/broken.json"
 one_line_error "sidecar not JSON" "broken.json" \
-  "$servo" decode "$tmp/cal/broken.png" --pattern "$pattern" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
+  "$servo" decode "$tmp/cal/broken.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
 echo "servo CLI: all checks passed"

@@ -138,11 +138,11 @@ void expect_lockstep_convergence(int domain, const std::string& dir, const std::
 }
 
 TEST(DdsLoop, CylinderConvergesInLockstep) {
-  expect_lockstep_convergence(unique_domain(2), tmp_dir("cylinder"), servo_args("0.6"), "cylinder", "1200");
+  expect_lockstep_convergence(unique_domain(2), tmp_dir("cylinder"), servo_args("0.6", {}, kCurvedPattern), "cylinder", "1200");
 }
 
 TEST(DdsLoop, HamConvergesInLockstep) {
-  expect_lockstep_convergence(unique_domain(9), tmp_dir("ham"), servo_args("0.6"), "ham", "1200");
+  expect_lockstep_convergence(unique_domain(9), tmp_dir("ham"), servo_args("0.6", {}, kCurvedPattern), "ham", "1200");
 }
 
 TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
@@ -152,7 +152,7 @@ TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
                 domain, dir + "/calib.log");
   ASSERT_EQ(calib.wait_exit(30s), 0);
   expect_lockstep_convergence(
-      domain, dir, {kBin + "servo", "run", "--pattern", kPattern, "--model", "current", "--projector", dir + "/projector.yaml"},
+      domain, dir, {kBin + "servo", "run", "--pattern", kCurvedPattern, "--model", "current", "--projector", dir + "/projector.yaml"},
       "cylinder", "1200");
 }
 

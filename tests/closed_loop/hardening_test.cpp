@@ -124,7 +124,7 @@ TEST(Hardening, RemoteLoadsOfHostileFilesAreRefusedAndTheStatusGoesOn) {
   Process sim({kBin + "cellsim", "serve", allowed + "/plane_copy.yaml", "--mode", "realtime"}, domain, dir + "/sim.log");
   ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() > 0 && w.poses > 5; }, 60s));
   const auto from = std::chrono::steady_clock::now();
-  for (const std::string f : {allowed + "/fifo.yaml", allowed + "/kmsg.yaml", allowed + "/link_out.yaml",
+  for (const std::string& f : {allowed + "/fifo.yaml", allowed + "/kmsg.yaml", allowed + "/link_out.yaml",
                               dir + "/outside.yaml", std::string("/etc/shadow"), allowed + "/../outside.yaml",
                               allowed + "/plane_copy.yaml", allowed + "/fifo.yaml"})
     rogue.send(SC::LOAD_SCENARIO, f);

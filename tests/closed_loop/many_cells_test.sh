@@ -14,10 +14,11 @@ pids=()
 trap 'kill -INT "${pids[@]}" 2>/dev/null; sleep 1; kill -KILL "${pids[@]}" 2>/dev/null; rm -rf "$tmp"' EXIT
 scenarios=(plane ham plane)
 zhat=(0.9 0.6 0.9)
+patterns=(marray_20x20_k3_w3 marray_20x20_k3_w3_d3 marray_20x20_k3_w3)  # the one each scenario casts
 sims=()
 for i in 0 1 2; do
   ns="cell$((i + 1))"
-  "$bin/servo" run --namespace "$ns" --pattern "$src/servo/pattern/data/marray_20x20_k3_w3.txt" --z-hat "${zhat[$i]}" \
+  "$bin/servo" run --namespace "$ns" --pattern "$src/servo/pattern/data/${patterns[$i]}.txt" --z-hat "${zhat[$i]}" \
     > "$tmp/servo_$ns.log" 2>&1 &
   pids+=($!)
   "$bin/cellsim" serve "$src/sim/scenarios/${scenarios[$i]}.yaml" --namespace "$ns" --autorun --exit-on-converged \

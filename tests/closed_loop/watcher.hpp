@@ -33,6 +33,8 @@ namespace SC = cell_msgs::msg::dds_::SimControl_Constants;
 inline const std::string kBin = std::string(CELL_BINARY_DIR) + "/bin/";
 inline const std::string kSrc = std::string(CELL_SOURCE_DIR);
 inline const std::string kPattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt";
+// the pattern the curved objects' scenarios cast (issue 19): their servo must decode it
+inline const std::string kCurvedPattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3_d3.txt";
 
 // A DDS domain no other test of this machine uses while this process lives: ctest runs tests
 // in parallel, and two cells on one domain would talk to each other (a pid hash alone once
@@ -136,8 +138,9 @@ struct Watcher {
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist;
 };
 
-inline std::vector<std::string> servo_args(const std::string& z_hat, const std::vector<std::string>& extra = {}) {
-  std::vector<std::string> a{kBin + "servo", "run", "--pattern", kPattern, "--z-hat", z_hat};
+inline std::vector<std::string> servo_args(const std::string& z_hat, const std::vector<std::string>& extra = {},
+                                           const std::string& pattern = kPattern) {
+  std::vector<std::string> a{kBin + "servo", "run", "--pattern", pattern, "--z-hat", z_hat};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }

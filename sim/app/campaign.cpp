@@ -238,6 +238,7 @@ std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const s
       const bool capped = why.find("iteration cap") != std::string::npos;
       m.capped += capped;
       m.safe_stops += why.find("safe stop") != std::string::npos;
+      m.robot_stops += why.find("robot stop") != std::string::npos;
       m.rose += !r.diverged && (r.max_error_ratio > kRoseRatio || r.error_rise >= 1.0);
       rise.push_back(r.error_rise);
       if (!r.converged) continue;
@@ -260,18 +261,18 @@ std::vector<ModelStats> stats_of(const std::vector<std::string>& models, const s
 std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& rows) {
   std::ostringstream md;
   // every run is counted by what stopped it (converged, a diverging stop, the iteration cap, a
-  // safe stop): the columns add up to the runs; "rose" counts the runs not stopped as diverging
+  // safe stop, the robot stopping by itself): the columns add up to the runs; "rose" counts the runs not stopped as diverging
   // whose |e| still rose: past twice its first value, or by its first value in all (issue 18,
   // item 6); medians of no run: -
-  md << "| model | converged | diverging (stopped) | iteration cap | safe stop | rose, not stopped | median "
-        "iterations | median final error, converged runs (mm / deg) | worst final error, converged runs (mm / deg) "
-        "| median rise of the error |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|\n";
+  md << "| model | converged | diverging (stopped) | iteration cap | safe stop | robot stop (collision) | rose, "
+        "not stopped | median iterations | median final error, converged runs (mm / deg) | worst final error, "
+        "converged runs (mm / deg) | median rise of the error |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const ModelStats& m : stats_of(meta.models, rows)) {
     char line[400];
-    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %d | %d | %d | %d | %s | %s / %s | %s / %s | %s |\n",
+    std::snprintf(line, sizeof line, "| %s | %d/%d (%.0f %%) | %d | %d | %d | %d | %d | %s | %s / %s | %s / %s | %s |\n",
                   m.model.c_str(), m.converged, m.runs, m.runs ? 100.0 * m.converged / m.runs : 0.0, m.diverged,
-                  m.capped, m.safe_stops, m.rose, table_number(m.median_iterations, 0).c_str(),
+                  m.capped, m.safe_stops, m.robot_stops, m.rose, table_number(m.median_iterations, 0).c_str(),
                   table_number(m.median_translation_mm, 3).c_str(), table_number(m.median_rotation_deg, 4).c_str(),
                   table_number(m.worst_translation_mm, 3).c_str(), table_number(m.worst_rotation_deg, 4).c_str(),
                   table_number(m.median_error_rise, 3).c_str());
@@ -325,19 +326,6 @@ std::string table_number(double v, int decimals) {
   return b;
 }
 
-std::string describe(const sim::CalibrationErrors& e, const sim::Latency& l) {
-  std::ostringstream d;
-  d << std::setprecision(6);
-  const auto put = [&](const std::string& name, double v) {
-    if (v != 0) d << (d.tellp() > 0 ? " " : "") << name << '=' << v;
-  };
-  for (const auto& [name, v] : sim::error_values(e)) put(name, v);
-  if (e.any() && e.seed) put("error_seed", static_cast<double>(*e.seed));
-  put("acquisition_frames", l.acquisition_frames);
-  put("processing_frames", l.processing_frames);
-  put("actuation_s", l.actuation_s);
-  return d.tellp() > 0 ? d.str() : "none";
-}
 
 std::string scenario_fingerprint(const sim::Scenario& sc) {
   std::uint64_t h = 0xcbf29ce484222325ull;
@@ -477,7 +465,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   for (const auto m : o.models) meta.models.push_back(control::to_string(m));
   meta.source = to_string(o.source);
   meta.scale = o.scale;
-  meta.conditions = describe(o.errors.value_or(sc.errors), o.latency.value_or(sc.latency));
+  meta.conditions = sim::describe(o.errors.value_or(sc.errors), o.latency.value_or(sc.latency));
   meta.max_iterations = o.max_iterations;
   meta.redrawn = redrawn;
   meta.visible_desired = visible_desired;

@@ -35,9 +35,6 @@ struct CampaignOptions {
 // A median or worst value as the summary tables show it: "-" when no run gave one (not "nan").
 std::string table_number(double v, int decimals);
 
-// The errors and delays as campaign.json and the study tables name them:
-// "focal_pct=1 processing_frames=2" ("none" when all are zero).
-std::string describe(const sim::CalibrationErrors& errors, const sim::Latency& latency);
 
 // A hash (16 hex digits, FNV-1a) of the scenario file and of every file it names (meshes,
 // pattern, URDF and the URDF's meshes): two shards with the same name: but another scene differ.
@@ -58,6 +55,7 @@ struct ModelStats {
   std::string model;
   int runs = 0, converged = 0, diverged = 0;
   int capped = 0, safe_stops = 0;  // stopped by the iteration cap, by a safe stop
+  int robot_stops = 0;             // the robot stopped by itself: a collision, a fault
   int rose = 0;  // not stopped as diverging, yet |e| rose: past 2x its first value, or by 1x in all
   double median_iterations = 0, median_translation_mm = 0, median_rotation_deg = 0;  // converged runs
   double worst_translation_mm = 0, worst_rotation_deg = 0;                           // converged runs

@@ -313,7 +313,7 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
               o.servo.law.z_hat_m, cellsim::to_string(o.source).c_str(),
               o.source == cellsim::FeatureSource::kIdeal ? " (simulator truth)" : "");
   std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
-  const std::string conds = cellsim::describe(*o.errors, *o.latency);
+  const std::string conds = sim::describe(*o.errors, *o.latency);
   if (conds != "none") std::printf("  errors and delays: %s\n", conds.c_str());
   std::printf("  %s after %d iterations (%.2f s simulated)\n", r.stop_reason.c_str(), r.iterations,
               r.iterations * cell->scenario.dt_s);
@@ -500,7 +500,7 @@ int main(int argc, char** argv) {
       if (!f) throw std::runtime_error(calib_out + ": cannot write");
       const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
       f << std::setprecision(12) << "# projector calibration of scenario " << s.name
-        << (off ? " (with the scenario's projector errors: " + cellsim::describe(s.errors, {}) + ")\n"
+        << (off ? " (with the scenario's projector errors: " + sim::describe(s.errors, {}) + ")\n"
                 : " (exact: the simulator's own)\n")
         << "fx: " << k.fx << "\nfy: " << k.fy << "\ncx: " << k.cx << "\ncy: " << k.cy
         << "\nspot_pitch_px: " << s.projector.spot_pitch_px << "\nrows: " << a.rows << "\ncols: " << a.cols

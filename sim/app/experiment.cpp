@@ -74,10 +74,10 @@ FeatureSource parse_feature_source(const std::string& name) {
 
 std::string to_string(FeatureSource s) { return s == FeatureSource::kIdeal ? "ideal" : "decoded"; }
 
-control::CameraIntrinsics camera_intrinsics_of(const sim::Cell& cell) {
-  const sim::CameraSpec& cam = cell.scenario.camera;
+control::CameraIntrinsics camera_intrinsics_of(const sim::CameraSpec& cam) {
   return {cam.intrinsics.fx, cam.intrinsics.fy, cam.intrinsics.cx, cam.intrinsics.cy, cam.distortion};
 }
+control::CameraIntrinsics camera_intrinsics_of(const sim::Cell& cell) { return camera_intrinsics_of(cell.scenario.camera); }
 
 control::ProjectorModel projector_model_of(const sim::Cell& cell) {
   const sim::ProjectorSpec& p = cell.projector->spec();
@@ -105,20 +105,20 @@ servo::ServoConfig servo_config_for(const sim::Cell& cell) {
   return c;
 }
 
-control::CameraIntrinsics believed_camera(const control::CameraIntrinsics& truth, const sim::DrawnErrors& d) {
-  control::CameraIntrinsics c = truth;
-  c.fx *= d.fx_scale;
-  c.fy *= d.fy_scale;
-  c.cx += d.principal_shift_px.x();
-  c.cy += d.principal_shift_px.y();
-  c.distortion[0] += d.k1_shift;
-  return c;
-}
+
 
 control::ProjectorModel believed_projector(const control::ProjectorModel& truth, const sim::DrawnErrors& d) {
   control::ProjectorModel p = truth;
   p.world_T_projector = truth.world_T_projector * d.projector_delta;
   return p;
+}
+
+std::string robot_stop_reason(const std::string& event) {
+  // the service's wording tells a client what to do ("... until RESET"); a run just ends
+  const std::string suffix = ": robot stopped until RESET";
+  if (event.size() >= suffix.size() && event.compare(event.size() - suffix.size(), suffix.size(), suffix) == 0)
+    return event.substr(0, event.size() - suffix.size());
+  return event;
 }
 
 int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
@@ -155,7 +155,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   robot.set_belief({});
   if (errors.any()) {
     const sim::DrawnErrors drawn = sim::scenario_errors(sc, errors, seed);
-    config.camera = believed_camera(config.camera, drawn);
+    config.camera = camera_intrinsics_of(sim::believed_camera(sc.camera, drawn));
     if (config.projector) config.projector = believed_projector(*config.projector, drawn);
     robot.set_belief(drawn.robot);
   }
@@ -246,7 +246,12 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       res.stop_reason = divergence.check(step.control.error_norm);
       res.diverged = last = !res.stop_reason.empty();
     }
-    if (!last) rec.robot_limits = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace).limits;
+    std::string robot_event;  // the robot stopped by itself (a collision, a fault): the run ends
+    if (!last) {
+      const sim::MotionReport motion = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace);
+      rec.robot_limits = motion.limits;
+      robot_event = motion.event;
+    }
     res.trace.push_back(rec);
     if (trace.is_open()) {
       trace << rec.t_s;
@@ -286,6 +291,12 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     }
     if (step.control.status != control::ControlStatus::kServoing) {
       res.stop_reason = "safe stop: " + step.control.reason;
+      break;
+    }
+    if (!robot_event.empty()) {
+      // the arm holds still until a reset: iterating on would only repeat the last frame
+      res.robot_stopped = true;
+      res.stop_reason = "robot stop: " + robot_stop_reason(robot_event);
       break;
     }
     if (res.diverged) break;

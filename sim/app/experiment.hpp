@@ -49,12 +49,18 @@ struct IterationRecord {
 // The outlier injection: the ids of `fraction` of `spots` (at least 2 when fraction > 0)
 // shifted along a seeded cycle, so each chosen spot carries another's id. Returns how many.
 // `wrong`, when given, receives the ids the chosen spots carry now.
+// "collision: link 'A' touches object 'B' (0.4 mm deep)" from the robot's event line
+std::string robot_stop_reason(const std::string& event);
+
 int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
                     std::vector<std::pair<int, int>>* wrong = nullptr);
 
 struct ExperimentResult {
   bool converged = false;
   bool diverged = false;
+  // the robot stopped by itself (a collision: "robot stop: collision: link 'A' touches object
+  // 'B' (d mm deep)", a fault) and the run ended there (issue 20)
+  bool robot_stopped = false;
   std::string stop_reason;
   int iterations = 0;
   int decoded_desired = 0, decoded_initial = 0;
@@ -70,15 +76,15 @@ struct ExperimentResult {
 // What calibration would give for a cell, exact: the camera's intrinsics and the projector's
 // model (what `cellsim calibration` writes).
 control::CameraIntrinsics camera_intrinsics_of(const sim::Cell& cell);
+control::CameraIntrinsics camera_intrinsics_of(const sim::CameraSpec& camera);
 control::ProjectorModel projector_model_of(const sim::Cell& cell);
 
 // The servo configuration a scenario implies: the camera's intrinsics and the projector's
 // calibration taken as exact.
 servo::ServoConfig servo_config_for(const sim::Cell& cell);
 
-// What calibration would give with the drawn errors (issue 13): the camera's intrinsics and
-// the projector's pose as the servo is told them.
-control::CameraIntrinsics believed_camera(const control::CameraIntrinsics& truth, const sim::DrawnErrors& errors);
+// What calibration would give with the drawn errors (issue 13): the projector's pose as the
+// servo is told it (the camera's: sim::believed_camera).
 control::ProjectorModel believed_projector(const control::ProjectorModel& truth, const sim::DrawnErrors& errors);
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& options);

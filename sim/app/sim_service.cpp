@@ -1,7 +1,5 @@
 #include "sim/app/sim_service.hpp"
 
-#include "sim/app/campaign.hpp"
-#include "sim/app/experiment.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -104,14 +102,14 @@ void announce_conditions(const sim::Scenario& s, TimingMode mode) {
   if (s.errors.any())
     std::printf("cellsim: %s: the servo is told a calibration off by %s (camera_info, rt/camera_pose, the robot's "
                 "controller; `cellsim calibration` writes the projector's)\n",
-                s.file.filename().c_str(), describe(s.errors, {}).c_str());
+                s.file.filename().c_str(), sim::describe(s.errors, {}).c_str());
   if (s.latency.any() && mode == TimingMode::kLockstep)
     std::printf("cellsim: %s: latency: %s (frames shown late, twists applied late, as in-process)\n",
-                s.file.filename().c_str(), describe({}, s.latency).c_str());
+                s.file.filename().c_str(), sim::describe({}, s.latency).c_str());
   if (s.latency.any() && mode == TimingMode::kRealtime)
     std::printf("cellsim: %s: latency: %s is not added in realtime, where the loop's delays are the real ones "
                 "(the trace's processing_ms measures them); lockstep and in-process runs apply it\n",
-                s.file.filename().c_str(), describe({}, s.latency).c_str());
+                s.file.filename().c_str(), sim::describe({}, s.latency).c_str());
 }
 
 // Where LOAD_SCENARIO may read from, and what it may say (issue 18, item 10): a remote peer
@@ -371,8 +369,8 @@ class SimService {
 
   void publish_camera_info() {
     // the intrinsics as calibration gave them: off by the scenario's errors, if it has any
-    const control::CameraIntrinsics k =
-        cellsim::believed_camera(cellsim::camera_intrinsics_of(*cell_), sim::scenario_errors(cell_->scenario));
+    const sim::CameraSpec believed = sim::believed_camera(cell_->scenario.camera, sim::scenario_errors(cell_->scenario));
+    const sim::Intrinsics& k = believed.intrinsics;
     const auto& size = cell_->scenario.camera.intrinsics;
     sensor_msgs::msg::dds_::CameraInfo_ ci;
     ci.header().stamp(cell_dds::stamp_of(machine_->next_frame(), dt()));
@@ -380,7 +378,7 @@ class SimService {
     ci.height(static_cast<uint32_t>(size.height));
     ci.width(static_cast<uint32_t>(size.width));
     ci.distortion_model("plumb_bob");
-    const auto& d = k.distortion;
+    const auto& d = believed.distortion;
     ci.d(std::vector<double>(d.begin(), d.end()));
     ci.k({k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1});
     ci.r({1, 0, 0, 0, 1, 0, 0, 0, 1});

@@ -177,7 +177,7 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
   std::ofstream csv(o.out_dir / "study.csv");
   if (!csv) throw std::runtime_error((o.out_dir / "study.csv").string() + ": cannot write");
   for (const auto& a : o.axes) csv << a.name << ',';
-  csv << "depth_spread_m,model,runs,converged,diverged,capped,safe_stops,rose,converged_pct,median_iterations,"
+  csv << "depth_spread_m,model,runs,converged,diverged,capped,safe_stops,robot_stops,rose,converged_pct,median_iterations,"
          "median_translation_mm,median_rotation_deg,median_error_rise,folder\n"
       << std::setprecision(10);
   std::ostringstream md;
@@ -186,9 +186,10 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
   // every run counted by what stopped it; "rose": not stopped as diverging, yet |e| rose (past
   // twice its first value, or by it in all): a study without --divergence-ratio counts its
   // runaways and oscillations there
-  md << "depth spread (mm) | model | converged | diverging (stopped) | iteration cap | safe stop | rose, not "
-        "stopped | median iterations | median final error (mm / deg) | median rise of the error |\n|";
-  for (std::size_t i = 0; i < o.axes.size() + 10; ++i) md << "---|";
+  md << "depth spread (mm) | model | converged | diverging (stopped) | iteration cap | safe stop | robot stop "
+        "(collision) | rose, not stopped | median iterations | median final error (mm / deg) | median rise of the "
+        "error |\n|";
+  for (std::size_t i = 0; i < o.axes.size() + 11; ++i) md << "---|";
   md << "\n";
 
   for (std::size_t g = 0; g < grid.size(); ++g) {
@@ -205,13 +206,14 @@ std::string run_study(const sim::Scenario& scenario, const StudyOptions& o) {
     for (const ModelStats& m : campaign_stats(c.out_dir)) {
       for (double v : grid[g]) csv << v << ',';
       csv << spread << ',' << m.model << ',' << m.runs << ',' << m.converged << ',' << m.diverged << ',' << m.capped
-          << ',' << m.safe_stops << ',' << m.rose << ','
+          << ',' << m.safe_stops << ',' << m.robot_stops << ',' << m.rose << ','
           << (m.runs ? 100.0 * m.converged / m.runs : 0.0) << ',' << m.median_iterations << ','
           << m.median_translation_mm << ',' << m.median_rotation_deg << ',' << m.median_error_rise << ",\"" << name
           << "\"\n";
       char row[400];
-      std::snprintf(row, sizeof row, "| %.1f | %s | %d/%d | %d | %d | %d | %d | %s | %s / %s | %s |\n", 1e3 * spread,
-                    m.model.c_str(), m.converged, m.runs, m.diverged, m.capped, m.safe_stops, m.rose,
+      std::snprintf(row, sizeof row, "| %.1f | %s | %d/%d | %d | %d | %d | %d | %d | %s | %s / %s | %s |\n",
+                    1e3 * spread, m.model.c_str(), m.converged, m.runs, m.diverged, m.capped, m.safe_stops,
+                    m.robot_stops, m.rose,
                     table_number(m.median_iterations, 0).c_str(), table_number(m.median_translation_mm, 3).c_str(),
                     table_number(m.median_rotation_deg, 4).c_str(), table_number(m.median_error_rise, 3).c_str());
       md << "| ";

@@ -67,6 +67,9 @@ void set_error(CalibrationErrors& errors, const std::string& assignment);
 void set_latency(Latency& latency, const std::string& assignment);
 void set_error(CalibrationErrors& errors, const std::string& name, double value);
 void set_latency(Latency& latency, const std::string& name, double value);
+// The errors and delays as campaign.json and the study tables name them:
+// "focal_pct=1 processing_frames=2" ("none" when all are zero).
+std::string describe(const CalibrationErrors& errors, const Latency& latency);
 // the names set_error and set_latency know
 std::vector<std::string> error_names();
 // every magnitude with its name, in error_names() order

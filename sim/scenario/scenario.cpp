@@ -313,6 +313,17 @@ DrawnErrors scenario_errors(const Scenario& s, const CalibrationErrors& errors, 
 
 DrawnErrors scenario_errors(const Scenario& s) { return scenario_errors(s, s.errors, s.seed); }
 
+CameraSpec believed_camera(const CameraSpec& truth, const DrawnErrors& d) {
+  CameraSpec c = truth;
+  c.intrinsics.fx *= d.fx_scale;
+  c.intrinsics.fy *= d.fy_scale;
+  c.intrinsics.cx += d.principal_shift_px.x();
+  c.intrinsics.cy += d.principal_shift_px.y();
+  c.distortion[0] += d.k1_shift;
+  return c;
+}
+
+
 Eigen::Isometry3d Scenario::world_T_initial() const {
   if (initial_pose) return *initial_pose;
   return offset_pose(world_T_desired, initial_translation_cm, initial_rotation_deg, offset_frame_rotation_deg);

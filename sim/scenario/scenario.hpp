@@ -132,6 +132,10 @@ struct Scenario {
 // what `cellsim serve` and `cellsim calibration` tell the servo, and what an in-process run
 // with the scenario's seed draws too.
 DrawnErrors scenario_errors(const Scenario& scenario);
+// The camera as calibration gave it: the true intrinsics and distortion off by the draw's
+// focal, principal-point and k1 errors (what the cell publishes on camera_info, what the
+// in-process servo is told).
+CameraSpec believed_camera(const CameraSpec& truth, const DrawnErrors& drawn);
 // Other errors drawn for this scenario's robot, with another seed (a campaign run's).
 DrawnErrors scenario_errors(const Scenario& scenario, const CalibrationErrors& errors, std::uint64_t seed);
 

@@ -172,3 +172,32 @@ TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
 }
 
 }  // namespace
+
+namespace {
+
+// Issue 20: a collision ends an in-process run where it happens, and names what touched. This
+// run of the current-depth model on the cylinder (the paper's pattern, the issue's campaign
+// draw, run 4) brings the arm's upper arm within the contact margin of its base 5.4 mm from
+// the goal; the runner used to iterate the stopped arm to the cap and call it that.
+TEST(InProcessLoop, ACollisionEndsTheRunAndNamesWhatTouched) {
+  sim::Scenario s = sim::load_scenario(kDir + "cylinder.yaml");
+  s.projector.pattern = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3.txt";
+  const auto cell = sim::build_cell(s);
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.model = control::InteractionModel::kCurrent;
+  o.servo.law.z_hat_m = 0.6;
+  o.max_iterations = 900;
+  o.write_features = false;
+  o.initial = sim::offset_pose(s.world_T_desired, {-3.522, -5.523, 7.442}, {-3.354, -12.750, -1.406},
+                               s.offset_frame_rotation_deg);
+  const auto r = cellsim::run_experiment(*cell, o);
+  EXPECT_FALSE(r.converged);
+  EXPECT_TRUE(r.robot_stopped) << r.stop_reason;
+  EXPECT_LT(r.iterations, 900);
+  EXPECT_EQ(r.stop_reason.rfind("robot stop: collision: link '", 0), 0u) << r.stop_reason;
+  EXPECT_NE(r.stop_reason.find("' touches "), std::string::npos) << r.stop_reason;
+  EXPECT_EQ(static_cast<int>(r.trace.size()), r.iterations);
+}
+
+}  // namespace

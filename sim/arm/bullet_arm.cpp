@@ -35,7 +35,10 @@ struct Body {
   double mass = 0;
   Eigen::Vector3d com = Eigen::Vector3d::Zero();  // in the body (link) frame
   Eigen::Vector3d inertia = Eigen::Vector3d::Constant(1e-4);
-  std::vector<Eigen::Vector3d> hull_points;  // in the body frame
+  // its collision: the convex hulls of these parts (in the body frame), one per connected piece
+  // of each mesh: a link built of several pieces (a joint housing and an offset tube) is not
+  // one hull spanning the space between them
+  std::vector<std::vector<Eigen::Vector3d>> parts;
   Eigen::Isometry3d parent_T_origin = Eigen::Isometry3d::Identity();  // parent body frame -> joint origin
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
   bool prismatic = false;
@@ -47,7 +50,8 @@ struct Body {
 struct BulletArm::Bullet {
   std::vector<Body> bodies;  // [0] = base
   Eigen::Isometry3d world_T_base;
-  std::vector<std::unique_ptr<btConvexHullShape>> hulls;  // per body, null when shapeless
+  std::vector<std::unique_ptr<btCollisionShape>> hulls;  // per body, null when shapeless
+  std::vector<std::unique_ptr<btConvexHullShape>> part_hulls;  // a compound body's children
   std::vector<std::unique_ptr<btTriangleMesh>> object_meshes;
   std::vector<std::unique_ptr<btBvhTriangleMeshShape>> object_shapes;
   std::vector<std::string> object_names;
@@ -86,6 +90,62 @@ struct BulletArm::Bullet {
   ~Bullet() { teardown(); }
 };
 
+namespace {
+
+// the most pieces one mesh may split into before it is taken as one hull: a mesh of many
+// loose triangles (a scan) would otherwise become thousands of tiny shapes
+constexpr std::size_t kMaxParts = 32;
+
+// The mesh's connected pieces (triangles sharing vertices), each as its points in the body
+// frame; appended to `parts`.
+void add_parts(std::vector<std::vector<Eigen::Vector3d>>& parts, const TriangleMesh& mesh, const Eigen::Isometry3d& T) {
+  const std::size_t n = mesh.vertices.size();
+  std::vector<std::size_t> root(n);
+  for (std::size_t i = 0; i < n; ++i) root[i] = i;
+  const auto find = [&](std::size_t i) {
+    while (root[i] != i) i = root[i] = root[root[i]];
+    return i;
+  };
+  for (const auto& t : mesh.triangles)
+    for (int k = 1; k < 3; ++k) root[find(static_cast<std::size_t>(t[0]))] = find(static_cast<std::size_t>(t[k]));
+  std::vector<int> piece(n, -1);
+  std::vector<std::vector<Eigen::Vector3d>> pieces;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t r = find(i);
+    if (piece[r] < 0) {
+      piece[r] = static_cast<int>(pieces.size());
+      pieces.emplace_back();
+    }
+    pieces[static_cast<std::size_t>(piece[r])].push_back(T * mesh.vertices[i]);
+  }
+  if (pieces.size() > kMaxParts) {  // one hull of everything
+    std::vector<Eigen::Vector3d> all;
+    for (const auto& p : pieces) all.insert(all.end(), p.begin(), p.end());
+    pieces = {all};
+  }
+  for (auto& p : pieces)
+    if (p.size() >= 4) parts.push_back(std::move(p));  // fewer points span no volume
+}
+
+// The convex hull of the points (body frame) in the body's centre-of-mass frame (Bullet's link
+// frame), simplified.
+std::unique_ptr<btConvexHullShape> hull_of(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& com) {
+  btConvexHullShape raw;
+  for (const auto& p : points) raw.addPoint(bt(p - com), false);
+  raw.recalcLocalAabb();
+  raw.setMargin(0);
+  btShapeHull simplified(&raw);
+  simplified.buildHull(0);
+  auto hull = std::make_unique<btConvexHullShape>();
+  const btVector3* v = simplified.getVertexPointer();
+  for (int k = 0; k < simplified.numVertices(); ++k) hull->addPoint(v[k], false);
+  hull->recalcLocalAabb();
+  hull->setMargin(kMargin);
+  return hull;
+}
+
+}  // namespace
+
 BulletArm::BulletArm(const RobotModel& model, const Eigen::Isometry3d& world_T_base, const World& objects,
                      std::vector<std::string> object_names, double physics_period_s)
     : b_(std::make_unique<Bullet>()), h_(physics_period_s) {
@@ -95,7 +155,7 @@ BulletArm::BulletArm(const RobotModel& model, const Eigen::Isometry3d& world_T_b
   // bodies: fixed segments are merged into the body before them
   Body base;
   base.name = model.root_link;
-  if (model.root_has_shape) base.hull_points = model.root_shape.collision.vertices;
+  if (model.root_has_shape) add_parts(base.parts, model.root_shape.collision, Eigen::Isometry3d::Identity());
   b_->bodies.push_back(base);
   Eigen::Isometry3d body_T_link = Eigen::Isometry3d::Identity();  // last body's frame -> current link
   for (std::size_t i = 0; i < model.chain.size(); ++i) {
@@ -104,8 +164,7 @@ BulletArm::BulletArm(const RobotModel& model, const Eigen::Isometry3d& world_T_b
       body_T_link = body_T_link * s.parent_T_origin;
       Body& b = b_->bodies.back();
       b.mass += b.segment >= 0 ? s.mass : 0.0;
-      if (s.has_shape)
-        for (const auto& v : s.shape.collision.vertices) b.hull_points.push_back(body_T_link * v);
+      if (s.has_shape) add_parts(b.parts, s.shape.collision, body_T_link);
       continue;
     }
     Body b;
@@ -120,28 +179,26 @@ BulletArm::BulletArm(const RobotModel& model, const Eigen::Isometry3d& world_T_b
     b.lower = s.lower;
     b.upper = s.upper;
     b.effort = s.max_effort;
-    if (s.has_shape) b.hull_points = s.shape.collision.vertices;
+    if (s.has_shape) add_parts(b.parts, s.shape.collision, Eigen::Isometry3d::Identity());
     b_->bodies.push_back(std::move(b));
     body_T_link = Eigen::Isometry3d::Identity();
   }
   for (const Body& b : b_->bodies) {
-    if (b.hull_points.empty()) {
+    if (b.parts.empty()) {
       b_->hulls.emplace_back();
       continue;
     }
-    // the hull in the body's centre-of-mass frame (Bullet's link frame), simplified
-    btConvexHullShape raw;
-    for (const auto& p : b.hull_points) raw.addPoint(bt(p - b.com), false);
-    raw.recalcLocalAabb();
-    raw.setMargin(0);
-    btShapeHull simplified(&raw);
-    simplified.buildHull(0);
-    auto hull = std::make_unique<btConvexHullShape>();
-    const btVector3* v = simplified.getVertexPointer();
-    for (int k = 0; k < simplified.numVertices(); ++k) hull->addPoint(v[k], false);
-    hull->recalcLocalAabb();
-    hull->setMargin(kMargin);
-    b_->hulls.push_back(std::move(hull));
+    if (b.parts.size() == 1) {
+      b_->hulls.push_back(hull_of(b.parts.front(), b.com));
+      continue;
+    }
+    auto compound = std::make_unique<btCompoundShape>();
+    for (const auto& part : b.parts) {
+      b_->part_hulls.push_back(hull_of(part, b.com));
+      compound->addChildShape(btTransform::getIdentity(), b_->part_hulls.back().get());
+    }
+    compound->setMargin(kMargin);
+    b_->hulls.push_back(std::move(compound));
   }
   for (const World::Object& o : objects.objects()) {
     auto tm = std::make_unique<btTriangleMesh>(true, false);

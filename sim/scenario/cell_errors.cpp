@@ -1,6 +1,7 @@
 #include "sim/scenario/cell_errors.hpp"
 
 #include <sstream>
+#include <string_view>
 #include <iomanip>
 #include <cmath>
 #include <cstdio>
@@ -173,15 +174,19 @@ std::vector<std::string> latency_names() { return {"acquisition_frames", "proces
 std::string describe(const CalibrationErrors& e, const Latency& l) {
   std::ostringstream d;
   d << std::setprecision(6);
-  const auto put = [&](const std::string& name, double v) {
-    if (v != 0) d << (d.tellp() > 0 ? " " : "") << name << '=' << v;
+  bool first = true;
+  const auto put = [&](std::string_view name, double v) {
+    if (v == 0) return;
+    if (!first) d << ' ';
+    first = false;
+    d << name << '=' << v;
   };
   for (const auto& [name, v] : error_values(e)) put(name, v);
   if (e.any() && e.seed) put("error_seed", static_cast<double>(*e.seed));
   put("acquisition_frames", l.acquisition_frames);
   put("processing_frames", l.processing_frames);
   put("actuation_s", l.actuation_s);
-  return d.tellp() > 0 ? d.str() : "none";
+  return first ? "none" : d.str();
 }
 
 }  // namespace sim

@@ -175,11 +175,39 @@ TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
 
 namespace {
 
-// Issue 20: a collision ends an in-process run where it happens, and names what touched. This
-// run of the current-depth model on the cylinder (the paper's pattern, the issue's campaign
-// draw, run 4) brings the arm's upper arm within the contact margin of its base 5.4 mm from
-// the goal; the runner used to iterate the stopped arm to the cap and call it that.
+// Issue 20: a collision ends an in-process run where it happens, and names what touched. A
+// small obstacle stands halfway along the camera's way from the initial pose to the goal; the
+// runner used to iterate the stopped arm to the cap and call it that.
 TEST(InProcessLoop, ACollisionEndsTheRunAndNamesWhatTouched) {
+  sim::Scenario s = sim::load_scenario(kDir + "plane.yaml");
+  sim::ObjectSpec obstacle = s.objects.front();
+  obstacle.name = "obstacle";
+  obstacle.mesh = std::string(CELL_SOURCE_DIR) + "/meshes/elliptic_cylinder.obj";
+  obstacle.world_T_object = Eigen::Isometry3d::Identity();
+  obstacle.world_T_object.translation() =
+      0.5 * (s.world_T_initial().translation() + s.world_T_desired.translation());
+  obstacle.scale = Eigen::Vector3d::Constant(0.15);
+  s.objects.push_back(obstacle);
+  const auto cell = sim::build_cell(s);
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.max_iterations = 600;
+  o.write_features = false;
+  const auto r = cellsim::run_experiment(*cell, o);
+  EXPECT_FALSE(r.converged);
+  EXPECT_TRUE(r.robot_stopped) << r.stop_reason;
+  EXPECT_LT(r.iterations, 600);
+  EXPECT_EQ(r.stop_reason.rfind("robot stop: collision: ", 0), 0u) << r.stop_reason;
+  EXPECT_NE(r.stop_reason.find("object 'obstacle'"), std::string::npos) << r.stop_reason;
+  EXPECT_EQ(static_cast<int>(r.trace.size()), r.iterations);
+}
+
+// Issue 20: the run that stopped 5.4 mm from a collision-free goal on "link 'base_link'
+// touches link 'upper_arm_link'" (the current-depth model on the cylinder, the issue's campaign
+// draw, run 4). The upper arm's collider was one hull of its three pieces, a wedge over the
+// base; with a hull per piece the run converges.
+TEST(InProcessLoop, TheUpperArmClearsTheBaseNearTheCylindersGoal) {
   sim::Scenario s = sim::load_scenario(kDir + "cylinder.yaml");
   s.projector.pattern = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3.txt";
   const auto cell = sim::build_cell(s);
@@ -192,12 +220,8 @@ TEST(InProcessLoop, ACollisionEndsTheRunAndNamesWhatTouched) {
   o.initial = sim::offset_pose(s.world_T_desired, {-3.522, -5.523, 7.442}, {-3.354, -12.750, -1.406},
                                s.offset_frame_rotation_deg);
   const auto r = cellsim::run_experiment(*cell, o);
-  EXPECT_FALSE(r.converged);
-  EXPECT_TRUE(r.robot_stopped) << r.stop_reason;
-  EXPECT_LT(r.iterations, 900);
-  EXPECT_EQ(r.stop_reason.rfind("robot stop: collision: link '", 0), 0u) << r.stop_reason;
-  EXPECT_NE(r.stop_reason.find("' touches "), std::string::npos) << r.stop_reason;
-  EXPECT_EQ(static_cast<int>(r.trace.size()), r.iterations);
+  EXPECT_FALSE(r.robot_stopped) << r.stop_reason;
+  EXPECT_TRUE(r.converged) << r.stop_reason;
 }
 
 }  // namespace

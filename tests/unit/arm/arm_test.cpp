@@ -183,7 +183,9 @@ TEST_F(Ur5e, NearASingularityJointSpeedsStayBoundedAndTheStatusSaysSo) {
     EXPECT_GT(cmd.condition, 30);
     EXPECT_TRUE(cmd.qdot.allFinite());
     EXPECT_LE(cmd.qdot.cwiseAbs().maxCoeff(), M_PI + 1e-9);
-    if (cmd.limits & kLimitSingularityStop) EXPECT_EQ(cmd.qdot.norm(), 0);
+    if (cmd.limits & kLimitSingularityStop) {
+      EXPECT_EQ(cmd.qdot.norm(), 0);
+    }
   }
   // one of the two directions heads into the singularity: stopped, and said
   const ArmCommand a = c.step(kin, q, towards, 0.001), b = c.step(kin, q, -towards, 0.001);

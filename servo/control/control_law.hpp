@@ -119,6 +119,28 @@ std::string to_string(ControlStatus s);
 
 // A loop that runs away (issue 13): |e| above `ratio` x its first value since reset(). The
 // in-process runner and the servo node stop on it; ratio 0 never trips.
+// A safe stop (too few points, no depth) gives a zero twist and the loop keeps trying: the next
+// frame may see enough again (an occluder moves on). One that lasts `frames` frames in a row
+// ends it: in lockstep nothing moves while the twist is zero, so it would last for ever. The
+// in-process runner ends the run there and the servo service goes STOPPED, with the same
+// reason (issue 20: they used to disagree, the runner ending at the first safe stop and the
+// service never). 0: never.
+class SafeStopWatch {
+ public:
+  explicit SafeStopWatch(int frames = 25) : frames_(frames) {}
+  void reset() { run_ = 0; }
+  // after each step: true once the safe stops have lasted `frames` frames in a row
+  bool lasting(ControlStatus status) {
+    run_ = status == ControlStatus::kServoing || status == ControlStatus::kConverged ? 0 : run_ + 1;
+    return frames_ > 0 && run_ >= frames_;
+  }
+  int frames() const { return frames_; }
+
+ private:
+  int frames_;
+  int run_ = 0;
+};
+
 class DivergenceWatch {
  public:
   explicit DivergenceWatch(double ratio = 0) : ratio_(ratio) {}

@@ -14,7 +14,8 @@ std::string size_text(std::uint64_t w, std::uint64_t h) { return std::to_string(
 }  // namespace
 
 ServoStateMachine::ServoStateMachine(std::unique_ptr<ServoPipeline> pipeline, ServoTiming timing)
-    : pipeline_(std::move(pipeline)), timing_(timing), divergence_(pipeline_ ? pipeline_->config().divergence_ratio : 0) {
+    : pipeline_(std::move(pipeline)), timing_(timing), divergence_(pipeline_ ? pipeline_->config().divergence_ratio : 0),
+      safe_stop_(pipeline_ ? pipeline_->config().safe_stop_frames : 0) {
   if (!pipeline_) throw std::invalid_argument("ServoStateMachine: no pipeline");
   if (!(timing_.lost_s > 0)) throw std::invalid_argument("ServoStateMachine: lost_s must be positive");
   state_ = pipeline_->taught() && timing_.autostart ? ServoState::kServoing : ServoState::kIdle;
@@ -30,6 +31,7 @@ void ServoStateMachine::on_command(int command) {
       // commands can arrive before the teach frame: START then takes effect once taught
       started_ = true;
       divergence_.reset();
+      safe_stop_.reset();
       if (pipeline_->taught() && state_ != ServoState::kTeaching) state_ = ServoState::kServoing;
       break;
     case static_cast<int>(Command::kStep):
@@ -208,6 +210,7 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     matched_ = static_cast<std::uint32_t>(n);
     iteration_ = 0;
     divergence_.reset();
+    safe_stop_.reset();
     if (!pipeline_->taught()) {
       state_ = ServoState::kTeaching;
       return with_spots(reply(img.stamp, "teach frame has no decodable spots: send TEACH again"));
@@ -267,6 +270,12 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
       state_ = ServoState::kServoing;  // zero twist, keep trying
       reason = "safe stop: " + step.control.reason;
       break;
+  }
+  if (safe_stop_.lasting(step.control.status)) {
+    // it has lasted: stop rather than hold still for ever (START resumes)
+    state_ = ServoState::kStopped;
+    started_ = false;
+    return with_spots(reply(img.stamp, reason + ": stopped"));
   }
   ServoReply r = with_spots(reply(img.stamp, reason));
   r.twist = step.control.twist;

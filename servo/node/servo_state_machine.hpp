@@ -144,6 +144,7 @@ class ServoStateMachine {
   long images_ = 0, rejected_ = 0;
   std::uint32_t iteration_ = 0;
   control::DivergenceWatch divergence_;  // from the first step after START or teaching
+  control::SafeStopWatch safe_stop_;      // the same
   double error_norm_ = 0;
   std::uint32_t decoded_ = 0, matched_ = 0;
 };

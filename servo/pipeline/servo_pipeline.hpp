@@ -29,6 +29,8 @@ struct ServoConfig {
   // > 0: the servo stops (zero twist, state STOPPED, reason "diverging") when |e| rises above
   // this x its first value after START or teaching (issue 13); 0: never
   double divergence_ratio = 0;
+  // a safe stop lasting this many frames in a row stops the servo (control::SafeStopWatch)
+  int safe_stop_frames = 25;
 };
 
 // A spot located in the image with its identity: from the decoder, or from the simulator's

@@ -427,7 +427,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       e.noise_seed = o.seed * 1000003 + static_cast<std::uint64_t>(job.run);
       e.errors = o.errors;
       e.latency = o.latency;
-      e.divergence_ratio = o.divergence_ratio;
+      e.servo.divergence_ratio = o.divergence_ratio;
       e.outlier_fraction = o.outlier_fraction;
       job.result = run_experiment(cell, e);
       job.result.trace.clear();  // keep memory flat: only the outcome matters here

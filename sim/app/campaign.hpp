@@ -28,7 +28,7 @@ struct CampaignOptions {
   // directions of the calibration errors from its seed
   std::optional<sim::CalibrationErrors> errors;
   std::optional<sim::Latency> latency;
-  double divergence_ratio = 0;  // as ExperimentOptions
+  double divergence_ratio = 0;  // as servo::ServoConfig::divergence_ratio, for every run
   double outlier_fraction = 0;  // as ExperimentOptions
 };
 

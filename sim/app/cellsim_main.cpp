@@ -300,9 +300,9 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
   cellsim::ExperimentOptions o;
   o.errors = conditions.errors_for(cell->scenario);
   o.latency = conditions.latency_for(cell->scenario);
-  o.divergence_ratio = conditions.divergence_ratio;
   o.outlier_fraction = conditions.outliers;
   o.servo = cellsim::servo_config_for(*cell);
+  o.servo.divergence_ratio = conditions.divergence_ratio;
   law.apply(o.servo, desired_depth(*cell));
   o.source = cellsim::parse_feature_source(source);
   o.max_iterations = max_iterations;

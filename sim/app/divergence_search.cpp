@@ -58,7 +58,7 @@ ExperimentResult run(const sim::Cell& cell, control::InteractionModel model, con
   e.servo.law.gain = control::Gain{o.gain, o.gain, 0};
   e.source = FeatureSource::kIdeal;
   e.max_iterations = o.max_iterations;
-  e.divergence_ratio = 2;
+  e.servo.divergence_ratio = 2;
   e.initial = initial;
   ExperimentResult r = run_experiment(cell, e);
   r.trace.clear();

@@ -198,7 +198,8 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   // way to the robot
   sim::FrameDelay<std::pair<Eigen::Isometry3d, sim::LinkPoses>> scenes(latency.acquisition_frames);
   sim::TwistDelay delay(latency.processing_frames, latency.actuation_s);
-  control::DivergenceWatch divergence(o.divergence_ratio);
+  control::DivergenceWatch divergence(config.divergence_ratio);
+  control::SafeStopWatch safe_stop(config.safe_stop_frames);
 
   for (int k = 0; k < o.max_iterations; ++k) {
     const Eigen::Isometry3d wTc = robot.world_T_camera();
@@ -241,8 +242,11 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     rec.rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
     rec.swapped = swapped;
     res.iterations = k + 1;
-    bool last = step.control.status != control::ControlStatus::kServoing;
-    if (!last) {
+    // as the servo service decides (servo_state_machine.cpp): converged, a runaway, and a safe
+    // stop that has lasted end the run; a passing safe stop holds the robot (its twist is zero)
+    const bool lasting_safe_stop = safe_stop.lasting(step.control.status);
+    bool last = step.control.status == control::ControlStatus::kConverged || lasting_safe_stop;
+    if (step.control.status == control::ControlStatus::kServoing) {
       res.stop_reason = divergence.check(step.control.error_norm);
       res.diverged = last = !res.stop_reason.empty();
     }
@@ -289,8 +293,8 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       res.stop_reason = "converged: " + step.control.reason;
       break;
     }
-    if (step.control.status != control::ControlStatus::kServoing) {
-      res.stop_reason = "safe stop: " + step.control.reason;
+    if (lasting_safe_stop) {
+      res.stop_reason = "safe stop: " + step.control.reason + " (" + std::to_string(safe_stop.frames()) + " frames)";
       break;
     }
     if (!robot_event.empty()) {

@@ -27,10 +27,6 @@ struct ExperimentOptions {
   // what the servo is told against the truth, and the loop's delays (default: the scenario's)
   std::optional<sim::CalibrationErrors> errors;
   std::optional<sim::Latency> latency;
-  // a safe stop that says "diverging" when |e| rises above this x its first value (0: never).
-  // Off by default: |e| may rise for a while when the set of matched spots changes (spots
-  // coming into view), which is not divergence; the fig5 runs set it to 2.
-  double divergence_ratio = 0;
   // outlier injection (issue 19): at every frame the ids of this fraction of the spots are
   // swapped among them, a cycle, so each of them is matched wrongly; seeded by the run's seed
   double outlier_fraction = 0;

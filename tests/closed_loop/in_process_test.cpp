@@ -20,7 +20,7 @@ cellsim::ExperimentResult run(const std::string& name, control::InteractionModel
   o.servo.law.z_hat_m = z_hat;
   o.source = source;
   o.max_iterations = cap;
-  o.divergence_ratio = divergence_ratio;
+  o.servo.divergence_ratio = divergence_ratio;
   return cellsim::run_experiment(*cell, o);
 }
 
@@ -222,6 +222,27 @@ TEST(InProcessLoop, TheUpperArmClearsTheBaseNearTheCylindersGoal) {
   const auto r = cellsim::run_experiment(*cell, o);
   EXPECT_FALSE(r.robot_stopped) << r.stop_reason;
   EXPECT_TRUE(r.converged) << r.stop_reason;
+}
+
+// Issue 20: a safe stop that lasts ends the run as it stops the servo service (25 frames in a
+// row, control::SafeStopWatch): the camera starts looking away from the pattern, sees no spot,
+// and holds still.
+TEST(InProcessLoop, ASafeStopThatLastsEndsTheRunAsItStopsTheService) {
+  sim::Scenario s = sim::load_scenario(kDir + "plane.yaml");
+  s.robot.arm_enabled = false;  // the free-flying camera: any pose is reachable
+  const auto cell = sim::build_cell(s);
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.max_iterations = 200;
+  o.write_features = false;
+  o.initial = s.world_T_desired * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX());
+  const auto r = cellsim::run_experiment(*cell, o);
+  EXPECT_FALSE(r.converged);
+  EXPECT_EQ(r.iterations, o.servo.safe_stop_frames);
+  EXPECT_EQ(r.stop_reason.rfind("safe stop: ", 0), 0u) << r.stop_reason;
+  EXPECT_NE(r.stop_reason.find("(25 frames)"), std::string::npos) << r.stop_reason;
+  for (const auto& row : r.trace) EXPECT_TRUE(row.twist.isZero());
 }
 
 }  // namespace

@@ -234,5 +234,41 @@ TEST_F(Frames, ARunawayErrorStopsTheServoWhenAsked) {
   }
 }
 
+// Issue 20: a safe stop (here a black frame: no spots) holds the robot with a zero twist and
+// the servo keeps trying; one that lasts 25 frames in a row stops it, as it ends an in-process
+// run (control::SafeStopWatch, used by both)
+TEST_F(Frames, ASafeStopThatLastsStopsTheServo) {
+  const cv::Mat black = cv::Mat::zeros(desired.rows, desired.cols, desired.type());
+  auto m = make();
+  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_sim_status({at(1), false, true});
+  ASSERT_TRUE(m->on_image(view(desired, at(1)), 0.04).taught);
+  m->on_command(static_cast<int>(Command::kStart));
+  int frame = 2;
+  const auto next = [&](const cv::Mat& img) {
+    m->on_sim_status({at(frame), true, false});
+    const ServoReply r = m->on_image(view(img, at(frame)), 0.04 * frame);
+    ++frame;
+    return r;
+  };
+  for (int k = 0; k < 24; ++k) {
+    const ServoReply r = next(black);
+    ASSERT_EQ(r.state, ServoState::kServoing) << "frame " << k << ": " << r.reason;
+    EXPECT_TRUE(r.twist.isZero());
+    EXPECT_NE(r.reason.find("safe stop"), std::string::npos) << r.reason;
+  }
+  const ServoReply back = next(initial);  // the spots are back: servoing again, the count restarts
+  EXPECT_EQ(back.state, ServoState::kServoing) << back.reason;
+  EXPECT_FALSE(back.twist.isZero());
+  for (int k = 0; k < 24; ++k) ASSERT_EQ(next(black).state, ServoState::kServoing);
+  const ServoReply stopped = next(black);
+  EXPECT_EQ(stopped.state, ServoState::kStopped) << stopped.reason;
+  EXPECT_NE(stopped.reason.find("safe stop"), std::string::npos) << stopped.reason;
+  EXPECT_NE(stopped.reason.find("stopped"), std::string::npos) << stopped.reason;
+  EXPECT_TRUE(next(initial).twist.isZero()) << "a stopped servo moved without START";
+  m->on_command(static_cast<int>(Command::kStart));
+  EXPECT_FALSE(next(initial).twist.isZero());
+}
+
 }  // namespace
 }  // namespace servo

@@ -58,6 +58,8 @@ double median(std::vector<double> x) {
 
 }  // namespace
 
+namespace {
+
 // Rows are linked far more reliably than columns (the spacing along a row is regular; down a
 // column, shear and foreshortening make a diagonal neighbour compete with the true one). Two
 // rows of the pattern that lie one above the other are joined by one column offset: the links
@@ -141,6 +143,57 @@ void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
 
 // how far (fraction of a step) a completed link's spot may be from where its neighbours put it
 constexpr double kCompletionSlack = 0.3;
+
+// Completion from the lattice around: a link the nearest-candidate rule missed (a column whose
+// candidates two spots contend for, a row squeezed towards the silhouette past the spacing
+// rule) is where the neighbours' links say it is. The spot missing its south link takes the
+// step its east and west neighbours take south, and links the spot found there if that one
+// has no north link yet. Two rounds: a completed link lends its step to the next.
+void complete_links(AdjacencyGraph& g, const std::vector<Spot>& spots, const SpatialGrid& near) {
+  const std::size_t n = spots.size();
+  for (int round = 0; round < 2; ++round) {
+    std::vector<std::array<int, 4>> add(n, {-1, -1, -1, -1});
+    for (std::size_t s = 0; s < n; ++s)
+      for (int k = 0; k < 4; ++k) {
+        if (g.next[s][k] >= 0) continue;
+        // the two directions across k: their spots' steps in k
+        double vu = 0, vv = 0;
+        int refs = 0;
+        for (const int across : {(k + 1) % 4, (k + 3) % 4}) {
+          const int x = g.next[s][across];
+          if (x < 0 || g.next[x][k] < 0) continue;
+          vu += spots[g.next[x][k]].u - spots[x].u;
+          vv += spots[g.next[x][k]].v - spots[x].v;
+          ++refs;
+        }
+        if (refs == 0) continue;
+        vu /= refs, vv /= refs;
+        const double pu = spots[s].u + vu, pv = spots[s].v + vv, step2 = vu * vu + vv * vv;
+        int found = -1;
+        double best = kCompletionSlack * kCompletionSlack * step2;
+        near.around(pu, pv, 1, [&](int j) {
+          const double du = spots[j].u - pu, dv = spots[j].v - pv;
+          if (j != static_cast<int>(s) && du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
+        });
+        if (found >= 0 && g.next[found][(k + 2) % 4] < 0) add[s][k] = found;
+      }
+    bool grew = false;
+    for (std::size_t s = 0; s < n; ++s)
+      for (int k = 0; k < 4; ++k) {
+        const int j = add[s][k];
+        // both ends must agree: j found s, or j had nothing to say in that direction
+        if (j < 0 || g.next[s][k] >= 0 || g.next[j][(k + 2) % 4] >= 0) continue;
+        const int back = add[j][(k + 2) % 4];
+        if (back >= 0 && back != static_cast<int>(s)) continue;
+        g.next[s][k] = j;
+        g.next[j][(k + 2) % 4] = static_cast<int>(s);
+        grew = true;
+      }
+    if (!grew) break;
+  }
+}
+
+}  // namespace
 
 AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
   AdjacencyGraph g;
@@ -266,51 +319,7 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
     }
   if (!mend) return g;
   align_chains(g, kEast, kSouth);  // columns between row chains
-  // Completion from the lattice around: a link the nearest-candidate rule missed (a column whose
-  // candidates two spots contend for, a row squeezed towards the silhouette past the spacing
-  // rule) is where the neighbours' links say it is. The spot missing its south link takes the
-  // step its east and west neighbours take south, and links the spot found there if that one
-  // has no north link yet. Two rounds: a completed link lends its step to the next.
-  for (int round = 0; round < 2; ++round) {
-    std::vector<std::array<int, 4>> add(n, {-1, -1, -1, -1});
-    for (std::size_t s = 0; s < n; ++s)
-      for (int k = 0; k < 4; ++k) {
-        if (g.next[s][k] >= 0) continue;
-        // the two directions across k: their spots' steps in k
-        double vu = 0, vv = 0;
-        int refs = 0;
-        for (const int across : {(k + 1) % 4, (k + 3) % 4}) {
-          const int x = g.next[s][across];
-          if (x < 0 || g.next[x][k] < 0) continue;
-          vu += spots[g.next[x][k]].u - spots[x].u;
-          vv += spots[g.next[x][k]].v - spots[x].v;
-          ++refs;
-        }
-        if (refs == 0) continue;
-        vu /= refs, vv /= refs;
-        const double pu = spots[s].u + vu, pv = spots[s].v + vv, step2 = vu * vu + vv * vv;
-        int found = -1;
-        double best = kCompletionSlack * kCompletionSlack * step2;
-        near.around(pu, pv, 1, [&](int j) {
-          const double du = spots[j].u - pu, dv = spots[j].v - pv;
-          if (j != static_cast<int>(s) && du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
-        });
-        if (found >= 0 && g.next[found][(k + 2) % 4] < 0) add[s][k] = found;
-      }
-    bool grew = false;
-    for (std::size_t s = 0; s < n; ++s)
-      for (int k = 0; k < 4; ++k) {
-        const int j = add[s][k];
-        // both ends must agree: j found s, or j had nothing to say in that direction
-        if (j < 0 || g.next[s][k] >= 0 || g.next[j][(k + 2) % 4] >= 0) continue;
-        const int back = add[j][(k + 2) % 4];
-        if (back >= 0 && back != static_cast<int>(s)) continue;
-        g.next[s][k] = j;
-        g.next[j][(k + 2) % 4] = static_cast<int>(s);
-        grew = true;
-      }
-    if (!grew) break;
-  }
+  complete_links(g, spots, near);
   return g;
 }
 
@@ -429,6 +438,8 @@ bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::Windo
 }
 }  // namespace
 
+namespace {
+
 // a blob smaller than this fraction of the median area of the spots linked to it is a fragment
 constexpr double kFragmentArea = 0.5;
 
@@ -444,69 +455,27 @@ bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& graph, in
   return spots[i].area_px < kFragmentArea * median;
 }
 
-AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
-                             const pattern::WindowTable& table, const EpipolarCheck* check, ShearAxis axis) {
-  // `along`: the direction of the lines trusted (rows when columns are resolved); `across`: the
-  // links rewritten, from the line before (reverse) to the line after (across)
-  const bool columns = axis == ShearAxis::kColumns;
-  const Direction along = columns ? kEast : kSouth, back = columns ? kWest : kNorth;
-  const Direction across = columns ? kSouth : kEast, reverse = columns ? kNorth : kWest;
-  // the window cell of position a across (0 before, 1 the spot's line, 2 after) and b along
-  const auto cell = [&](int a, int b) { return columns ? 3 * a + b : 3 * b + a; };
-  AdjacencyGraph out = graph;
-  const std::size_t n = spots.size();
+}  // namespace
+
+namespace {
+
+// The line through t, m, b (before, the spot, after) goes straight on: a shear slants it,
+// curvature bends it a little; its two steps are alike in length.
+bool goes_straight(const Spot& t, const Spot& m, const Spot& b) {
+  const double eu = t.u + b.u - 2 * m.u, ev = t.v + b.v - 2 * m.v;
+  const double lt = (t.u - m.u) * (t.u - m.u) + (t.v - m.v) * (t.v - m.v);
+  const double lb = (b.u - m.u) * (b.u - m.u) + (b.v - m.v) * (b.v - m.v);
+  return eu * eu + ev * ev <= 0.16 * std::max(lt, lb) && lt <= 2.25 * lb && lb <= 2.25 * lt;
+}
+
+// Rewrites the links across of every spot whose choice (before, after) a neighbour along the
+// line backs, and keeps the graph symmetric.
+AdjacencyGraph apply_shear_choices(const AdjacencyGraph& graph, const std::vector<std::array<int, 2>>& proposal,
+                                   std::vector<char> proposed, Direction along, Direction across) {
+  const auto back = static_cast<Direction>((along + 2) % 4), reverse = static_cast<Direction>((across + 2) % 4);
+  const std::size_t n = graph.next.size();
   const auto step = [&](int i, Direction d) { return i < 0 ? -1 : graph.next[i][d]; };
-  // a line's three spots centred on c (or nothing when c lacks a link along it)
-  const auto line_of = [&](int c) -> std::optional<std::array<int, 3>> {
-    if (c < 0 || graph.next[c][back] < 0 || graph.next[c][along] < 0) return std::nullopt;
-    return std::array<int, 3>{graph.next[c][back], c, graph.next[c][along]};
-  };
-  // the spots that may centre the line before (after) i: its linked one, and the ones reached
-  // through its neighbours along the line, each shifted by -1, 0, +1 along theirs
-  const auto centres = [&](int i, Direction d, std::array<int, 9>& found) {
-    int m = 0;
-    for (const int x : {step(i, d), step(step(step(i, back), d), along), step(step(step(i, along), d), back)})
-      for (const int y : {x, step(x, back), step(x, along)})
-        if (y >= 0 && y != i && std::find(found.begin(), found.begin() + m, y) == found.begin() + m) found[m++] = y;
-    return m;
-  };
-  std::vector<std::array<int, 2>> proposal(n, {-1, -1});  // before, after
-  std::vector<char> proposed(n, 0);
-  std::array<int, 9> befores{}, afters{};
-  for (std::size_t s = 0; s < n; ++s) {
-    const int i = static_cast<int>(s);
-    if (reads(spots, hoods.window[s], table, check)) continue;  // its links read already
-    const auto middle = line_of(i);
-    if (!middle) continue;
-    const int nt = centres(i, reverse, befores), nb = centres(i, across, afters);
-    int matches = 0;
-    std::array<int, 2> best{-1, -1};
-    for (int a = 0; a < nt && matches <= 1; ++a)
-      for (int b = 0; b < nb && matches <= 1; ++b) {
-        const int t = befores[a], u = afters[b];
-        if (t == u) continue;
-        // the line across i goes straight on: a shear slants it, curvature bends it a little
-        const Spot &st = spots[t], &sm = spots[i], &sb = spots[u];
-        const double eu = st.u + sb.u - 2 * sm.u, ev = st.v + sb.v - 2 * sm.v;
-        const double lt = (st.u - sm.u) * (st.u - sm.u) + (st.v - sm.v) * (st.v - sm.v);
-        const double lb = (sb.u - sm.u) * (sb.u - sm.u) + (sb.v - sm.v) * (sb.v - sm.v);
-        if (eu * eu + ev * ev > 0.16 * std::max(lt, lb) || lt > 2.25 * lb || lb > 2.25 * lt) continue;
-        const auto first = line_of(t), last = line_of(u);
-        if (!first || !last) continue;
-        Window w{};
-        for (int k = 0; k < 3; ++k) {
-          w[cell(0, k)] = (*first)[k];
-          w[cell(1, k)] = (*middle)[k];
-          w[cell(2, k)] = (*last)[k];
-        }
-        if (!reads(spots, w, table, check)) continue;
-        ++matches;
-        best = {t, u};
-      }
-    if (matches != 1 || (best[0] == graph.next[s][reverse] && best[1] == graph.next[s][across])) continue;
-    proposal[s] = best;
-    proposed[s] = 1;
-  }
+  AdjacencyGraph out = graph;
   // A shear slants a region, not one spot: a choice is taken when a neighbour along the line
   // has links across (its own choice, or the links it has) that are the same choice moved
   // along. A window that reads by chance after a shift (1 in 60 codes is valid) stands alone.
@@ -541,6 +510,68 @@ AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGrap
       if (j >= 0 && out.next[j][(k + 2) % 4] != static_cast<int>(s)) out.next[s][k] = -1;
     }
   return out;
+}
+
+}  // namespace
+
+AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
+                             const pattern::WindowTable& table, const EpipolarCheck* check, ShearAxis axis) {
+  // `along`: the direction of the lines trusted (rows when columns are resolved); `across`: the
+  // links rewritten, from the line before (reverse) to the line after (across)
+  const bool columns = axis == ShearAxis::kColumns;
+  const Direction along = columns ? kEast : kSouth, back = columns ? kWest : kNorth;
+  const Direction across = columns ? kSouth : kEast, reverse = columns ? kNorth : kWest;
+  // the window cell of position a across (0 before, 1 the spot's line, 2 after) and b along
+  const auto cell = [&](int a, int b) { return columns ? 3 * a + b : 3 * b + a; };
+  const std::size_t n = spots.size();
+  const auto step = [&](int i, Direction d) { return i < 0 ? -1 : graph.next[i][d]; };
+  // a line's three spots centred on c (or nothing when c lacks a link along it)
+  const auto line_of = [&](int c) -> std::optional<std::array<int, 3>> {
+    if (c < 0 || graph.next[c][back] < 0 || graph.next[c][along] < 0) return std::nullopt;
+    return std::array<int, 3>{graph.next[c][back], c, graph.next[c][along]};
+  };
+  // the spots that may centre the line before (after) i: its linked one, and the ones reached
+  // through its neighbours along the line, each shifted by -1, 0, +1 along theirs
+  const auto centres = [&](int i, Direction d, std::array<int, 9>& found) {
+    int m = 0;
+    for (const int x : {step(i, d), step(step(step(i, back), d), along), step(step(step(i, along), d), back)})
+      for (const int y : {x, step(x, back), step(x, along)})
+        if (y >= 0 && y != i && std::find(found.begin(), found.begin() + m, y) == found.begin() + m) found[m++] = y;
+    return m;
+  };
+  std::vector<std::array<int, 2>> proposal(n, {-1, -1});  // before, after
+  std::vector<char> proposed(n, 0);
+  std::array<int, 9> befores{}, afters{};
+  for (std::size_t s = 0; s < n; ++s) {
+    const int i = static_cast<int>(s);
+    if (reads(spots, hoods.window[s], table, check)) continue;  // its links read already
+    const auto middle = line_of(i);
+    if (!middle) continue;
+    const int nt = centres(i, reverse, befores), nb = centres(i, across, afters);
+    int matches = 0;
+    std::array<int, 2> best{-1, -1};
+    for (int a = 0; a < nt && matches <= 1; ++a)
+      for (int b = 0; b < nb && matches <= 1; ++b) {
+        const int t = befores[a], u = afters[b];
+        if (t == u) continue;
+        if (!goes_straight(spots[t], spots[i], spots[u])) continue;
+        const auto first = line_of(t), last = line_of(u);
+        if (!first || !last) continue;
+        Window w{};
+        for (int k = 0; k < 3; ++k) {
+          w[cell(0, k)] = (*first)[k];
+          w[cell(1, k)] = (*middle)[k];
+          w[cell(2, k)] = (*last)[k];
+        }
+        if (!reads(spots, w, table, check)) continue;
+        ++matches;
+        best = {t, u};
+      }
+    if (matches != 1 || (best[0] == graph.next[s][reverse] && best[1] == graph.next[s][across])) continue;
+    proposal[s] = best;
+    proposed[s] = 1;
+  }
+  return apply_shear_choices(graph, proposal, proposed, along, across);
 }
 
 std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
@@ -779,11 +810,15 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   return out;
 }
 
+namespace {
+
 // how much fainter or smaller than its source a propagated spot may be
 constexpr double kAlike = 0.4;
 bool alike(const Spot& source, const Spot& s) {
   return s.strength >= kAlike * source.strength && s.area_px >= kAlike * source.area_px;
 }
+
+}  // namespace
 
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,

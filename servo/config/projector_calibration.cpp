@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iomanip>
 #include <stdexcept>
 #include <string>
 
@@ -40,6 +42,20 @@ control::ProjectorModel load_projector_calibration(const std::filesystem::path& 
   } catch (const config::ConfigError& e) {
     throw std::runtime_error(e.what());
   }
+}
+
+void write_projector_calibration(const control::ProjectorModel& m, const std::filesystem::path& file,
+                                 const std::string& comment) {
+  const Eigen::Quaterniond q(m.world_T_projector.rotation());
+  const Eigen::Vector3d t = m.world_T_projector.translation();
+  std::ofstream f(file);
+  if (!f) throw std::runtime_error(file.string() + ": cannot write");
+  f << std::setprecision(12) << "# " << comment << "\n"
+    << "fx: " << m.fx << "\nfy: " << m.fy << "\ncx: " << m.cx << "\ncy: " << m.cy
+    << "\nspot_pitch_px: " << m.spot_pitch_px << "\nrows: " << m.rows << "\ncols: " << m.cols << "\nposition_m: ["
+    << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z()
+    << ", " << q.w() << "]\n";
+  if (!f.flush()) throw std::runtime_error(file.string() + ": cannot write");
 }
 
 void check_projector_against_pattern(const control::ProjectorModel& m, const pattern::MArray& marray,

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 
 #include "servo/control/triangulation.hpp"
 #include "servo/pattern/marray.hpp"
@@ -12,6 +13,12 @@ namespace servo {
 // position_m [x, y, z], orientation_xyzw [x, y, z, w] in the world): what triangulation and
 // the decoder's epipolar check need. Throws std::runtime_error naming the file and the key.
 control::ProjectorModel load_projector_calibration(const std::filesystem::path& file);
+
+// Writes `m` in the format load_projector_calibration reads, `comment` as its first line (a
+// "# " line: where the calibration came from). Throws std::runtime_error naming the file when
+// it cannot be written.
+void write_projector_calibration(const control::ProjectorModel& m, const std::filesystem::path& file,
+                                 const std::string& comment);
 
 // A projector calibration is for one pattern: its rows and columns must match.
 void check_projector_against_pattern(const control::ProjectorModel& m, const pattern::MArray& marray,

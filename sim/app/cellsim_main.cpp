@@ -492,20 +492,18 @@ int main(int argc, char** argv) {
       const sim::Scenario s = load_scenario_for_run(scenario);
       const pattern::MArray a = pattern::read_marray(s.projector.pattern);
       const auto& k = s.projector.intrinsics;
+      control::ProjectorModel m;
+      m.fx = k.fx, m.fy = k.fy, m.cx = k.cx, m.cy = k.cy;
+      m.spot_pitch_px = s.projector.spot_pitch_px;
+      m.rows = a.rows, m.cols = a.cols;
       // what a calibration would give: off by the scenario's projector errors, if any
-      const Eigen::Isometry3d pose = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
-      const Eigen::Quaterniond q(pose.rotation());
-      const Eigen::Vector3d t = pose.translation();
-      std::ofstream f(calib_out);
-      if (!f) throw std::runtime_error(calib_out + ": cannot write");
+      m.world_T_projector = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
       const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
-      f << std::setprecision(12) << "# projector calibration of scenario " << s.name
-        << (off ? " (with the scenario's projector errors: " + sim::describe(s.errors, {}) + ")\n"
-                : " (exact: the simulator's own)\n")
-        << "fx: " << k.fx << "\nfy: " << k.fy << "\ncx: " << k.cx << "\ncy: " << k.cy
-        << "\nspot_pitch_px: " << s.projector.spot_pitch_px << "\nrows: " << a.rows << "\ncols: " << a.cols
-        << "\nposition_m: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", "
-        << q.y() << ", " << q.z() << ", " << q.w() << "]\n";
+      servo::write_projector_calibration(
+          m, calib_out,
+          "projector calibration of scenario " + s.name +
+              (off ? " (with the scenario's projector errors: " + sim::describe(s.errors, {}) + ")"
+                   : " (exact: the simulator's own)"));
       std::printf("wrote %s\n", calib_out.c_str());
       return 0;
     }

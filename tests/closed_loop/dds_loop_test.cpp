@@ -247,7 +247,7 @@ TEST(DdsLoop, NanTwistIsRejectedAndTheRobotDoesNotMove) {
   cell_msgs::msg::dds_::SimControl_ start;
   start.command(SC::START);
   control.write(start);
-  std::this_thread::sleep_for(200ms);
+  ASSERT_TRUE(w.wait_for_poses(5));  // running
   const Eigen::Isometry3d before = w.pose_now();
   for (int i = 0; i < 10; ++i) {
     geometry_msgs::msg::dds_::TwistStamped_ t;
@@ -259,9 +259,9 @@ TEST(DdsLoop, NanTwistIsRejectedAndTheRobotDoesNotMove) {
     t.twist().linear().x(std::nan(""));
     t.twist().angular().z(0.1);
     twist.write(t);
-    std::this_thread::sleep_for(40ms);
+    ASSERT_TRUE(w.wait_for_poses(1));  // the next frame: the NaN twist was for this one
   }
-  std::this_thread::sleep_for(200ms);
+  ASSERT_TRUE(w.wait_for_poses(5));
   EXPECT_LT(sim::translation_error(before, w.pose_now()), 1e-12);
   EXPECT_LT(sim::rotation_error(before, w.pose_now()), 1e-12);
   sim.kill(SIGINT);

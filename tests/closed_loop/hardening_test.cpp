@@ -215,16 +215,16 @@ TEST(Hardening, RealtimeRejectsATwistOlderThanTheWatchdog) {
   Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "realtime"}, domain, dir + "/sim.log");
   ASSERT_TRUE(w.wait_for([&] { return w.poses > 30 && rogue.control.matched() > 0 && rogue.twist.matched() > 0; }, 60s));
   rogue.send(SC::START);
-  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(w.wait_for_poses(8));  // running
   const Eigen::Isometry3d before = w.pose_now();
   geometry_msgs::msg::dds_::TwistStamped_ t;  // stamped 0 s
   t.header().frame_id(cell_dds::kCameraFrame);
   t.twist().linear().x(0.2);
   for (int i = 0; i < 10; ++i) {
     rogue.twist.write(t);
-    std::this_thread::sleep_for(40ms);
+    ASSERT_TRUE(w.wait_for_poses(1));
   }
-  std::this_thread::sleep_for(200ms);
+  ASSERT_TRUE(w.wait_for_poses(5));
   EXPECT_LT(sim::translation_error(before, w.pose_now()), 1e-12);
   sim.kill(SIGINT);
   EXPECT_EQ(sim.wait_exit(10s), 0);

@@ -110,6 +110,13 @@ struct Watcher {
     std::lock_guard<std::mutex> l(m);
     return poses;
   }
+  // Waits for `n` more camera poses than heard so far (generous bound): "the robot did not
+  // move" is checked over frames the cell has stepped, not over a time that a loaded machine
+  // may fill with none (issue 20, item 6).
+  bool wait_for_poses(long n, std::chrono::milliseconds timeout = std::chrono::milliseconds(240000)) {
+    const long from = pose_count();
+    return wait_for([&] { return poses >= from + n; }, timeout);
+  }
   template <typename Pred>
   bool wait_for(Pred pred, std::chrono::milliseconds timeout) {
     const auto until = std::chrono::steady_clock::now() + timeout;

@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dds/cli_flags.hpp"
 #include "servo/config/cli_numbers.hpp"
 #include "servo/config/strict_yaml.hpp"
 #include "servo/config/regular_file.hpp"
@@ -318,22 +319,14 @@ int main(int argc, char** argv) {
   servo::ServiceOptions svc;
   std::string config_file, model, reference, projector_file;
   double z_hat = 0, gain = 0;
-  std::string domain;
+  cell_dds::DdsFlags dds;
   auto* run = app.add_subcommand("run", "run the controller as a DDS service");
   run->add_option("--pattern", pattern_file, "pattern file")->required();
   run->add_option("--config", config_file, "servo configuration (YAML)");
   run->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
   run->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
   run->add_option("--gain", gain, "constant gain")->check(config::finite_in(1e-9, 1e3));
-  run->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
-  std::string discovery_range, static_peers;
-  const char* range_help = "LOCALHOST | SUBNET | OFF (default: $ROS_AUTOMATIC_DISCOVERY_RANGE, or LOCALHOST)";
-  const char* peers_help = "semicolon-separated IPv4 addresses to discover by unicast (default: $ROS_STATIC_PEERS)";
-  run->add_option("--discovery-range", discovery_range, range_help);
-  run->add_option("--static-peers", static_peers, peers_help);
-  std::string ns;
-  const char* ns_help = "the cell's ROS 2 namespace: its topics become rt/NAME/... (several cells on one domain)";
-  run->add_option("--namespace", ns, ns_help);
+  dds.add_to(*run);
   run->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
   run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
   run->add_option("--projector", projector_file,
@@ -360,10 +353,7 @@ int main(int argc, char** argv) {
   servo::ViewOptions view;
   std::string view_out;
   auto* vw = app.add_subcommand("view", "live view of the camera with the decoded ids (window, or PNGs headless)");
-  vw->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
-  vw->add_option("--discovery-range", discovery_range, range_help);
-  vw->add_option("--static-peers", static_peers, peers_help);
-  vw->add_option("--namespace", ns, ns_help);
+  dds.add_to(*vw);
   vw->add_option("-o,--output", view_out, "write a PNG sequence here instead of opening a window");
   vw->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
   vw->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
@@ -378,10 +368,7 @@ int main(int argc, char** argv) {
   cv::setNumThreads(1);
   try {
     if (*vw) {
-      view.domain_id = cell_dds::domain_id_from(domain);
-      view.discovery = cell_dds::discovery_from(discovery_range, static_peers);
-      view.ns = cell_dds::checked_namespace(ns);
-      view.security = cell_dds::security_from_env();
+      dds.apply_to(view);
       view.output = view_out;
       return servo::run_viewer(view);
     }
@@ -404,10 +391,7 @@ int main(int argc, char** argv) {
         within("--gain", gain, 1e-6, 100);
         svc.config.law.gain = {gain, gain, 0};
       }
-      svc.domain_id = cell_dds::domain_id_from(domain);
-      svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
-      svc.ns = cell_dds::checked_namespace(ns);
-      svc.security = cell_dds::security_from_env();
+      dds.apply_to(svc);
       svc.reference = reference;
       if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
       svc.config.decoder.epipolar.enabled = !no_epipolar;

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dds/cli_flags.hpp"
 #include "servo/config/cli_numbers.hpp"
 #include "servo/config/projector_calibration.hpp"
 #include "servo/pattern/pattern_file.hpp"
@@ -453,18 +454,11 @@ int main(int argc, char** argv) {
 
   cellsim::ServiceOptions svc;
   std::string mode = "lockstep", svc_trace;
-  std::string domain;
+  cell_dds::DdsFlags dds;
   auto* sv = app.add_subcommand("serve", "run the simulated cell as a DDS service");
   sv->add_option("scenario", scenario, "scenario YAML file")->required();
   sv->add_option("--mode", mode, "lockstep | realtime")->capture_default_str();
-  sv->add_option("--domain", domain, "DDS domain id (default: $ROS_DOMAIN_ID or 0)");
-  std::string discovery_range, static_peers;
-  sv->add_option("--discovery-range", discovery_range,
-                 "LOCALHOST | SUBNET | OFF (default: $ROS_AUTOMATIC_DISCOVERY_RANGE, or LOCALHOST)");
-  sv->add_option("--static-peers", static_peers,
-                 "semicolon-separated IPv4 addresses to discover by unicast (default: $ROS_STATIC_PEERS)");
-  std::string ns;
-  sv->add_option("--namespace", ns, "the cell's ROS 2 namespace: its topics become rt/NAME/... (several cells on one domain)");
+  dds.add_to(*sv);
   sv->add_option("--watchdog-ms", svc.watchdog_ms, "stop the robot after this long without a valid twist")
       ->capture_default_str();
   sv->add_option("--republish-ms", svc.republish_ms, "lockstep: send an unanswered frame again after this long")
@@ -520,10 +514,7 @@ int main(int argc, char** argv) {
       within("--republish-ms", svc.republish_ms, 1, 600000);
       within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
       svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
-      svc.domain_id = cell_dds::domain_id_from(domain);
-      svc.discovery = cell_dds::discovery_from(discovery_range, static_peers);
-      svc.ns = cell_dds::checked_namespace(ns);
-      svc.security = cell_dds::security_from_env();
+      dds.apply_to(svc);
       svc.trace_dir = svc_trace;
       return cellsim::run_sim_service(svc);
     }

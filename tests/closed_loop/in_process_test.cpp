@@ -175,6 +175,16 @@ TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
 
 namespace {
 
+// a run's options for the scenario's servo, without features.jsonl
+cellsim::ExperimentOptions quiet_options(const sim::Cell& cell, double z_hat, int cap) {
+  cellsim::ExperimentOptions o;
+  o.servo = cellsim::servo_config_for(cell);
+  o.servo.law.z_hat_m = z_hat;
+  o.max_iterations = cap;
+  o.write_features = false;
+  return o;
+}
+
 // Issue 20: a collision ends an in-process run where it happens, and names what touched. A
 // small obstacle stands halfway along the camera's way from the initial pose to the goal; the
 // runner used to iterate the stopped arm to the cap and call it that.
@@ -189,11 +199,7 @@ TEST(InProcessLoop, ACollisionEndsTheRunAndNamesWhatTouched) {
   obstacle.scale = Eigen::Vector3d::Constant(0.15);
   s.objects.push_back(obstacle);
   const auto cell = sim::build_cell(s);
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
-  o.servo.law.z_hat_m = 0.9;
-  o.max_iterations = 600;
-  o.write_features = false;
+  cellsim::ExperimentOptions o = quiet_options(*cell, 0.9, 600);
   const auto r = cellsim::run_experiment(*cell, o);
   EXPECT_FALSE(r.converged);
   EXPECT_TRUE(r.robot_stopped) << r.stop_reason;
@@ -211,12 +217,8 @@ TEST(InProcessLoop, TheUpperArmClearsTheBaseNearTheCylindersGoal) {
   sim::Scenario s = sim::load_scenario(kDir + "cylinder.yaml");
   s.projector.pattern = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3.txt";
   const auto cell = sim::build_cell(s);
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
+  cellsim::ExperimentOptions o = quiet_options(*cell, 0.6, 900);
   o.servo.law.model = control::InteractionModel::kCurrent;
-  o.servo.law.z_hat_m = 0.6;
-  o.max_iterations = 900;
-  o.write_features = false;
   o.initial = sim::offset_pose(s.world_T_desired, {-3.522, -5.523, 7.442}, {-3.354, -12.750, -1.406},
                                s.offset_frame_rotation_deg);
   const auto r = cellsim::run_experiment(*cell, o);
@@ -231,11 +233,7 @@ TEST(InProcessLoop, ASafeStopThatLastsEndsTheRunAsItStopsTheService) {
   sim::Scenario s = sim::load_scenario(kDir + "plane.yaml");
   s.robot.arm_enabled = false;  // the free-flying camera: any pose is reachable
   const auto cell = sim::build_cell(s);
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
-  o.servo.law.z_hat_m = 0.9;
-  o.max_iterations = 200;
-  o.write_features = false;
+  cellsim::ExperimentOptions o = quiet_options(*cell, 0.9, 200);
   o.initial = s.world_T_desired * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX());
   const auto r = cellsim::run_experiment(*cell, o);
   EXPECT_FALSE(r.converged);

@@ -1,8 +1,22 @@
 #include "dds/topics.hpp"
 
+#include "cell_msgs.h"
+#include "dds/sim_command.hpp"
+
 #include <stdexcept>
 
 #include <cmath>
+
+namespace cell_dds {
+namespace SC = cell_msgs::msg::dds_::SimControl_Constants;
+// the state machines' enum is the IDL's constants, value for value
+static_assert(static_cast<std::uint8_t>(SimCommand::kLoadScenario) == SC::LOAD_SCENARIO);
+static_assert(static_cast<std::uint8_t>(SimCommand::kReset) == SC::RESET);
+static_assert(static_cast<std::uint8_t>(SimCommand::kTeach) == SC::TEACH);
+static_assert(static_cast<std::uint8_t>(SimCommand::kStart) == SC::START);
+static_assert(static_cast<std::uint8_t>(SimCommand::kPause) == SC::PAUSE);
+static_assert(static_cast<std::uint8_t>(SimCommand::kStep) == SC::STEP);
+}  // namespace cell_dds
 
 namespace cell_dds {
 

@@ -26,23 +26,23 @@ void ServoStateMachine::on_command(int command) {
   const bool was_running = started_;
   jump_pending_ = false;
   switch (command) {
-    case static_cast<int>(Command::kTeach): state_ = ServoState::kTeaching; break;
-    case static_cast<int>(Command::kStart):
+    case static_cast<int>(cell_dds::SimCommand::kTeach): state_ = ServoState::kTeaching; break;
+    case static_cast<int>(cell_dds::SimCommand::kStart):
       // commands can arrive before the teach frame: START then takes effect once taught
       started_ = true;
       divergence_.reset();
       safe_stop_.reset();
       if (pipeline_->taught() && state_ != ServoState::kTeaching) state_ = ServoState::kServoing;
       break;
-    case static_cast<int>(Command::kStep):
+    case static_cast<int>(cell_dds::SimCommand::kStep):
       if (pipeline_->taught() && state_ != ServoState::kTeaching) state_ = ServoState::kServoing;
       break;
-    case static_cast<int>(Command::kPause):
+    case static_cast<int>(cell_dds::SimCommand::kPause):
       started_ = false;
       state_ = ServoState::kStopped;
       break;
-    case static_cast<int>(Command::kReset):
-    case static_cast<int>(Command::kLoadScenario):
+    case static_cast<int>(cell_dds::SimCommand::kReset):
+    case static_cast<int>(cell_dds::SimCommand::kLoadScenario):
       // the robot jumps: what was servoing must be started again, unless the simulator
       // refused the command and runs on (see jump_pending_)
       started_ = false;

@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "dds/sim_command.hpp"
 #include "servo/pipeline/servo_pipeline.hpp"
 
 namespace servo {
@@ -56,8 +57,6 @@ struct SimFrameStatus {
   bool teach = false;
   bool running = false;  // the simulator's state is RUNNING (START in force)
 };
-
-enum class Command : std::uint8_t { kLoadScenario = 0, kReset = 1, kTeach = 2, kStart = 3, kPause = 4, kStep = 5 };
 
 // What to publish: a twist (always, zero unless servoing), the status, the decoded spots.
 struct ServoReply {

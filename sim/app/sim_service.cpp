@@ -262,7 +262,7 @@ class SimService {
         const sim::AutorunSequence::Step step = autorun.poll(now, seen && twist_in_->matched() > 0, taught);
         for (const auto& line : step.log) std::fprintf(stderr, "%s\n", line.c_str());
         for (const auto& c : step.send) {
-          if (c.command == static_cast<int>(sim::CellCommand::kTeach)) {
+          if (c.command == static_cast<int>(cell_dds::SimCommand::kTeach)) {
             std::lock_guard<std::mutex> l(inbox_.m);
             inbox_.taught_seen = false;
           }

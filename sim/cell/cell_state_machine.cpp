@@ -95,7 +95,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
     log(std::string("cellsim: ") + command_name(c.command) + " refused: " + why);
   };
   switch (c.command) {
-    case static_cast<int>(CellCommand::kLoadScenario): {
+    case static_cast<int>(cell_dds::SimCommand::kLoadScenario): {
       if (c.argument.empty() || c.argument.size() > 4096) return refuse("argument must be a scenario file path");
       for (const char ch : c.argument)
         if (static_cast<unsigned char>(ch) < 0x20) return refuse("path '" + shown(c.argument) + "' has control characters");
@@ -104,7 +104,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       out_.load = std::filesystem::path(c.argument);
       return;
     }
-    case static_cast<int>(CellCommand::kReset): {
+    case static_cast<int>(cell_dds::SimCommand::kReset): {
       try {
         place_robot(resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument));
       } catch (const std::exception& e) {
@@ -112,7 +112,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       }
       return;
     }
-    case static_cast<int>(CellCommand::kTeach):
+    case static_cast<int>(cell_dds::SimCommand::kTeach):
       try {
         place_robot(scenario_.world_T_desired);
       } catch (const std::exception& e) {
@@ -120,11 +120,11 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       }
       teach_requested_ = true;
       return;
-    case static_cast<int>(CellCommand::kStart): running_ = true; return;
-    case static_cast<int>(CellCommand::kPause):
+    case static_cast<int>(cell_dds::SimCommand::kStart): running_ = true; return;
+    case static_cast<int>(cell_dds::SimCommand::kPause):
       stop_motion();
       return;
-    case static_cast<int>(CellCommand::kStep): {
+    case static_cast<int>(cell_dds::SimCommand::kStep): {
       const std::uint64_t n = std::clamp<std::uint64_t>(c.steps, 1, kMaxSteps);
       if (c.steps > kMaxSteps)
         log("cellsim: STEP " + std::to_string(c.steps) + " capped at " + std::to_string(kMaxSteps) + " frames");
@@ -508,7 +508,7 @@ AutorunSequence::Step AutorunSequence::poll(double now_s, bool servo_seen, bool 
   Step step;
   if (!started_s_) started_s_ = now_s;
   const auto teach = [&] {
-    step.send.push_back({static_cast<int>(CellCommand::kTeach), "", 0});
+    step.send.push_back({static_cast<int>(cell_dds::SimCommand::kTeach), "", 0});
     teach_sent_s_ = now_s;
     ++sent_;
   };
@@ -524,8 +524,8 @@ AutorunSequence::Step AutorunSequence::poll(double now_s, bool servo_seen, bool 
       break;
     case Stage::kTeach:
       if (taught) {
-        step.send.push_back({static_cast<int>(CellCommand::kReset), "initial", 0});
-        step.send.push_back({static_cast<int>(CellCommand::kStart), "", 0});
+        step.send.push_back({static_cast<int>(cell_dds::SimCommand::kReset), "initial", 0});
+        step.send.push_back({static_cast<int>(cell_dds::SimCommand::kStart), "", 0});
         stage_ = Stage::kDone;
       } else if (now_s - *teach_sent_s_ > retry_s_) {
         if (sent_ >= attempts_) {

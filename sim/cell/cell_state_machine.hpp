@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "dds/sim_command.hpp"
 #include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
 #include "sim/robot/twist_delay.hpp"
@@ -34,11 +35,8 @@ namespace sim {
 
 enum class Timing { kLockstep, kRealtime };
 
-// rt/sim/control commands (cell_msgs/SimControl constants).
-enum class CellCommand : std::uint8_t { kLoadScenario = 0, kReset = 1, kTeach = 2, kStart = 3, kPause = 4, kStep = 5 };
-
 struct CommandMsg {
-  int command = 0;       // a CellCommand value; anything else is refused
+  int command = 0;       // a cell_dds::SimCommand value; anything else is refused
   std::string argument;  // LOAD_SCENARIO: path; RESET: desired | initial | "x y z rx ry rz"
   std::uint64_t steps = 0;
 };

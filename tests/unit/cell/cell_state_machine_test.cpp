@@ -11,7 +11,7 @@ namespace {
 
 const std::string kScenarios = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
 
-CommandMsg cmd(CellCommand c, std::string arg = "", std::uint64_t steps = 0) {
+CommandMsg cmd(cell_dds::SimCommand c, std::string arg = "", std::uint64_t steps = 0) {
   return {static_cast<int>(c), std::move(arg), steps};
 }
 
@@ -62,7 +62,7 @@ TEST_F(Lockstep, SteppingTimeLeavesIdleTimeOutAndLateAnswersAreNotRejections) {
   auto m = make(Timing::kLockstep);
   m->poll(0);
   m->poll(100);  // idle for 100 s
-  m->on_command(cmd(CellCommand::kStart), 100);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 100);
   double now = 100;
   CellOutput out = m->poll(now);
   for (int k = 0; k < 10; ++k) {
@@ -74,7 +74,7 @@ TEST_F(Lockstep, SteppingTimeLeavesIdleTimeOutAndLateAnswersAreNotRejections) {
     EXPECT_FALSE(m->on_twist(twist_for(frame, dt, vx(0.01)), now));  // the same answer again: late
     for (const auto& line : out.log) EXPECT_EQ(line.find("rejected"), std::string::npos) << line;
   }
-  m->on_command(cmd(CellCommand::kPause), now);
+  m->on_command(cmd(cell_dds::SimCommand::kPause), now);
   m->poll(now);
   m->poll(now + 500);  // paused for 500 s
   EXPECT_EQ(m->counters().applied, 10);
@@ -90,8 +90,8 @@ TEST_F(Lockstep, AnUntaughtAnswerToTheTeachFrameGetsTheSameFrameAgain) {
   CellParams p;
   p.republish_s = 0.5;
   auto m = make(Timing::kLockstep, p);
-  m->on_command(cmd(CellCommand::kTeach), 0);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kTeach), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   CellOutput out = m->poll(0);
   ASSERT_EQ(out.frames.size(), 1u);
   ASSERT_TRUE(out.frames[0].teach);
@@ -126,14 +126,14 @@ TEST_F(Lockstep, IdleMakesNoFramesAndAppliesNoTwist) {
 
 TEST_F(Lockstep, TeachFrameThenStartAppliesEachAnsweredFrame) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kTeach), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kTeach), 0);
   CellOutput o = m->poll(0);
   ASSERT_EQ(o.frames.size(), 1u);
   EXPECT_TRUE(o.frames[0].teach);
   EXPECT_FALSE(o.frames[0].applies_twist);
   // RESET and START wait behind the teach frame
-  m->on_command(cmd(CellCommand::kReset, "initial"), 0.01);
-  m->on_command(cmd(CellCommand::kStart), 0.01);
+  m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0.01);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0.01);
   EXPECT_TRUE(m->poll(0.02).frames.empty());
   EXPECT_TRUE(m->on_twist(twist_for(0, dt, Vector6d::Zero()), 0.03));
   o = m->poll(0.03);
@@ -152,10 +152,10 @@ TEST_F(Lockstep, TeachFrameThenStartAppliesEachAnsweredFrame) {
 // item 11: TEACH with no servo used to stop command processing for good
 TEST_F(Lockstep, TeachWithNoServoGivesUpAndKeepsObeyingCommands) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kTeach), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kTeach), 0);
   m->poll(0);
-  m->on_command(cmd(CellCommand::kReset, "initial"), 0.1);
-  m->on_command(cmd(CellCommand::kStart), 0.1);
+  m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0.1);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0.1);
   CellOutput o = m->poll(CellParams{}.teach_timeout_s + 0.5);  // past the teach timeout
   bool said = false;
   for (const auto& l : o.log) said |= l.find("teach frame") != std::string::npos;
@@ -168,7 +168,7 @@ TEST_F(Lockstep, TeachWithNoServoGivesUpAndKeepsObeyingCommands) {
 // item 11: PAUSE after STEP 4294967295 was ignored; twists answering STEP frames never applied
 TEST_F(Lockstep, StepFramesApplyTheirTwistsAndPauseCancelsSteps) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kStep, "", 3), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStep, "", 3), 0);
   CellOutput o = m->poll(0);
   ASSERT_EQ(o.frames.size(), 1u);
   EXPECT_TRUE(o.frames[0].applies_twist);
@@ -178,9 +178,9 @@ TEST_F(Lockstep, StepFramesApplyTheirTwistsAndPauseCancelsSteps) {
   EXPECT_NEAR(moved(*m), 0.1 * dt, 1e-12);
   ASSERT_EQ(o.frames.size(), 1u);
 
-  m->on_command(cmd(CellCommand::kStep, "", 4294967295ull), 0.002);
+  m->on_command(cmd(cell_dds::SimCommand::kStep, "", 4294967295ull), 0.002);
   EXPECT_LE(m->pending_steps(), CellStateMachine::kMaxSteps);
-  m->on_command(cmd(CellCommand::kPause), 0.003);
+  m->on_command(cmd(cell_dds::SimCommand::kPause), 0.003);
   EXPECT_EQ(m->pending_steps(), 0u);
   // the frame that was awaited is given up: its answer no longer moves the robot
   EXPECT_FALSE(m->on_twist(twist_for(1, dt, vx(0.1)), 0.004));
@@ -190,7 +190,7 @@ TEST_F(Lockstep, StepFramesApplyTheirTwistsAndPauseCancelsSteps) {
 
 TEST_F(Lockstep, EveryAppliedStepHasATraceRow) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kStep, "", 100), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStep, "", 100), 0);
   std::size_t rows = 0;
   double t = 0;
   for (std::uint64_t k = 0; k < 100; ++k) {
@@ -212,7 +212,7 @@ TEST_F(Lockstep, EveryAppliedStepHasATraceRow) {
 // for the status (a peer that never sends statuses is not kept waiting).
 TEST_F(Lockstep, AnAnswerWaitsForItsStatusWhateverTheDeliveryOrder) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kStep, "", 3), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStep, "", 3), 0);
   ASSERT_EQ(m->poll(0).frames.size(), 1u);
   m->on_servo_status(status_for(0, dt, 2), 0);
   ASSERT_TRUE(m->on_twist(twist_for(0, dt, vx(0.01)), 0));
@@ -235,7 +235,7 @@ TEST_F(Lockstep, AnAnswerWaitsForItsStatusWhateverTheDeliveryOrder) {
   // every row carries the status of its own frame
   std::vector<TraceRow> rows = o.trace;
   for (auto& r : m->poll(1.0).trace) rows.push_back(r);
-  m->on_command(cmd(CellCommand::kPause), 1.0);
+  m->on_command(cmd(cell_dds::SimCommand::kPause), 1.0);
   bool frame1 = false;
   for (const auto& r : rows)
     if (r.status && r.status->error_norm == 0.25) frame1 = true;
@@ -246,7 +246,7 @@ TEST_F(Lockstep, UnansweredFrameIsSentAgain) {
   CellParams p;
   p.republish_s = 1.0;
   auto m = make(Timing::kLockstep, p);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   EXPECT_EQ(m->poll(0).frames.size(), 1u);
   EXPECT_TRUE(m->poll(0.5).frames.empty());
   CellOutput o = m->poll(1.1);
@@ -257,7 +257,7 @@ TEST_F(Lockstep, UnansweredFrameIsSentAgain) {
 
 TEST_F(Lockstep, TwistChecks) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   m->poll(0);
   Vector6d nan = vx(std::nan(""));
   EXPECT_FALSE(m->on_twist(twist_for(0, dt, nan), 0));
@@ -282,19 +282,19 @@ TEST_F(Lockstep, TwistChecks) {
 // item 11: RESET "1e300 0 0 0 0 0" put the camera 1e298 m away
 TEST_F(Lockstep, ResetOutsideTheWorkspaceIsRefusedAndTheRobotStays) {
   auto m = make(Timing::kLockstep);
-  EXPECT_FALSE(m->on_command(cmd(CellCommand::kReset, "1e300 0 0 0 0 0"), 0));
-  EXPECT_FALSE(m->on_command(cmd(CellCommand::kReset, "garbage\xff"), 0));
-  EXPECT_FALSE(m->on_command(cmd(CellCommand::kReset, "900 0 0 0 0 0"), 0));
+  EXPECT_FALSE(m->on_command(cmd(cell_dds::SimCommand::kReset, "1e300 0 0 0 0 0"), 0));
+  EXPECT_FALSE(m->on_command(cmd(cell_dds::SimCommand::kReset, "garbage\xff"), 0));
+  EXPECT_FALSE(m->on_command(cmd(cell_dds::SimCommand::kReset, "900 0 0 0 0 0"), 0));
   EXPECT_FALSE(m->on_command({99, "", 0}, 0));
   EXPECT_EQ(moved(*m), 0);
   EXPECT_EQ(m->counters().commands_refused, 4);
-  EXPECT_TRUE(m->on_command(cmd(CellCommand::kReset, "initial"), 0));
+  EXPECT_TRUE(m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0));
   EXPECT_GT(moved(*m), 0.01);
 }
 
 TEST_F(Lockstep, MotionOutOfTheWorkspaceIsNotMade) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   double t = 0;
   for (std::uint64_t k = 0; k < 400; ++k) {
     m->poll(t);
@@ -311,8 +311,8 @@ TEST_F(Lockstep, ConvergedIsCheckedAgainstTheTruePose) {
   CellParams p;
   p.exit_on_converged = true;
   auto m = make(Timing::kLockstep, p);
-  m->on_command(cmd(CellCommand::kReset, "initial"), 0);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   m->poll(0);
   m->on_servo_status(status_for(0, dt, kServoConverged), 0);
   CellOutput o = m->poll(0.01);
@@ -322,7 +322,7 @@ TEST_F(Lockstep, ConvergedIsCheckedAgainstTheTruePose) {
   EXPECT_TRUE(said);
 
   auto at_goal = make(Timing::kLockstep, p);
-  at_goal->on_command(cmd(CellCommand::kStart), 0);
+  at_goal->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   at_goal->poll(0);
   at_goal->on_servo_status(status_for(0, dt, kServoConverged), 0);
   at_goal->on_twist(twist_for(0, dt, Vector6d::Zero()), 0);
@@ -331,10 +331,10 @@ TEST_F(Lockstep, ConvergedIsCheckedAgainstTheTruePose) {
 
 TEST_F(Lockstep, CommandFloodIsBoundedBehindTheTeachFrame) {
   auto m = make(Timing::kLockstep);
-  m->on_command(cmd(CellCommand::kTeach), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kTeach), 0);
   m->poll(0);
   int refused = 0;
-  for (int i = 0; i < 1000; ++i) refused += !m->on_command(cmd(CellCommand::kStep, "", 1), 0);
+  for (int i = 0; i < 1000; ++i) refused += !m->on_command(cmd(cell_dds::SimCommand::kStep, "", 1), 0);
   EXPECT_EQ(refused, 1000 - static_cast<int>(CellStateMachine::kMaxQueuedCommands));
 }
 
@@ -351,7 +351,7 @@ TEST_F(Realtime, WatchdogStopsTheRobotAtItsDeadline) {
   CellParams p;
   p.watchdog_s = 0.1;
   auto m = make(Timing::kRealtime, p);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   m->poll(0);
   ASSERT_TRUE(m->on_twist(twist_for(0, dt, vx(0.2)), 0.0));
   bool tripped_log = false;
@@ -369,7 +369,7 @@ TEST_F(Realtime, WatchdogStopsTheRobotAtItsDeadline) {
 // item 12: a twist stamped 0 s was applied while the sim was at 3.8 s
 TEST_F(Realtime, TwistOlderThanTheWatchdogIsRejected) {
   auto m = make(Timing::kRealtime);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   for (int i = 0; i <= 3800; ++i) m->poll(i * 1e-3);
   EXPECT_FALSE(m->on_twist(twist_for(0, dt, vx(0.1)), 3.8));
   EXPECT_FALSE(m->on_twist(twist_for(100000, dt, vx(0.1)), 3.8));  // from the future
@@ -380,13 +380,13 @@ TEST_F(Realtime, TwistOlderThanTheWatchdogIsRejected) {
 TEST_F(Realtime, TeachFrameIsMarkedAndFramesBeforeStartApplyNothing) {
   auto m = make(Timing::kRealtime);
   m->poll(0);
-  m->on_command(cmd(CellCommand::kTeach), 0.001);
+  m->on_command(cmd(cell_dds::SimCommand::kTeach), 0.001);
   CellOutput o = m->poll(0.05);
   ASSERT_FALSE(o.frames.empty());
   EXPECT_TRUE(o.frames[0].teach);
   for (const auto& f : o.frames) EXPECT_FALSE(f.applies_twist);
-  m->on_command(cmd(CellCommand::kReset, "initial"), 0.06);
-  m->on_command(cmd(CellCommand::kStart), 0.06);
+  m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0.06);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0.06);
   o = m->poll(0.1);
   ASSERT_FALSE(o.frames.empty());
   for (const auto& f : o.frames) {
@@ -398,7 +398,7 @@ TEST_F(Realtime, TeachFrameIsMarkedAndFramesBeforeStartApplyNothing) {
 // item 14: realtime --trace wrote only its header
 TEST_F(Realtime, EveryMovingFrameHasATraceRow) {
   auto m = make(Timing::kRealtime);
-  m->on_command(cmd(CellCommand::kStart), 0);
+  m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   std::size_t rows = 0, frames = 0;
   for (int i = 0; i <= 1000; ++i) {
     CellOutput o = m->poll(i * 1e-3);
@@ -414,9 +414,9 @@ TEST_F(Realtime, EveryMovingFrameHasATraceRow) {
 TEST_F(Fixture, TeachFrameIsAtTheDesiredPoseWhateverFollowsItInTheSameBurst) {
   for (Timing timing : {Timing::kLockstep, Timing::kRealtime}) {
     auto m = make(timing);
-    m->on_command(cmd(CellCommand::kTeach), 0);
-    m->on_command(cmd(CellCommand::kReset, "initial"), 0);
-    m->on_command(cmd(CellCommand::kStart), 0);
+    m->on_command(cmd(cell_dds::SimCommand::kTeach), 0);
+    m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0);
+    m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
     CellOutput o = m->poll(0);
     ASSERT_EQ(o.frames.size(), 1u);
     EXPECT_TRUE(o.frames[0].teach);
@@ -436,14 +436,14 @@ TEST(Autorun, WaitsForTheServoAndResendsTeachUntilTaught) {
   EXPECT_TRUE(a.poll(10, false, false).send.empty());
   auto s = a.poll(11, true, false);
   ASSERT_EQ(s.send.size(), 1u);
-  EXPECT_EQ(s.send[0].command, static_cast<int>(CellCommand::kTeach));
+  EXPECT_EQ(s.send[0].command, static_cast<int>(cell_dds::SimCommand::kTeach));
   EXPECT_TRUE(a.poll(12, true, false).send.empty());
   s = a.poll(17, true, false);
   ASSERT_EQ(s.send.size(), 1u);  // TEACH again
   s = a.poll(18, true, true);
   ASSERT_EQ(s.send.size(), 2u);
-  EXPECT_EQ(s.send[0].command, static_cast<int>(CellCommand::kReset));
-  EXPECT_EQ(s.send[1].command, static_cast<int>(CellCommand::kStart));
+  EXPECT_EQ(s.send[0].command, static_cast<int>(cell_dds::SimCommand::kReset));
+  EXPECT_EQ(s.send[1].command, static_cast<int>(cell_dds::SimCommand::kStart));
   EXPECT_TRUE(s.finished);
 }
 
@@ -463,7 +463,7 @@ TEST(LockstepArm, ACollisionStopsTheArmAndTheStatusAndTraceSayWhy) {
   p.timing = Timing::kLockstep;
   CellStateMachine m(cell->scenario, p, make_robot(*cell));
   const double dt = cell->scenario.dt_s;
-  m.on_command(cmd(CellCommand::kStart), 0);
+  m.on_command(cmd(cell_dds::SimCommand::kStart), 0);
   // down, in the camera's axes
   const Eigen::Vector3d down_c = cell->scenario.world_T_desired.rotation().transpose() * Eigen::Vector3d(0, 0, -0.3);
   Vector6d down = Vector6d::Zero();

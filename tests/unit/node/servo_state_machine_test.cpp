@@ -70,7 +70,7 @@ TEST_F(Frames, CameraInfoIsCheckedBeforeItIsUsed) {
   bad.k[2] = 1e300;
   EXPECT_NE(m->on_camera_info(bad), "");
   // the good one stays in force
-  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
   EXPECT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
 }
 
@@ -84,9 +84,9 @@ TEST_F(Frames, WithoutCameraInfoTheServoWaits) {
 // item 8: a false CONVERGED at iteration 1, from frames rendered before the RESET took effect
 TEST_F(Frames, ConvergenceCountsOnlyOnFramesWhoseTwistIsApplied) {
   auto m = make();
-  m->on_command(static_cast<int>(Command::kTeach));
-  m->on_command(static_cast<int>(Command::kReset));
-  m->on_command(static_cast<int>(Command::kStart));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kReset));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
   // a frame from before the teach frame is not taught from
   m->on_sim_status({at(0), false, false});
   EXPECT_FALSE(m->on_image(view(initial, at(0)), 0.00).taught);
@@ -113,7 +113,7 @@ TEST_F(Frames, ConvergenceCountsOnlyOnFramesWhoseTwistIsApplied) {
 // the teach frame); in lockstep the simulator sends it again with its status
 TEST_F(Frames, FrameWithoutItsSimStatusIsNotAnswered) {
   auto m = make();
-  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
   m->on_sim_status({at(0), false, false});
   EXPECT_TRUE(m->on_image(view(desired, at(0)), 0).answer);
   const ServoReply r = m->on_image(view(desired, at(1)), 0.04);
@@ -126,12 +126,12 @@ TEST_F(Frames, FrameWithoutItsSimStatusIsNotAnswered) {
 // item 9: START more than lost_ms after TEACH was undone by the LOST recovery
 TEST_F(Frames, LostDoesNotUndoAStartThatCameMeanwhile) {
   auto m = make();
-  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
   m->on_sim_status({at(0), false, true});
   EXPECT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
   EXPECT_EQ(m->state(), ServoState::kIdle);
   EXPECT_FALSE(m->tick(2.0));  // idle: no images expected, nothing lost
-  m->on_command(static_cast<int>(Command::kStart));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
   EXPECT_EQ(m->state(), ServoState::kServoing);
   m->on_sim_status({at(1), true, false});
   m->on_image(view(initial, at(1)), 2.1);
@@ -151,10 +151,10 @@ TEST_F(Frames, LostDoesNotUndoAStartThatCameMeanwhile) {
 // idles on the command, but frames rendered running after it prove the refusal, and it goes
 // on servoing; a frame that is not running proves the command was obeyed, and START is needed.
 TEST_F(Frames, ARefusedResetOrLoadDoesNotStopTheRun) {
-  for (const Command jump : {Command::kLoadScenario, Command::kReset}) {
+  for (const cell_dds::SimCommand jump : {cell_dds::SimCommand::kLoadScenario, cell_dds::SimCommand::kReset}) {
     auto m = make();
-    m->on_command(static_cast<int>(Command::kTeach));
-    m->on_command(static_cast<int>(Command::kStart));
+    m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
+    m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
     m->on_sim_status({at(0), false, true});
     ASSERT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
     m->on_sim_status({at(1), true, false, true});
@@ -184,18 +184,18 @@ TEST_F(Frames, ARefusedResetOrLoadDoesNotStopTheRun) {
 
 TEST_F(Frames, PauseStopsAndResetNeedsANewStart) {
   auto m = make(true);
-  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
   m->on_sim_status({at(0), false, true});
   m->on_image(view(desired, at(0)), 0);
   EXPECT_EQ(m->state(), ServoState::kServoing);  // autostart
-  m->on_command(static_cast<int>(Command::kPause));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kPause));
   m->on_sim_status({at(1), true, false});
   const ServoReply r = m->on_image(view(initial, at(1)), 0.04);
   EXPECT_TRUE(r.twist.isZero());
   EXPECT_EQ(r.state, ServoState::kStopped);
-  m->on_command(static_cast<int>(Command::kStart));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
   EXPECT_EQ(m->state(), ServoState::kServoing);
-  m->on_command(static_cast<int>(Command::kReset));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kReset));
   EXPECT_EQ(m->state(), ServoState::kIdle);
   m->on_command(250);  // unknown: nothing changes
   EXPECT_EQ(m->state(), ServoState::kIdle);
@@ -207,10 +207,10 @@ TEST_F(Frames, ARunawayErrorStopsTheServoWhenAsked) {
   const cv::Mat farther = sim::render_image(*cell, sim::resolve_pose(cell->scenario, "-8 -12 -20 -20 15 20"), 3);
   for (const double ratio : {0.0, 1.2}) {
     auto m = make(false, ratio);
-    m->on_command(static_cast<int>(Command::kTeach));
+    m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
     m->on_sim_status({at(1), false, true});
     ASSERT_TRUE(m->on_image(view(desired, at(1)), 0.04).taught);
-    m->on_command(static_cast<int>(Command::kStart));
+    m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
     m->on_sim_status({at(2), true, false});
     const ServoReply first = m->on_image(view(initial, at(2)), 0.08);
     ASSERT_EQ(first.state, ServoState::kServoing) << first.reason;
@@ -228,7 +228,7 @@ TEST_F(Frames, ARunawayErrorStopsTheServoWhenAsked) {
     // stopped: later frames are not servoed until START
     m->on_sim_status({at(4), true, false});
     EXPECT_TRUE(m->on_image(view(initial, at(4)), 0.16).twist.isZero());
-    m->on_command(static_cast<int>(Command::kStart));
+    m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
     m->on_sim_status({at(5), true, false});
     EXPECT_FALSE(m->on_image(view(initial, at(5)), 0.20).twist.isZero());
   }
@@ -240,10 +240,10 @@ TEST_F(Frames, ARunawayErrorStopsTheServoWhenAsked) {
 TEST_F(Frames, ASafeStopThatLastsStopsTheServo) {
   const cv::Mat black = cv::Mat::zeros(desired.rows, desired.cols, desired.type());
   auto m = make();
-  m->on_command(static_cast<int>(Command::kTeach));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
   m->on_sim_status({at(1), false, true});
   ASSERT_TRUE(m->on_image(view(desired, at(1)), 0.04).taught);
-  m->on_command(static_cast<int>(Command::kStart));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
   int frame = 2;
   const auto next = [&](const cv::Mat& img) {
     m->on_sim_status({at(frame), true, false});
@@ -266,7 +266,7 @@ TEST_F(Frames, ASafeStopThatLastsStopsTheServo) {
   EXPECT_NE(stopped.reason.find("safe stop"), std::string::npos) << stopped.reason;
   EXPECT_NE(stopped.reason.find("stopped"), std::string::npos) << stopped.reason;
   EXPECT_TRUE(next(initial).twist.isZero()) << "a stopped servo moved without START";
-  m->on_command(static_cast<int>(Command::kStart));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kStart));
   EXPECT_FALSE(next(initial).twist.isZero());
 }
 

@@ -410,35 +410,14 @@ std::optional<std::array<std::uint8_t, 9>> colours_of(const std::vector<Spot>& s
   }
   return c;
 }
-// the window reads as a pattern window, on its epipolar lines when checked; `one_off`: or as
-// one within one symbol of it (a misread colour that correction will mend)
+// the window is whole, smooth and reads as a pattern window (on its epipolar lines when checked)
 bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::WindowTable& table,
-           const EpipolarCheck* check, bool one_off = false) {
-  auto c = colours_of(spots, w);
+           const EpipolarCheck* check) {
+  const auto c = colours_of(spots, w);
   if (!c) return false;
-  int smooth = -1;  // tested once, and only for a window whose colours read (the code is cheaper)
-  const auto fits = [&](const std::array<std::uint8_t, 9>& x) {
-    const auto id = table.find(x.data());
-    if (!id) return false;
-    if (smooth < 0) smooth = smooth_window(spots, w);
-    return smooth && (!check || check->confirms(w, *id));
-  };
-  if (fits(*c)) return true;
-  if (!one_off) return false;
-  for (int i = 0; i < 9; ++i) {
-    const std::uint8_t was = (*c)[i];
-    for (int k = 0; k < table.array().colours; ++k) {
-      if (k == was) continue;
-      (*c)[i] = static_cast<std::uint8_t>(k);
-      if (fits(*c)) return true;
-    }
-    (*c)[i] = was;
-  }
-  return false;
+  const auto id = table.find(c->data());  // the code first: it is cheaper than the geometry
+  return id && smooth_window(spots, w) && (!check || check->confirms(w, *id));
 }
-}  // namespace
-
-namespace {
 
 // a blob smaller than this fraction of the median area of the spots linked to it is a fragment
 constexpr double kFragmentArea = 0.5;

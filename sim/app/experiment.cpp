@@ -250,11 +250,13 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
       res.stop_reason = divergence.check(step.control.error_norm);
       res.diverged = last = !res.stop_reason.empty();
     }
-    std::string robot_event;  // the robot stopped by itself (a collision, a fault): the run ends
+    // the robot stopped by itself (a collision, a fault): the run ends, as the service's arm
+    // holds still until RESET; a step refused at the workspace border is not a stop
+    std::string robot_event;
     if (!last) {
       const sim::MotionReport motion = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace);
       rec.robot_limits = motion.limits;
-      robot_event = motion.event;
+      if (sim::stopped_until_reset(motion)) robot_event = motion.event;
     }
     res.trace.push_back(rec);
     if (trace.is_open()) {

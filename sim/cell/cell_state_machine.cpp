@@ -274,7 +274,7 @@ bool CellStateMachine::moved(const MotionReport& r) {
   if (!r.event.empty()) {
     if (r.limits & kLimitWorkspace) {
       if (worth_logging(++counters_.rejected_workspace)) log("cellsim: " + r.event);
-    } else if (worth_logging(++counters_.robot_stops)) {
+    } else if (stopped_until_reset(r) && worth_logging(++counters_.robot_stops)) {
       log("cellsim: " + r.event);
     }
   }

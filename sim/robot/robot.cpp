@@ -11,7 +11,10 @@ std::string limit_names(std::uint32_t limits) {
                                 "singularity_stop", "workspace",      "collision"};
   std::string s;
   for (int i = 0; i < 7; ++i)
-    if (limits & (1u << i)) s += (s.empty() ? "" : "|") + std::string(names[i]);
+    if (limits & (1u << i)) {
+      if (!s.empty()) s += '|';
+      s += names[i];
+    }
   return s;
 }
 

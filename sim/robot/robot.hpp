@@ -33,6 +33,10 @@ struct MotionReport {
   std::string event;                    // non-empty when the robot stopped by itself: why
 };
 
+// The robot stopped by itself and holds still until a reset (a collision, a fault). A motion
+// refused at the workspace border is not: the step is not made, and the next twist may move it.
+inline bool stopped_until_reset(const MotionReport& r) { return !r.event.empty() && !(r.limits & kLimitWorkspace); }
+
 // What the cell's controller believes of the robot when its calibration is off (issue 13):
 // the camera on the flange (hand-eye) and, for an arm, each joint origin's offset and each
 // joint's zero. The robot moves by the truth; it executes a twist for the camera it believes

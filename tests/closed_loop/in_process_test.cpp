@@ -243,4 +243,21 @@ TEST(InProcessLoop, ASafeStopThatLastsEndsTheRunAsItStopsTheService) {
   for (const auto& row : r.trace) EXPECT_TRUE(row.twist.isZero());
 }
 
+// A step refused at the workspace border is not a robot stop: the service refuses that step
+// and takes the next twist, and so does the runner (sim::stopped_until_reset decides for both).
+TEST(InProcessLoop, AStepRefusedAtTheWorkspaceBorderDoesNotEndTheRun) {
+  sim::Scenario s = sim::load_scenario(kDir + "plane.yaml");
+  s.robot.arm_enabled = false;
+  const Eigen::Vector3d start = s.world_T_initial().translation();
+  s.workspace.min_m = start - Eigen::Vector3d::Constant(0.005);
+  s.workspace.max_m = start + Eigen::Vector3d::Constant(0.005);
+  const auto cell = sim::build_cell(s);
+  const auto r = cellsim::run_experiment(*cell, quiet_options(*cell, 0.9, 60));
+  EXPECT_FALSE(r.robot_stopped) << r.stop_reason;
+  EXPECT_EQ(r.stop_reason, "iteration cap (60) reached");
+  int refused = 0;
+  for (const auto& row : r.trace) refused += (row.robot_limits & sim::kLimitWorkspace) != 0;
+  EXPECT_GT(refused, 0) << "the workspace never refused a step";
+}
+
 }  // namespace

@@ -35,6 +35,13 @@ Eigen::Vector3d after_motion(const Eigen::Vector3d& X, const Vector6d& v, double
   return R.transpose() * (X - t);
 }
 
+// the scene points seen from the camera after the motion `offset` (one second of it)
+std::vector<Eigen::Vector3d> after_offset(const std::vector<Eigen::Vector3d>& goal, const Vector6d& offset) {
+  std::vector<Eigen::Vector3d> now;
+  for (const auto& X : goal) now.push_back(after_motion(X, offset, 1.0));
+  return now;
+}
+
 TEST(InteractionMatrix, MatchesFiniteDifferencesOfTheProjection) {
   const auto pts = scene_points(30, 1);
   Vector6d v;
@@ -79,8 +86,7 @@ TEST(ControlLaw, ExactCurrentModelDecaysExponentiallyAtRateLambda) {
   const auto goal = scene_points(40, 3);
   Vector6d offset;
   offset << 0.01, -0.008, 0.015, 0.01, -0.012, 0.008;  // a small displacement
-  std::vector<Eigen::Vector3d> now;
-  for (const auto& X : goal) now.push_back(after_motion(X, offset, 1.0));
+  std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
   ControlLawParams p;
   p.model = InteractionModel::kCurrent;
   p.gain = {0.7, 0.7, 0};
@@ -133,8 +139,7 @@ TEST(ControlLaw, RobustLawIgnoresSwappedMatches) {
   const auto goal = scene_points(40, 5);
   Vector6d offset;
   offset << 0.02, -0.01, 0.03, 0.02, -0.015, 0.01;
-  std::vector<Eigen::Vector3d> now;
-  for (const auto& X : goal) now.push_back(after_motion(X, offset, 1.0));
+  const std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
   ControlLawParams p;
   p.model = InteractionModel::kCurrent;
   const ControlOutput clean = compute_control(matched(now, goal), p);
@@ -165,8 +170,7 @@ TEST(ControlLaw, SaturationKeepsTheScrewDirection) {
   const auto goal = scene_points(40, 4);
   Vector6d offset;
   offset << 0.2, -0.1, 0.3, 0.3, -0.2, 0.1;
-  std::vector<Eigen::Vector3d> now;
-  for (const auto& X : goal) now.push_back(after_motion(X, offset, 1.0));
+  const std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
   ControlLawParams p;
   p.model = InteractionModel::kDesired;
   p.gain = {2.0, 2.0, 0};

@@ -302,6 +302,12 @@ class SimService {
                            });
     }
     if (loading_.valid()) loading_.wait();  // a load is bounded by its files' limits; its objects must not outlive us
+    // the last pose and status must reach the readers that are matched, not die with the process
+    const auto last_word = std::chrono::milliseconds(500);
+    pose_->flush(last_word);
+    sim_status_->flush(last_word);
+    joints_->flush(last_word);
+    tf_->flush(last_word);
     summary();
     return 0;
   }

@@ -38,10 +38,12 @@ TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
   const int domain = unique_domain(1);
   const std::string dir = tmp_dir("plane");
   Watcher w(domain);
-  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+  // autorun waits for the servo, so the run starts only once the watcher hears cellsim
   Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun", "--exit-on-converged",
                "--max-frames", "800", "--trace", dir},
               domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_until_cellsim_heard()) << "see " << dir;
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
   ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 30s)) << "no CONVERGED status received";
   expect_converged_pose("plane", w);
@@ -128,10 +130,11 @@ TEST(DdsLoop, ErrorsAndDelaysOfTheScenarioGiveTheInProcessTrace) {
 void expect_lockstep_convergence(int domain, const std::string& dir, const std::vector<std::string>& servo_argv,
                                  const std::string& scenario, const std::string& max_frames) {
   Watcher w(domain);
-  Process servo(servo_argv, domain, dir + "/servo.log");
   Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/" + scenario + ".yaml", "--autorun",
                "--exit-on-converged", "--max-frames", max_frames},
               domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_until_cellsim_heard()) << "see " << dir;
+  Process servo(servo_argv, domain, dir + "/servo.log");
   ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 30s));
   expect_converged_pose(scenario, w);

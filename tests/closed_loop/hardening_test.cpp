@@ -175,8 +175,10 @@ TEST(Hardening, ARefusedCommandDoesNotEndTheRun) {
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 180s))
       << "the run did not converge after a refused command; see " << dir;
   {
+    // the status may be heard before the pose it was computed on
     const sim::Scenario s = sim::load_scenario(kPlane);
-    EXPECT_LT(sim::translation_error(w.pose_now(), s.world_T_desired), 1e-3);
+    EXPECT_TRUE(w.wait_for(
+        [&] { return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_desired) < 1e-3; }, 60s));
   }
   sim.kill(SIGINT);
   EXPECT_EQ(sim.wait_exit(20s), 0);
@@ -239,10 +241,11 @@ TEST(Hardening, RealtimeRunConvergesOnlyAtTheGoalWithAFullTrace) {
   const int domain = unique_domain(24);
   const std::string dir = tmp_dir("realtime_converge");
   Watcher w(domain);
-  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
   Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "realtime", "--autorun", "--exit-on-converged", "--trace",
                dir},
               domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_until_cellsim_heard()) << "see " << dir;
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
   ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
   EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 5s));
   {

@@ -117,6 +117,12 @@ struct Watcher {
     const long from = pose_count();
     return wait_for([&] { return poses >= from + n; }, timeout);
   }
+  // True once cellsim's camera pose writer is matched: a run started after that is heard whole,
+  // however slow discovery is on a loaded machine (a volatile pose written before the match is
+  // never resent).
+  bool wait_until_cellsim_heard(std::chrono::milliseconds timeout = std::chrono::milliseconds(60000)) {
+    return wait_for([&] { return pose->matched() > 0; }, timeout);
+  }
   template <typename Pred>
   bool wait_for(Pred pred, std::chrono::milliseconds timeout) {
     const auto until = std::chrono::steady_clock::now() + timeout;

@@ -12,7 +12,7 @@
 
 #include "bench/bench_scenes.hpp"
 #include "servo/vision/spot_decoder.hpp"
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {

@@ -11,7 +11,7 @@
 
 #include <unistd.h>
 
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 #include "support/numeric_text.hpp"
 
 namespace {

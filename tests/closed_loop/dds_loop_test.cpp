@@ -19,7 +19,7 @@
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 #include "sim/geometry/se3.hpp"
 
 namespace {

@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 
 namespace {
 

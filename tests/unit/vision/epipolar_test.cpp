@@ -7,7 +7,7 @@
 
 #include "servo/vision/epipolar.hpp"
 #include "servo/vision/spot_decoder.hpp"
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {

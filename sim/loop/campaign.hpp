@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 
 namespace cellsim {
 

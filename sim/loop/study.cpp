@@ -1,4 +1,4 @@
-#include "sim/app/study.hpp"
+#include "sim/loop/study.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "sim/app/campaign.hpp"
+#include "sim/loop/campaign.hpp"
 
 #include "servo/config/regular_file.hpp"
 #include "servo/config/strict_yaml.hpp"

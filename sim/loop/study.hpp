@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/app/campaign.hpp"
+#include "sim/loop/campaign.hpp"
 
 namespace cellsim {
 

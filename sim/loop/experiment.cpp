@@ -1,4 +1,4 @@
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 
 #include <spawn.h>
 #include <sys/wait.h>

@@ -1,4 +1,4 @@
-#include "sim/app/divergence_search.hpp"
+#include "sim/loop/divergence_search.hpp"
 
 #include <algorithm>
 #include <atomic>

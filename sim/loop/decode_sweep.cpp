@@ -1,4 +1,4 @@
-#include "sim/app/decode_sweep.hpp"
+#include "sim/loop/decode_sweep.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "servo/vision/overlay.hpp"
-#include "sim/app/experiment.hpp"
+#include "sim/loop/experiment.hpp"
 
 namespace cellsim {
 

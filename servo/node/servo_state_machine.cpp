@@ -189,10 +189,24 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     ++rejected_;
     return reply(img.stamp, "rejected image: " + config::printable(e.what(), 200));
   }
+  return answer(img.stamp, spots, detected, pose);
+}
+
+ServoReply ServoStateMachine::on_spots(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected,
+                                       double now_s) {
+  last_image_s_ = now_s;
+  lost_ = false;
+  ++images_;
+  last_stamp_ = stamp;
+  return answer(stamp, spots, detected, pose_for(stamp));
+}
+
+ServoReply ServoStateMachine::answer(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected,
+                                     const std::optional<Eigen::Isometry3d>& pose) {
   decoded_ = static_cast<std::uint32_t>(spots.size());
-  const SimFrameStatus* sim = sim_status_for(img.stamp);
+  const SimFrameStatus* sim = sim_status_for(stamp);
   if (sim_status_seen_ && !sim) {
-    ServoReply r = reply(img.stamp, "no simulator status for this frame: not answered");
+    ServoReply r = reply(stamp, "no simulator status for this frame: not answered");
     r.answer = false;
     return r;
   }
@@ -213,18 +227,18 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     safe_stop_.reset();
     if (!pipeline_->taught()) {
       state_ = ServoState::kTeaching;
-      return with_spots(reply(img.stamp, "teach frame has no decodable spots: send TEACH again"));
+      return with_spots(reply(stamp, "teach frame has no decodable spots: send TEACH again"));
     }
     state_ = timing_.autostart || started_ ? ServoState::kServoing : ServoState::kIdle;
-    ServoReply r = with_spots(reply(img.stamp, "taught " + std::to_string(n) + " features"));
+    ServoReply r = with_spots(reply(stamp, "taught " + std::to_string(n) + " features"));
     r.taught = true;
     return r;
   }
   if (jump_pending_ && sim) {
     if (!sim->running || !sim->applies_twist) {
       jump_pending_ = false;  // the simulator obeyed: START is needed again
-    } else if (!last_running_stamp_ || !(*last_running_stamp_ == img.stamp)) {
-      last_running_stamp_ = img.stamp;
+    } else if (!last_running_stamp_ || !(*last_running_stamp_ == stamp)) {
+      last_running_stamp_ = stamp;
       if (++running_frames_since_jump_ >= kRefusalFrames && pipeline_->taught()) {
         jump_pending_ = false;
         started_ = true;
@@ -234,18 +248,18 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
       }
     }
   }
-  if (state_ == ServoState::kTeaching) return with_spots(reply(img.stamp, "waiting for the teach frame"));
+  if (state_ == ServoState::kTeaching) return with_spots(reply(stamp, "waiting for the teach frame"));
   if (state_ != ServoState::kServoing && state_ != ServoState::kConverged)
-    return with_spots(reply(img.stamp, pipeline_->taught() ? "waiting for START" : "no reference: send TEACH"));
+    return with_spots(reply(stamp, pipeline_->taught() ? "waiting for START" : "no reference: send TEACH"));
   // a frame whose twist the simulator will not apply (paused, or rendered before START took
   // effect) can neither move the robot nor prove convergence (issue 9, item 8)
-  if (sim && !sim->applies_twist) return with_spots(reply(img.stamp, "waiting: the simulator is not applying twists"));
+  if (sim && !sim->applies_twist) return with_spots(reply(stamp, "waiting: the simulator is not applying twists"));
 
   StepResult step;
   try {
     step = pipeline_->step(spots, pose);
   } catch (const std::exception& e) {
-    return with_spots(reply(img.stamp, config::printable(e.what(), 200)));
+    return with_spots(reply(stamp, config::printable(e.what(), 200)));
   }
   ++iteration_;
   error_norm_ = step.control.error_norm;
@@ -257,7 +271,9 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
       // the loop is running away: stop the robot rather than follow it (START resumes)
       state_ = ServoState::kStopped;
       started_ = false;
-      return with_spots(reply(img.stamp, why + ": stopped"));
+      ServoReply r = with_spots(reply(stamp, why + ": stopped"));
+      r.step = std::move(step);
+      return r;
     }
   }
   switch (step.control.status) {
@@ -275,14 +291,17 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     // it has lasted: stop rather than hold still for ever (START resumes)
     state_ = ServoState::kStopped;
     started_ = false;
-    return with_spots(reply(img.stamp, reason + ": stopped"));
+    ServoReply r = with_spots(reply(stamp, reason + " (" + std::to_string(safe_stop_.frames()) + " frames): stopped"));
+    r.step = std::move(step);
+    return r;
   }
-  ServoReply r = with_spots(reply(img.stamp, reason));
+  ServoReply r = with_spots(reply(stamp, reason));
   r.twist = step.control.twist;
   if (!r.twist.allFinite()) {
     r.twist.setZero();
     r.reason = "control law gave a non-finite twist: zero sent";
   }
+  r.step = std::move(step);
   return r;
 }
 

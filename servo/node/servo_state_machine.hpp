@@ -70,6 +70,9 @@ struct ServoReply {
   std::optional<std::vector<ImageSpot>> spots;  // when the image was decoded
   int detected = 0;
   bool taught = false;                          // this image taught s*
+  // the control law's iteration in full, when one was made (in-process tools read it; the
+  // service publishes what the fields above say)
+  std::optional<StepResult> step;
   // false: publish nothing for this image. Its simulator status never came, so what the frame
   // is (teach frame? applied?) is unknown; in lockstep the simulator sends it again.
   bool answer = true;
@@ -96,6 +99,9 @@ class ServoStateMachine {
 
   // One image: checked, decoded, and answered.
   ServoReply on_image(const ImageView& image, double now_s);
+  // Spots located by someone else (the simulator's truth for the `ideal` feature source, or
+  // decoded spots some of whose ids an experiment swapped), answered as an image would be.
+  ServoReply on_spots(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected, double now_s);
   // Time passes: LOST when the images stop while servoing (once per outage).
   std::optional<ServoReply> tick(double now_s);
   // The reply a clean shutdown publishes: zero twist, STOPPED.
@@ -117,6 +123,9 @@ class ServoStateMachine {
 
  private:
   ServoReply reply(const Stamp& stamp, std::string reason) const;
+  // what follows the decoding: teaching, or one step of the control law
+  ServoReply answer(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected,
+                    const std::optional<Eigen::Isometry3d>& pose);
   const SimFrameStatus* sim_status_for(const Stamp& s) const;
   std::optional<Eigen::Isometry3d> pose_for(const Stamp& s) const;
 

@@ -466,6 +466,9 @@ int main(int argc, char** argv) {
   sv->add_flag("--autorun", svc.autorun, "teach, reset to the initial pose and start without an external client");
   sv->add_option("--max-frames", svc.max_frames, "exit after this many frames")->capture_default_str();
   sv->add_flag("--exit-on-converged", svc.exit_on_converged, "exit when the servo reports CONVERGED");
+  sv->add_flag("--exit-on-stop", svc.exit_on_stop,
+               "also exit on any other stop of a run: the servo stopping itself (a lasting safe stop, a "
+               "runaway) or the robot stopping (a collision); the summary line names it");
   sv->add_option("--trace", svc_trace, "folder for trace.csv");
   sv->add_option("--scenarios", svc.scenarios_dir,
                  "the folder LOAD_SCENARIO may read scenarios from, links resolved (default: the served scenario's)");

@@ -162,7 +162,8 @@ class SimService {
     cp.watchdog_s = o.watchdog_ms / 1e3;
     cp.republish_s = o.republish_ms / 1e3;
     cp.max_frames = o.max_frames;
-    cp.exit_on_converged = o.exit_on_converged;
+    cp.exit_on_converged = o.exit_on_converged || o.exit_on_stop;
+    cp.exit_on_stop = o.exit_on_stop;
     machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cp, sim::make_robot(*cell_));
     {
       std::error_code ec;
@@ -497,16 +498,7 @@ class SimService {
 
   void record(const sim::TraceRow& r) {
     if (!trace_.is_open()) return;
-    trace_ << r.time_s;
-    for (int i = 0; i < 6; ++i) trace_ << ',' << r.twist[i];
-    trace_ << ',' << (r.status ? r.status->error_norm : std::nan("")) << ',' << (r.status ? r.status->decoded : 0) << ','
-           << (r.status ? r.status->matched : 0) << ',' << r.translation_error_m << ',' << r.rotation_error_deg << ','
-           << sim::limit_names(r.robot_limits);
-    if (o_.mode == TimingMode::kRealtime) {
-      trace_ << ',';
-      if (r.processing_s) trace_ << 1e3 * *r.processing_s;
-    }
-    trace_ << '\n';
+    sim::write_trace_row(trace_, r, o_.mode == TimingMode::kRealtime);
     if (o_.mode == TimingMode::kRealtime) trace_.flush();  // a realtime run usually ends by a signal
   }
 
@@ -529,6 +521,8 @@ class SimService {
                 c.late_answers, c.watchdog_stops, c.robot_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
                 1e3 * sim::translation_error(wTc, cell_->scenario.world_T_desired),
                 sim::rotation_error(wTc, cell_->scenario.world_T_desired) * 180.0 / 3.14159265358979323846);
+    if (!machine_->session_end().reason.empty())
+      std::printf("cellsim: session ended: %s\n", machine_->session_end().reason.c_str());
     if (trace_.is_open()) trace_.flush();
     std::fflush(stdout);
   }

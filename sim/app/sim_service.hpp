@@ -23,6 +23,7 @@ struct ServiceOptions {
   bool autorun = false;         // teach, go to the initial pose and start on its own
   long max_frames = 0;          // stop after this many frames (0: no limit)
   bool exit_on_converged = false;
+  bool exit_on_stop = false;  // also on a servo that stopped itself or a robot stop (sim::SessionEnd)
   std::filesystem::path trace_dir;  // trace.csv of the run (lockstep: one row per step)
   // LOAD_SCENARIO (a remote peer's command) reads scenario files only from under this folder,
   // links resolved; empty: the folder of `scenario` (--scenarios DIR)

@@ -34,6 +34,24 @@ const char* command_name(int c) {
 
 }  // namespace
 
+void write_trace_row(std::ostream& out, const TraceRow& r, bool with_processing) {
+  out << r.time_s;
+  for (int i = 0; i < 6; ++i) out << ',' << r.twist[i];
+  out << ',' << (r.status ? r.status->error_norm : std::nan("")) << ',' << (r.status ? r.status->decoded : 0) << ','
+      << (r.status ? r.status->matched : 0) << ',' << r.translation_error_m << ',' << r.rotation_error_deg << ','
+      << limit_names(r.robot_limits);
+  if (with_processing) {
+    out << ',';
+    if (r.processing_s) out << 1e3 * *r.processing_s;
+  }
+  out << '\n';
+}
+
+FrameStamp frame_stamp(std::uint64_t index, double dt_s) {
+  const std::uint64_t ns = index * static_cast<std::uint64_t>(std::llround(dt_s * 1e9));
+  return {static_cast<std::int64_t>(ns / 1000000000ull), static_cast<std::uint32_t>(ns % 1000000000ull)};
+}
+
 CellStateMachine::CellStateMachine(const Scenario& scenario, CellParams params, std::unique_ptr<Robot> robot)
     : scenario_(scenario), p_(params), robot_(std::move(robot)),
       scenes_(scenario.latency.acquisition_frames),
@@ -106,7 +124,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
     }
     case static_cast<int>(cell_dds::SimCommand::kReset): {
       try {
-        place_robot(resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument));
+        place_robot(c.pose ? *c.pose : resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument));
       } catch (const std::exception& e) {
         return refuse(e.what());
       }
@@ -243,6 +261,15 @@ void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
   peer_sends_statuses_ = true;
   while (statuses_.size() > kMaxKeptStatuses) statuses_.erase(statuses_.begin());
   if (p_.exit_on_converged && s.state == kServoConverged) check_convergence(s);
+  // the servo stopped itself while the run was on (a safe stop that lasted, a runaway)
+  if (p_.exit_on_stop && s.state == kServoStopped && running_ && !done_)
+    end_session(SessionEnd::kServoStopped, shown(s.reason, 200));
+}
+
+void CellStateMachine::end_session(SessionEnd kind, std::string reason) {
+  done_ = true;
+  if (end_.kind != SessionEnd::kNone) return;  // the first stop is the one that ended it
+  end_ = {kind, std::move(reason)};
 }
 
 void CellStateMachine::check_convergence(const ServoReport& s) {
@@ -252,7 +279,7 @@ void CellStateMachine::check_convergence(const ServoReport& s) {
   const double t = translation_error(wTc, scenario_.world_T_desired);
   const double r = rotation_error(wTc, scenario_.world_T_desired) * kRadToDeg;
   if (t <= p_.accept_translation_m && r <= p_.accept_rotation_deg) {
-    done_ = true;
+    end_session(SessionEnd::kConverged, "converged: " + shown(s.reason, 200));
     return;
   }
   if (converged_refusals_logged_++ < 5) {
@@ -274,8 +301,10 @@ bool CellStateMachine::moved(const MotionReport& r) {
   if (!r.event.empty()) {
     if (r.limits & kLimitWorkspace) {
       if (worth_logging(++counters_.rejected_workspace)) log("cellsim: " + r.event);
-    } else if (stopped_until_reset(r) && worth_logging(++counters_.robot_stops)) {
-      log("cellsim: " + r.event);
+    } else if (stopped_until_reset(r)) {
+      if (worth_logging(++counters_.robot_stops)) log("cellsim: " + r.event);
+      // the robot holds still until a reset: a session that ends on stops ends here
+      if (p_.exit_on_stop && running_) end_session(SessionEnd::kRobotStopped, "robot stop: " + robot_stop_reason(r.event));
     }
   }
   return r.event.empty();
@@ -392,7 +421,9 @@ void CellStateMachine::lockstep(double now_s) {
   }
   if (!awaited_ && !done_ && (teach_requested_ || running_ || steps_ > 0)) {
     if (p_.max_frames > 0 && counters_.frames >= p_.max_frames) {
-      done_ = true;
+      end_session(SessionEnd::kFrameCap, "frame cap (" + std::to_string(p_.max_frames) + ") reached");
+    } else if (p_.max_run_steps > 0 && counters_.applied >= p_.max_run_steps && !teach_requested_) {
+      end_session(SessionEnd::kStepCap, "iteration cap (" + std::to_string(p_.max_run_steps) + ") reached");
     } else {
       const bool teach = teach_requested_;
       teach_requested_ = false;
@@ -444,7 +475,11 @@ void CellStateMachine::realtime(double now_s) {
   if (now_s - next_frame_at_s_ > 5 * scenario_.dt_s) next_frame_at_s_ = now_s;
   while (now_s >= next_frame_at_s_ && !done_) {
     if (p_.max_frames > 0 && counters_.frames >= p_.max_frames) {
-      done_ = true;
+      end_session(SessionEnd::kFrameCap, "frame cap (" + std::to_string(p_.max_frames) + ") reached");
+      break;
+    }
+    if (p_.max_run_steps > 0 && counters_.applied >= p_.max_run_steps) {
+      end_session(SessionEnd::kStepCap, "iteration cap (" + std::to_string(p_.max_run_steps) + ") reached");
       break;
     }
     const bool teach = teach_requested_;

@@ -22,6 +22,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,8 @@ struct CommandMsg {
   int command = 0;       // a cell_dds::SimCommand value; anything else is refused
   std::string argument;  // LOAD_SCENARIO: path; RESET: desired | initial | "x y z rx ry rz"
   std::uint64_t steps = 0;
+  // RESET to exactly this pose (the in-memory wiring; a DDS command carries text)
+  std::optional<Eigen::Isometry3d> pose;
 };
 
 struct TwistMsg {
@@ -58,6 +61,22 @@ struct ServoReport {
   std::string reason;
 };
 inline constexpr std::uint8_t kServoConverged = 3;
+inline constexpr std::uint8_t kServoStopped = 5;
+
+// Why a session ended: the one place every stop is decided, for both wirings (the services
+// over DDS, the in-memory loop of experiments and campaigns).
+enum class SessionEnd {
+  kNone,
+  kConverged,     // the servo said CONVERGED, and the camera is at the goal (within the acceptance)
+  kServoStopped,  // the servo stopped itself: a safe stop that lasted, or a loop running away
+  kRobotStopped,  // the robot stopped by itself: a collision, a fault
+  kStepCap,       // max_run_steps applied
+  kFrameCap,      // max_frames made
+};
+struct SessionEndReport {
+  SessionEnd kind = SessionEnd::kNone;
+  std::string reason;  // "converged: ...", "safe stop: ...", "robot stop: collision: link 'A' touches ..."
+};
 
 struct CellParams {
   Timing timing = Timing::kLockstep;
@@ -67,6 +86,9 @@ struct CellParams {
   double teach_timeout_s = 10.0;  // lockstep: the teach frame is given up after this long
   long max_frames = 0;            // done after this many new frames (0: no limit)
   bool exit_on_converged = false;
+  // also end on the servo stopping itself (STOPPED after START) and on the robot stopping
+  bool exit_on_stop = false;
+  long max_run_steps = 0;         // done after this many applied steps (0: no limit)
   // a CONVERGED status ends the run only when the camera really is this close to the goal
   double accept_translation_m = 0.01;
   double accept_rotation_deg = 1.0;
@@ -106,6 +128,18 @@ struct TraceRow {
   // here (decoding, the control law and both DDS hops); none in lockstep, where time waits
   std::optional<double> processing_s;
 };
+
+// One trace.csv row (sim::kTraceHeader's columns, then processing_ms when `with_processing`):
+// written by the service and the in-memory loop alike, so their traces are the same bytes.
+void write_trace_row(std::ostream& out, const TraceRow& r, bool with_processing);
+
+// The header stamp of frame `index`: integer nanoseconds per frame, so stamps map back to
+// frames exactly (cell_dds::stamp_of writes the same on the wire).
+struct FrameStamp {
+  std::int64_t sec = 0;
+  std::uint32_t nanosec = 0;
+};
+FrameStamp frame_stamp(std::uint64_t index, double dt_s);
 
 struct CellCounters {
   long frames = 0, applied = 0, rejected_nan = 0, rejected_frame = 0, rejected_stale = 0, rejected_workspace = 0,
@@ -149,6 +183,7 @@ class CellStateMachine {
   Eigen::Isometry3d world_T_camera() const { return robot_->world_T_camera(); }
   const Scenario& scenario() const { return scenario_; }
   const CellCounters& counters() const { return counters_; }
+  const SessionEndReport& session_end() const { return end_; }
   bool running() const { return running_; }
   std::uint64_t next_frame() const { return frame_; }
   std::uint64_t pending_steps() const { return steps_; }
@@ -185,6 +220,7 @@ class CellStateMachine {
   void lockstep(double now_s);
   void realtime(double now_s);
   void log(std::string line) { out_.log.push_back(std::move(line)); }
+  void end_session(SessionEnd kind, std::string reason);
 
   Scenario scenario_;
   CellParams p_;
@@ -201,6 +237,7 @@ class CellStateMachine {
   bool teach_requested_ = false;
   bool loading_ = false;
   bool done_ = false;
+  SessionEndReport end_;
   std::optional<double> run_started_at_;
 
   // lockstep: the frame sent and not yet answered

@@ -7,35 +7,24 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
+#include <tuple>
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <stdexcept>
 
+#include "dds/sim_command.hpp"
+#include "sim/cell/cell_state_machine.hpp"
 #include "sim/cell/trace.hpp"
 #include "sim/robot/robot.hpp"
-#include "sim/robot/twist_delay.hpp"
 
 namespace cellsim {
 
 namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
-// The spots the controller sees: decoded from the rendered image, or the truth's visible ones.
-std::vector<servo::ImageSpot> observe(const sim::Cell& cell, const servo::ServoPipeline& pipeline, FeatureSource src,
-                                      const Eigen::Isometry3d& wTc, const sim::LinkPoses& links, std::uint64_t seed,
-                                      sim::RenderScratch& scratch, int* detected) {
-  if (src == FeatureSource::kIdeal) {
-    std::vector<servo::ImageSpot> spots;
-    for (const auto& t : sim::compute_truth(cell, wTc, &links))
-      if (t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
-    if (detected) *detected = 0;
-    return spots;
-  }
-  return pipeline.locate(sim::render_image(cell, wTc, seed, &scratch, nullptr, &links), wTc, detected);
-}
 
 nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
   nlohmann::json rows = nlohmann::json::array();
@@ -113,70 +102,66 @@ control::ProjectorModel believed_projector(const control::ProjectorModel& truth,
   return p;
 }
 
-std::string robot_stop_reason(const std::string& event) {
-  // the service's wording tells a client what to do ("... until RESET"); a run just ends
-  const std::string suffix = ": robot stopped until RESET";
-  if (event.size() >= suffix.size() && event.compare(event.size() - suffix.size(), suffix.size(), suffix) == 0)
-    return event.substr(0, event.size() - suffix.size());
-  return event;
+namespace {
+
+// features.jsonl: the points the law used at one iteration, with their depths and weights
+nlohmann::json features_line(int k, const ExperimentOptions& o, const LoopExchange& x) {
+  const servo::StepResult& step = *x.reply.step;
+  nlohmann::json j;
+  j["k"] = k;
+  j["model"] = control::to_string(o.servo.law.model);
+  j["features"] = to_string(o.source);
+  j["gain"] = step.control.gain;
+  j["points"] = nlohmann::json::array();
+  for (std::size_t i = 0; i < step.matched.size(); ++i) {
+    const auto& m = step.matched[i];
+    nlohmann::json p{{"row", m.row}, {"col", m.col}, {"x", m.x}, {"y", m.y}, {"x_star", m.x_star}, {"y_star", m.y_star}};
+    const double z = i < step.control.z_model.size() ? step.control.z_model[i] : std::nan("");
+    p["z_model"] = std::isfinite(z) ? nlohmann::json(z) : nlohmann::json(nullptr);
+    if (o.outlier_fraction > 0)
+      p["swapped"] = std::find(x.wrong.begin(), x.wrong.end(), std::make_pair(m.row, m.col)) != x.wrong.end();
+    // the robust law's weight of the point (only with one: the plain law's are all 1)
+    if (o.servo.law.robust != control::RobustEstimator::kNone) {
+      const double w = i < step.control.weights.size() ? step.control.weights[i] : std::nan("");
+      p["weight"] = std::isfinite(w) ? nlohmann::json(w) : nlohmann::json(nullptr);
+    }
+    j["points"].push_back(p);
+  }
+  j["v"] = std::vector<double>(step.control.twist.data(), step.control.twist.data() + 6);
+  if (o.outlier_fraction > 0) j["swapped"] = x.swapped;
+  return j;
 }
 
-int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
-                    std::vector<std::pair<int, int>>* wrong) {
-  if (!(fraction > 0) || spots.size() < 2) return 0;
-  const std::size_t n = std::min(spots.size(), std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(fraction * static_cast<double>(spots.size())))));
-  std::mt19937_64 rng(seed);
-  std::vector<std::size_t> pick(spots.size());
-  for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
-  for (std::size_t i = 0; i < n; ++i) std::swap(pick[i], pick[i + rng() % (pick.size() - i)]);
-  // a cycle over the chosen spots: each takes the next one's id, so none keeps its own
-  const int row0 = spots[pick[0]].row, col0 = spots[pick[0]].col;
-  for (std::size_t i = 0; i + 1 < n; ++i) {
-    spots[pick[i]].row = spots[pick[i + 1]].row;
-    spots[pick[i]].col = spots[pick[i + 1]].col;
-  }
-  spots[pick[n - 1]].row = row0;
-  spots[pick[n - 1]].col = col0;
-  if (wrong)
-    for (std::size_t i = 0; i < n; ++i) wrong->emplace_back(spots[pick[i]].row, spots[pick[i]].col);
-  return static_cast<int>(n);
-}
+}  // namespace
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) {
-  const sim::Scenario& sc = cell.scenario;
-  const std::uint64_t seed = o.noise_seed ? o.noise_seed : sc.seed;
-  const sim::CalibrationErrors errors = o.errors.value_or(sc.errors);
-  const sim::Latency latency = o.latency.value_or(sc.latency);
-  const std::unique_ptr<sim::Robot> robot_owner = sim::make_robot(cell);
-  sim::Robot& robot = *robot_owner;
-  servo::ServoConfig config = o.servo;
+  const std::uint64_t seed = o.noise_seed ? o.noise_seed : cell.scenario.seed;
+  LoopSetup setup;
+  setup.scenario = cell.scenario;
+  setup.scenario.errors = o.errors.value_or(cell.scenario.errors);
+  setup.scenario.latency = o.latency.value_or(cell.scenario.latency);
+  const sim::Scenario& run_scenario = setup.scenario;
+  setup.robot = sim::make_robot(cell);
+  setup.servo = o.servo;
   // the simulator keeps the truth; the servo and the robot's controller get the draw (and
   // the robot forgets what make_robot drew from the scenario when the options say otherwise)
-  robot.set_belief({});
-  if (errors.any()) {
-    const sim::DrawnErrors drawn = sim::scenario_errors(sc, errors, seed);
-    config.camera = camera_intrinsics_of(sim::believed_camera(sc.camera, drawn));
-    if (config.projector) config.projector = believed_projector(*config.projector, drawn);
-    robot.set_belief(drawn.robot);
+  setup.robot->set_belief({});
+  if (run_scenario.errors.any()) {
+    const sim::DrawnErrors drawn = sim::scenario_errors(run_scenario, run_scenario.errors, seed);
+    setup.servo.camera = camera_intrinsics_of(sim::believed_camera(run_scenario.camera, drawn));
+    if (setup.servo.projector) setup.servo.projector = believed_projector(*setup.servo.projector, drawn);
+    setup.robot->set_belief(drawn.robot);
   }
-  servo::ServoPipeline pipeline(pattern::WindowTable(cell.projector->pattern(), {3, 3}), config);
-  sim::RenderScratch scratch;
+  setup.noise_seed = seed;
+  setup.source = o.source;
+  setup.outlier_fraction = o.outlier_fraction;
+  setup.max_steps = o.max_iterations;
+  const Eigen::Isometry3d initial = o.initial.value_or(run_scenario.world_T_initial());
+  InMemoryLoop loop(cell, std::move(setup));
+  const sim::Scenario& sc = loop.cell().scenario();
   ExperimentResult res;
 
-  // teach by showing: the robot at the desired pose, s* from what the camera sees there
-  std::uint64_t frame = 0;
-  const auto taught = observe(cell, pipeline, o.source, robot.world_T_camera(), robot.world_T_links(),
-                              sim::frame_seed(seed, frame++), scratch, nullptr);
-  res.decoded_desired = pipeline.teach(taught, robot.reported_world_T_camera());
-
-  try {
-    robot.reset(o.initial.value_or(sc.world_T_initial()));
-  } catch (const std::invalid_argument& e) {
-    res.stop_reason = "initial pose refused (" + sc.file.filename().string() + "): " + e.what();
-    return res;
-  }
   std::ofstream trace, features, occlusion;
-  const bool arm = !robot.world_T_links().empty();
   if (!o.out_dir.empty()) {
     std::filesystem::create_directories(o.out_dir);
     trace.open(o.out_dir / "trace.csv");
@@ -186,128 +171,96 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
           << "\n";
     trace << sim::kTraceHeader << "\n";
     trace << std::setprecision(9);
-    write_scene(cell, sc.world_T_desired, robot.world_T_camera(), o.out_dir / "scene.json");
-    if (o.write_features) features.open(o.out_dir / "features.jsonl");
-    if (o.write_features && arm) {
-      occlusion.open(o.out_dir / "occlusion.csv");
-      occlusion << "t,visible,hidden_by_arm,on_arm\n";
-    }
   }
 
-  // the loop's delays: the scenes the camera has not delivered yet, and the twists on their
-  // way to the robot
-  sim::FrameDelay<std::pair<Eigen::Isometry3d, sim::LinkPoses>> scenes(latency.acquisition_frames);
-  sim::TwistDelay delay(latency.processing_frames, latency.actuation_s);
-  control::DivergenceWatch divergence(config.divergence_ratio);
-  control::SafeStopWatch safe_stop(config.safe_stop_frames);
-
-  for (int k = 0; k < o.max_iterations; ++k) {
-    const Eigen::Isometry3d wTc = robot.world_T_camera();
-    const sim::LinkPoses links = robot.world_T_links();
-    // the image of this frame shows the scene of acquisition_frames ago (or the start)
-    const auto& [scene_wTc, scene_links] = scenes.push({wTc, links});
-    const auto spots =
-        observe(cell, pipeline, o.source, scene_wTc, scene_links, sim::frame_seed(seed, frame++), scratch, nullptr);
-    if (occlusion.is_open()) {
-      // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
-      int visible = 0, hidden = 0, on_arm = 0;
-      for (const auto& t : sim::compute_truth(cell, wTc, &links)) {
-        visible += t.visible;
-        hidden += t.hidden_by_arm;
-        on_arm += t.on_arm;
+  // as `cellsim serve --autorun` does: TEACH, then RESET and START once the servo is taught
+  using sim::SessionEnd;
+  loop.command({static_cast<int>(cell_dds::SimCommand::kTeach), "", 0, std::nullopt});
+  bool started = false;
+  int idle_rounds = 0;
+  // the law's own numbers for each applied step, in order: the cell's trace rows come a round later
+  std::deque<std::pair<double, int>> step_extras;
+  int k = 0;  // iterations of the run (applied frames)
+  for (;;) {
+    std::vector<LoopExchange> exchanges;
+    sim::CellOutput out = loop.round(exchanges);
+    for (const auto& r : out.trace) {
+      IterationRecord rec;
+      rec.t_s = r.time_s;
+      rec.twist = r.twist;
+      rec.error_norm = r.status ? r.status->error_norm : std::nan("");
+      rec.decoded = r.status ? static_cast<int>(r.status->decoded) : 0;
+      rec.matched = r.status ? static_cast<int>(r.status->matched) : 0;
+      rec.translation_error_m = r.translation_error_m;
+      rec.rotation_error_deg = r.rotation_error_deg;
+      rec.robot_limits = r.robot_limits;
+      if (!step_extras.empty()) {
+        std::tie(rec.feature_rms, rec.swapped) = step_extras.front();
+        step_extras.pop_front();
       }
-      occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
+      res.trace.push_back(rec);
+      if (trace.is_open()) sim::write_trace_row(trace, r, false);
     }
-    if (k == 0) res.decoded_initial = static_cast<int>(spots.size());
-    // the outlier injection works on a copy, made only when it is on
-    std::vector<servo::ImageSpot> swapped_spots;
-    std::vector<std::pair<int, int>> wrong_ids;
-    int swapped = 0;
-    if (o.outlier_fraction > 0) {
-      swapped_spots = spots;
-      swapped = inject_outliers(swapped_spots, o.outlier_fraction,
-                                sim::frame_seed(seed ^ 0x6f75746c69657273ull, frame), &wrong_ids);
-    }
-    const servo::StepResult step =
-        pipeline.step(o.outlier_fraction > 0 ? swapped_spots : spots, robot.reported_world_T_camera());
-
-    IterationRecord rec;
-    rec.t_s = k * sc.dt_s;
-    rec.twist = step.control.twist;
-    rec.error_norm = step.control.error_norm;
-    rec.feature_rms = step.control.feature_rms;
-    rec.decoded = step.decoded;
-    rec.matched = static_cast<int>(step.matched.size());
-    rec.translation_error_m = sim::translation_error(wTc, sc.world_T_desired);
-    rec.rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
-    rec.swapped = swapped;
-    res.iterations = k + 1;
-    // as the servo service decides (servo_state_machine.cpp): converged, a runaway, and a safe
-    // stop that has lasted end the run; a passing safe stop holds the robot (its twist is zero)
-    const bool lasting_safe_stop = safe_stop.lasting(step.control.status);
-    bool last = step.control.status == control::ControlStatus::kConverged || lasting_safe_stop;
-    if (step.control.status == control::ControlStatus::kServoing) {
-      res.stop_reason = divergence.check(step.control.error_norm);
-      res.diverged = last = !res.stop_reason.empty();
-    }
-    // the robot stopped by itself (a collision, a fault): the run ends, as the service's arm
-    // holds still until RESET; a step refused at the workspace border is not a stop
-    std::string robot_event;
-    if (!last) {
-      const sim::MotionReport motion = delay.step(robot, step.control.twist, rec.t_s, sc.dt_s, sc.workspace);
-      rec.robot_limits = motion.limits;
-      if (sim::stopped_until_reset(motion)) robot_event = motion.event;
-    }
-    res.trace.push_back(rec);
-    if (trace.is_open()) {
-      trace << rec.t_s;
-      for (int i = 0; i < 6; ++i) trace << ',' << rec.twist[i];
-      trace << ',' << rec.error_norm << ',' << rec.decoded << ',' << rec.matched << ',' << rec.translation_error_m << ','
-            << rec.rotation_error_deg << ',' << sim::limit_names(rec.robot_limits) << '\n';
-    }
-    if (features.is_open()) {
-      nlohmann::json j;
-      j["k"] = k;
-      j["model"] = control::to_string(o.servo.law.model);
-      j["features"] = to_string(o.source);
-      j["gain"] = step.control.gain;
-      j["points"] = nlohmann::json::array();
-      for (std::size_t i = 0; i < step.matched.size(); ++i) {
-        const auto& m = step.matched[i];
-        nlohmann::json p{{"row", m.row}, {"col", m.col}, {"x", m.x}, {"y", m.y}, {"x_star", m.x_star}, {"y_star", m.y_star}};
-        const double z = i < step.control.z_model.size() ? step.control.z_model[i] : std::nan("");
-        p["z_model"] = std::isfinite(z) ? nlohmann::json(z) : nlohmann::json(nullptr);
-        // the robust law's weight of the point (only with one: the plain law's are all 1)
-        if (o.outlier_fraction > 0)
-          p["swapped"] = std::find(wrong_ids.begin(), wrong_ids.end(), std::make_pair(m.row, m.col)) != wrong_ids.end();
-        if (o.servo.law.robust != control::RobustEstimator::kNone) {
-          const double w = i < step.control.weights.size() ? step.control.weights[i] : std::nan("");
-          p["weight"] = std::isfinite(w) ? nlohmann::json(w) : nlohmann::json(nullptr);
+    for (const auto& x : exchanges) {
+      if (x.frame.teach) {
+        if (!x.reply.taught) {
+          res.stop_reason = "not taught: " + x.reply.reason;
+          return res;
         }
-        j["points"].push_back(p);
+        res.decoded_desired = static_cast<int>(x.reply.matched);
+        sim::CommandMsg reset{static_cast<int>(cell_dds::SimCommand::kReset), "", 0, initial};
+        // the teach frame's answer is applied by the next round; the RESET waits behind it
+        if (!loop.command(reset)) {
+          res.stop_reason = "initial pose refused (" + sc.file.filename().string() + ")";
+          return res;
+        }
+        loop.command({static_cast<int>(cell_dds::SimCommand::kStart), "", 0, std::nullopt});
+        started = true;
+        if (!o.out_dir.empty()) write_scene(cell, sc.world_T_desired, initial, o.out_dir / "scene.json");
+        if (o.write_features && !o.out_dir.empty()) {
+          features.open(o.out_dir / "features.jsonl");
+          if (!x.frame.world_T_links.empty()) {
+            occlusion.open(o.out_dir / "occlusion.csv");
+            occlusion << "t,visible,hidden_by_arm,on_arm\n";
+          }
+        }
+        continue;
       }
-      j["v"] = std::vector<double>(step.control.twist.data(), step.control.twist.data() + 6);
-      if (o.outlier_fraction > 0) j["swapped"] = swapped;
-      features << j.dump() << '\n';
+      if (!x.frame.applies_twist) continue;
+      if (k == 0) res.decoded_initial = static_cast<int>(x.reply.decoded);
+      step_extras.emplace_back(x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped);
+      if (occlusion.is_open()) {
+        // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
+        int visible = 0, hidden = 0, on_arm = 0;
+        for (const auto& t : sim::compute_truth(cell, x.frame.world_T_camera, &x.frame.world_T_links)) {
+          visible += t.visible;
+          hidden += t.hidden_by_arm;
+          on_arm += t.on_arm;
+        }
+        occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
+      }
+      if (features.is_open() && x.reply.step) features << features_line(k, o, x).dump() << '\n';
+      ++k;
     }
-    if (step.control.status == control::ControlStatus::kConverged) {
-      res.converged = true;
-      res.stop_reason = "converged: " + step.control.reason;
+    for (const auto& line : out.log)
+      if (line.find("RESET refused: ") != std::string::npos && res.stop_reason.empty())
+        res.stop_reason = "initial pose refused (" + sc.file.filename().string() + "): " +
+                          line.substr(line.find("RESET refused: ") + 15);
+    if (!res.stop_reason.empty()) return res;
+    if (out.done) break;
+    // the cell ordered nothing: after the teach frame it waits for commands; twice is a stall
+    idle_rounds = out.frames.empty() ? idle_rounds + 1 : 0;
+    if (idle_rounds > 3) {
+      res.stop_reason = started ? "the cell made no frame" : "no teach frame";
       break;
     }
-    if (lasting_safe_stop) {
-      res.stop_reason = "safe stop: " + step.control.reason + " (" + std::to_string(safe_stop.frames()) + " frames)";
-      break;
-    }
-    if (!robot_event.empty()) {
-      // the arm holds still until a reset: iterating on would only repeat the last frame
-      res.robot_stopped = true;
-      res.stop_reason = "robot stop: " + robot_stop_reason(robot_event);
-      break;
-    }
-    if (res.diverged) break;
   }
-  if (res.stop_reason.empty()) res.stop_reason = "iteration cap (" + std::to_string(o.max_iterations) + ") reached";
+  res.iterations = static_cast<int>(res.trace.size());
+  const sim::SessionEndReport& end = loop.cell().session_end();
+  if (res.stop_reason.empty()) res.stop_reason = end.reason;
+  res.converged = end.kind == SessionEnd::kConverged;
+  res.robot_stopped = end.kind == SessionEnd::kRobotStopped;
+  res.diverged = end.kind == SessionEnd::kServoStopped && end.reason.rfind("diverging", 0) == 0;
   for (std::size_t i = 1; i < res.trace.size(); ++i)
     res.error_rise += std::max(0.0, res.trace[i].error_norm - res.trace[i - 1].error_norm);
   if (!res.trace.empty() && res.trace.front().error_norm > 0) {
@@ -316,8 +269,9 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     for (const auto& r : res.trace) top = std::max(top, r.error_norm);
     res.max_error_ratio = top / res.trace.front().error_norm;
   }
-  res.final_translation_error_m = sim::translation_error(robot.world_T_camera(), sc.world_T_desired);
-  res.final_rotation_error_deg = sim::rotation_error(robot.world_T_camera(), sc.world_T_desired) * kRadToDeg;
+  const Eigen::Isometry3d wTc = loop.cell().world_T_camera();
+  res.final_translation_error_m = sim::translation_error(wTc, sc.world_T_desired);
+  res.final_rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
   return res;
 }
 

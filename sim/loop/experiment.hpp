@@ -9,12 +9,11 @@
 #include <vector>
 
 #include "servo/pipeline/servo_pipeline.hpp"
+#include "sim/loop/in_memory_loop.hpp"
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace cellsim {
-
-enum class FeatureSource { kDecoded, kIdeal };  // ideal: the simulator's true image positions
 
 struct ExperimentOptions {
   servo::ServoConfig servo;
@@ -41,15 +40,6 @@ struct IterationRecord {
   std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (sim::RobotLimit bits)
   int swapped = 0;                 // spots given a wrong id by the outlier injection
 };
-
-// The outlier injection: the ids of `fraction` of `spots` (at least 2 when fraction > 0)
-// shifted along a seeded cycle, so each chosen spot carries another's id. Returns how many.
-// `wrong`, when given, receives the ids the chosen spots carry now.
-// "collision: link 'A' touches object 'B' (0.4 mm deep)" from the robot's event line
-std::string robot_stop_reason(const std::string& event);
-
-int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
-                    std::vector<std::pair<int, int>>* wrong = nullptr);
 
 struct ExperimentResult {
   bool converged = false;

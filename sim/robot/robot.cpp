@@ -6,6 +6,13 @@
 
 namespace sim {
 
+std::string robot_stop_reason(const std::string& event) {
+  const std::string suffix = ": robot stopped until RESET";
+  if (event.size() >= suffix.size() && event.compare(event.size() - suffix.size(), suffix.size(), suffix) == 0)
+    return event.substr(0, event.size() - suffix.size());
+  return event;
+}
+
 std::string limit_names(std::uint32_t limits) {
   static const char* names[] = {"cartesian_speed",  "joint_velocity", "joint_position", "singularity_slowdown",
                                 "singularity_stop", "workspace",      "collision"};

@@ -36,6 +36,9 @@ struct MotionReport {
 // The robot stopped by itself and holds still until a reset (a collision, a fault). A motion
 // refused at the workspace border is not: the step is not made, and the next twist may move it.
 inline bool stopped_until_reset(const MotionReport& r) { return !r.event.empty() && !(r.limits & kLimitWorkspace); }
+// "collision: link 'A' touches object 'B' (0.4 mm deep)" from such a motion's event line (the
+// line tells a service's client what to do, "... until RESET"; a session that ends needs not)
+std::string robot_stop_reason(const std::string& event);
 
 // What the cell's controller believes of the robot when its calibration is off (issue 13):
 // the camera on the flange (hand-eye) and, for an arm, each joint origin's offset and each

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <sstream>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -124,6 +126,80 @@ TEST(DdsLoop, ErrorsAndDelaysOfTheScenarioGiveTheInProcessTrace) {
   exact.out_dir = tmp_dir("errors_latency_exact");
   cellsim::run_experiment(*cell, exact);
   EXPECT_NE(trace_rows(exact.out_dir.string() + "/trace.csv")[5], in_process[5]);
+}
+
+// The plane's scenario text with its paths made absolute, edited by `edit`, written to `dir`.
+std::string plane_variant(const std::string& dir, const std::string& name,
+                          const std::function<void(std::string&)>& edit) {
+  std::ifstream in(kSrc + "/sim/scenarios/plane.yaml");
+  std::string text{std::istreambuf_iterator<char>(in), {}};
+  for (std::size_t p; (p = text.find("../../")) != std::string::npos;) text.replace(p, 6, kSrc + "/");
+  edit(text);
+  const std::string file = dir + "/" + name + ".yaml";
+  std::ofstream(file) << text;
+  return file;
+}
+
+void replace_once(std::string& text, const std::string& what, const std::string& with) {
+  const auto p = text.find(what);
+  ASSERT_NE(p, std::string::npos) << what;
+  text.replace(p, what.size(), with);
+}
+
+// Issue 20: one loop. A run that ends on a stop other than convergence (a safe stop that
+// lasts, a collision) ends at the same row in both wirings: `cellsim serve --exit-on-stop`
+// with `servo run` over DDS, and the in-memory loop of `cellsim experiment`.
+TEST(DdsLoop, ASafeStopAndACollisionEndTheServicesRunWhereTheyEndTheInProcessOne) {
+  const std::string dir = tmp_dir("stops");
+  const sim::Scenario plane = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
+  const Eigen::Vector3d mid = 0.5 * (plane.world_T_initial().translation() + plane.world_T_desired.translation());
+  struct Case {
+    std::string name, scenario, stop;
+  };
+  const std::vector<Case> cases = {
+      // the camera starts looking away from the wall: no spot, a safe stop that lasts
+      {"safe_stop", plane_variant(dir, "safe_stop",
+                                  [](std::string& t) {
+                                    replace_once(t, "translation_cm: [-5, 10, -20]", "translation_cm: [0, 0, 0]");
+                                    replace_once(t, "rotation_deg: [-15, -10, 0]", "rotation_deg: [90, 0, 0]");
+                                    t = t.substr(0, t.find("\nrobot:")) + "\nrobot: free_flying\n";
+                                  }),
+       "safe stop: "},
+      // an obstacle halfway along the arm's way: a collision
+      {"collision", plane_variant(dir, "collision",
+                                  [&](std::string& t) {
+                                    std::ostringstream o;
+                                    o << "    albedo: 0.85\n  - name: obstacle\n    mesh: " << kSrc
+                                      << "/meshes/elliptic_cylinder.obj\n    position_m: [" << mid.x() << ", " << mid.y()
+                                      << ", " << mid.z() << "]\n    scale: [0.15, 0.15, 0.15]\n";
+                                    replace_once(t, "    albedo: 0.85\n", o.str());
+                                  }),
+       "robot stop: collision: "},
+  };
+  for (const Case& c : cases) {
+    const int domain = unique_domain(c.name == "safe_stop" ? 31 : 32);
+    const std::string run_dir = dir + "/" + c.name;
+    std::filesystem::create_directories(run_dir);
+    {
+      Process servo(servo_args("0.9"), domain, run_dir + "/servo.log");
+      Process sim({kBin + "cellsim", "serve", c.scenario, "--autorun", "--exit-on-stop", "--max-frames", "700",
+                   "--trace", run_dir},
+                  domain, run_dir + "/sim.log");
+      ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << run_dir;
+    }
+    const auto cell = sim::build_cell(sim::load_scenario(c.scenario));
+    cellsim::ExperimentOptions o;
+    o.servo = cellsim::servo_config_for(*cell);
+    o.servo.law.z_hat_m = 0.9;
+    o.max_iterations = 600;
+    o.out_dir = run_dir + "/in_process";
+    o.write_features = false;
+    const auto r = cellsim::run_experiment(*cell, o);
+    EXPECT_EQ(r.stop_reason.rfind(c.stop, 0), 0u) << c.name << ": " << r.stop_reason;
+    const auto service = trace_rows(run_dir + "/trace.csv"), in_process = trace_rows(o.out_dir.string() + "/trace.csv");
+    EXPECT_LT(in_process.size(), 600u) << c.name;
+    EXPECT_EQ(service, in_process) << c.name << ": see " << run_dir;
+  }
 }
 
 // The servo with `servo_argv` and cellsim serving `scenario` to convergence, checked on the topics.

@@ -1,0 +1,136 @@
+#include "sim/loop/in_memory_loop.hpp"
+
+#include <algorithm>
+#include <random>
+
+namespace cellsim {
+
+namespace {
+
+sim::CellParams lockstep_params(long max_steps) {
+  sim::CellParams p;
+  p.timing = sim::Timing::kLockstep;
+  p.exit_on_converged = true;
+  p.exit_on_stop = true;
+  p.max_run_steps = max_steps;
+  // nobody else publishes here: the servo's CONVERGED is taken as it is, also where the
+  // scenario's calibration errors put the servo's goal away from the true one
+  p.accept_translation_m = std::numeric_limits<double>::infinity();
+  p.accept_rotation_deg = std::numeric_limits<double>::infinity();
+  return p;
+}
+
+servo::CameraInfoMsg camera_info_of(const control::CameraIntrinsics& c, const sim::CameraSpec& size) {
+  servo::CameraInfoMsg m;
+  m.width = static_cast<std::uint32_t>(size.intrinsics.width);
+  m.height = static_cast<std::uint32_t>(size.intrinsics.height);
+  m.k = {c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1};
+  m.d.assign(c.distortion.begin(), c.distortion.end());
+  return m;
+}
+
+// geometry_msgs/Pose carries a quaternion; the servo rebuilds the rotation from it
+Eigen::Isometry3d as_on_the_wire(const Eigen::Isometry3d& T) {
+  const Eigen::Quaterniond q(T.rotation());
+  const Eigen::Quaterniond received(q.w(), q.x(), q.y(), q.z());
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.translation() = T.translation();
+  out.linear() = received.normalized().toRotationMatrix();
+  return out;
+}
+
+}  // namespace
+
+InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
+    : world_(cell),
+      noise_seed_(setup.noise_seed),
+      source_(setup.source),
+      outlier_fraction_(setup.outlier_fraction),
+      cell_(setup.scenario, lockstep_params(setup.max_steps), std::move(setup.robot)),
+      servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
+             servo::ServoTiming{}) {
+  const std::string why = servo_.on_camera_info(camera_info_of(setup.servo.camera, setup.scenario.camera));
+  if (!why.empty()) throw std::invalid_argument(setup.scenario.file.string() + ": " + why);
+}
+
+bool InMemoryLoop::command(const sim::CommandMsg& c) {
+  servo_.on_command(c.command);
+  return cell_.on_command(c, now_s_);
+}
+
+LoopExchange InMemoryLoop::exchange(const sim::FrameOrder& f) {
+  LoopExchange x;
+  x.frame = f;
+  const sim::FrameStamp fs = sim::frame_stamp(f.index, cell_.dt());
+  const servo::Stamp stamp{static_cast<std::int32_t>(fs.sec), fs.nanosec};
+  // the order the service publishes in: sim status and pose before the image
+  servo_.on_sim_status({stamp, f.applies_twist, f.teach, cell_.running() && f.applies_twist});
+  const Eigen::Isometry3d reported = as_on_the_wire(f.reported_world_T_camera);
+  servo_.on_pose(stamp, reported);
+  if (source_ == FeatureSource::kIdeal) {
+    std::vector<servo::ImageSpot> spots;
+    for (const auto& t : sim::compute_truth(world_, f.scene_world_T_camera, &f.scene_world_T_links))
+      if (t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
+    x.reply = servo_.on_spots(stamp, spots, 0, now_s_);
+  } else {
+    const cv::Mat rgb = sim::render_image(world_, f.scene_world_T_camera, sim::frame_seed(noise_seed_, f.index),
+                                          &scratch_, nullptr, &f.scene_world_T_links);
+    if (outlier_fraction_ > 0 && !f.teach) {
+      // decoded as the servo would, then some ids swapped before it steps on them
+      int detected = 0;
+      std::vector<servo::ImageSpot> spots = servo_.pipeline().locate(rgb, reported, &detected);
+      x.swapped = inject_outliers(spots, outlier_fraction_,
+                                  sim::frame_seed(noise_seed_ ^ 0x6f75746c69657273ull, f.index + 1), &x.wrong);
+      x.reply = servo_.on_spots(stamp, spots, detected, now_s_);
+    } else {
+      const servo::ImageView view{stamp,
+                                  "rgb8",
+                                  static_cast<std::uint32_t>(rgb.cols),
+                                  static_cast<std::uint32_t>(rgb.rows),
+                                  static_cast<std::uint32_t>(rgb.cols * 3),
+                                  0,
+                                  rgb.data,
+                                  rgb.total() * 3};
+      x.reply = servo_.on_image(view, now_s_);
+    }
+  }
+  // the servo's answer: status before twist, as the service publishes them
+  const servo::ServoReply& r = x.reply;
+  if (r.answer) {
+    cell_.on_servo_status({fs.sec, fs.nanosec, static_cast<std::uint8_t>(r.state), r.error_norm, r.decoded, r.matched,
+                           r.reason},
+                          now_s_);
+    cell_.on_twist({fs.sec, fs.nanosec, "camera_optical", r.twist}, now_s_);
+  }
+  return x;
+}
+
+sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
+  now_s_ += cell_.dt();
+  sim::CellOutput out = cell_.poll(now_s_);
+  for (const auto& f : out.frames) exchanges.push_back(exchange(f));
+  return out;
+}
+
+int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
+                    std::vector<std::pair<int, int>>* wrong) {
+  if (!(fraction > 0) || spots.size() < 2) return 0;
+  const std::size_t n = std::min(spots.size(), std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(fraction * static_cast<double>(spots.size())))));
+  std::mt19937_64 rng(seed);
+  std::vector<std::size_t> pick(spots.size());
+  for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
+  for (std::size_t i = 0; i < n; ++i) std::swap(pick[i], pick[i + rng() % (pick.size() - i)]);
+  // a cycle over the chosen spots: each takes the next one's id, so none keeps its own
+  const int row0 = spots[pick[0]].row, col0 = spots[pick[0]].col;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    spots[pick[i]].row = spots[pick[i + 1]].row;
+    spots[pick[i]].col = spots[pick[i + 1]].col;
+  }
+  spots[pick[n - 1]].row = row0;
+  spots[pick[n - 1]].col = col0;
+  if (wrong)
+    for (std::size_t i = 0; i < n; ++i) wrong->emplace_back(spots[pick[i]].row, spots[pick[i]].col);
+  return static_cast<int>(n);
+}
+
+}  // namespace cellsim

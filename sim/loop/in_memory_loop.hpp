@@ -1,0 +1,79 @@
+// The closed loop in one process: the two services' own state machines (sim::CellStateMachine
+// of `cellsim serve`, servo::ServoStateMachine of `servo run`) wired by plain messages passed
+// by value. No DDS, no threads, no clocks: time is the frames' simulated time. Every stop is
+// the cell's decision (sim::SessionEnd), as in the two-process run, so the in-process trace is
+// the lockstep trace of the services by construction.
+//
+// What a frame order becomes on the way, as the wire carries it: the image rendered with the
+// frame's seed, the sim status, the reported camera pose through a quaternion (as in
+// geometry_msgs/Pose), the stamp of the frame; the servo's reply becomes a twist and a status.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "servo/node/servo_state_machine.hpp"
+#include "sim/cell/cell_state_machine.hpp"
+#include "sim/render/renderer.hpp"
+
+namespace cellsim {
+
+enum class FeatureSource { kDecoded, kIdeal };  // ideal: the simulator's true image positions
+
+struct LoopSetup {
+  sim::Scenario scenario;             // as the cell runs it (its errors and latency chosen)
+  std::unique_ptr<sim::Robot> robot;  // what carries the camera (its belief set)
+  servo::ServoConfig servo;           // the servo's configuration; its camera goes out as camera_info
+  std::uint64_t noise_seed = 0;       // frame k's image noise: sim::frame_seed(noise_seed, k)
+  FeatureSource source = FeatureSource::kDecoded;
+  // outlier injection (issue 19): at every frame the ids of this fraction of the decoded spots
+  // are swapped among them before the servo steps on them
+  double outlier_fraction = 0;
+  long max_steps = 400;  // the cell's iteration cap
+};
+
+// One frame of the loop: what the cell ordered, what the servo answered.
+struct LoopExchange {
+  sim::FrameOrder frame;
+  servo::ServoReply reply;
+  int swapped = 0;                          // ids the injection swapped in this frame
+  std::vector<std::pair<int, int>> wrong;   // the ids the swapped spots carried
+};
+
+class InMemoryLoop {
+ public:
+  InMemoryLoop(const sim::Cell& cell, LoopSetup setup);
+
+  // A command on rt/sim/control: both state machines hear it. False when the cell refused it.
+  bool command(const sim::CommandMsg& c);
+  // One round: the cell advances; every frame it orders is rendered, answered by the servo,
+  // and the answer delivered back (status, then twist). The exchanges are appended.
+  sim::CellOutput round(std::vector<LoopExchange>& exchanges);
+
+  const sim::CellStateMachine& cell() const { return cell_; }
+  const servo::ServoStateMachine& servo() const { return servo_; }
+
+ private:
+  LoopExchange exchange(const sim::FrameOrder& f);
+
+  const sim::Cell& world_;
+  std::uint64_t noise_seed_;
+  FeatureSource source_;
+  double outlier_fraction_;
+  sim::CellStateMachine cell_;
+  servo::ServoStateMachine servo_;
+  sim::RenderScratch scratch_;
+  double now_s_ = 0;
+};
+
+// The outlier injection: the ids of `fraction` of `spots` (at least 2 when fraction > 0)
+// shifted along a seeded cycle, so each chosen spot carries another's id. Returns how many.
+// `wrong`, when given, receives the ids the chosen spots carry now.
+int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
+                    std::vector<std::pair<int, int>>* wrong = nullptr);
+
+}  // namespace cellsim

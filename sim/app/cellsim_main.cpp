@@ -2,6 +2,8 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
+#include <functional>
+#include <tuple>
 #include <filesystem>
 #include <iomanip>
 #include <fstream>
@@ -327,278 +329,343 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
   return r.converged ? 0 : 4;
 }
 
+// One struct per subcommand: its flags, and what it runs once they are parsed.
+struct RenderCommand {
+  std::string scenario, pose = "desired", out, truth;
+  std::uint64_t frame = 0;
+  std::vector<double> observer;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("render", "render one camera frame of a scenario");
+    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    c->add_option("--pose", pose,
+                  "desired | initial | \"x y z rx ry rz\": offset from the desired pose, cm and deg "
+                  "(translation along the desired camera axes, then rotations about X, Y, Z)")
+        ->capture_default_str();
+    c->add_option("-o,--output", out, "PNG image to write")->required();
+    c->add_option("--truth", truth, "ground-truth JSON to write");
+    c->add_option("--frame", frame, "frame index (selects the noise draw)")->capture_default_str();
+    c->add_option("--observer", observer,
+                  "render from an observer camera instead (eye x y z, target x y z, metres): the arm in view")
+        ->expected(6)
+        ->check(CLI::Range(-100.0, 100.0));
+    return c;
+  }
+  int run() const { return run_render(scenario, pose, out, truth, frame, observer); }
+};
+
+struct DecodeSweepCommand {
+  std::string scenario, dir, projector;
+  cellsim::SweepOptions sweep;
+  bool tolerant = false, no_propagate = false;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
+    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    c->add_option("--poses", sweep.poses, "random poses")->capture_default_str()->check(CLI::PositiveNumber);
+    c->add_option("--seed", sweep.seed, "seed of the pose draw and the noise")->capture_default_str();
+    c->add_option("--noise", sweep.noise_sigmas, "sensor noise sigmas to cycle through (8-bit units)");
+    c->add_option("--min-votes", sweep.decoder.min_votes, "windows that must name a spot")->capture_default_str();
+    c->add_option("--min-island", sweep.decoder.min_island, "smallest island of decoded spots kept (0: off)")
+        ->capture_default_str();
+    c->add_flag("--tolerant", tolerant, "error-tolerant window reading");
+    c->add_option("--projector", projector,
+                  "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
+                  "epipolar lines");
+    c->add_option("--epipolar-px", sweep.decoder.epipolar.tolerance_px,
+                  "with --projector: how far (px) a spot may lie from its id's epipolar line")
+        ->capture_default_str()
+        ->check(CLI::Range(0.01, 100.0));
+    c->add_option("--segment-length", sweep.decoder.epipolar.segment_length,
+                  "with --projector: spots in a 1 x N segment reading (0: off)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 15));
+    c->add_option("--propagate-sources", sweep.decoder.epipolar.min_sources,
+                  "with --projector: decoded neighbours that must propose the same id")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 4));
+    c->add_flag("--no-propagate", no_propagate, "with --projector: do not propagate ids to linked neighbours");
+    c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
+    c->add_option("--max-translation-cm", sweep.max_translation_cm,
+                  "draw each translation component in +-this (default: the scenario's initial offset per axis)")
+        ->check(config::finite_in(0, 100));
+    c->add_option("--max-rotation-deg", sweep.max_rotation_deg,
+                  "draw each rotation component in +-this (default: the scenario's initial offset per axis)")
+        ->check(config::finite_in(0, 90));
+    c->add_option("-o,--output", dir, "folder for sweep.csv and overlays of poses with wrong ids");
+    return c;
+  }
+  int run() {
+    sweep.decoder.tolerance.enabled = tolerant;
+    sweep.out_dir = dir;
+    sweep.decoder.epipolar.propagate = !no_propagate;
+    if (!projector.empty()) sweep.projector = servo::load_projector_calibration(projector);
+    return run_decode_sweep(scenario, sweep);
+  }
+};
+
+struct ExperimentCommand {
+  std::string scenario, source = "decoded", initial, dir;
+  LawFlags law;
+  ConditionFlags conditions;
+  int max_iterations = 400;
+  bool no_plot = false;
+  CLI::App* add(CLI::App& app) {
+    auto* c =
+        app.add_subcommand("experiment", "teach at the desired pose, start at the initial pose, servo (in-process)");
+    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    law.add(c);
+    c->add_option("--features", source, "decoded | ideal (the simulator's true image positions)")->capture_default_str();
+    c->add_option("--max-iterations", max_iterations, "iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
+    c->add_option("--initial", initial, "initial pose instead of the scenario's: \"x y z rx ry rz\" (cm, deg)");
+    c->add_option("-o,--output", dir, "folder for trace.csv, features.jsonl and the plots");
+    c->add_flag("--no-plot", no_plot, "do not draw the plots");
+    conditions.add(c);
+    return c;
+  }
+  int run() const {
+    return run_experiment_cli(scenario, law, conditions, source, max_iterations, initial, dir, !no_plot);
+  }
+};
+
+struct Fig5SearchCommand {
+  std::string scenario;
+  cellsim::DivergenceSearchOptions search;
+  bool keep_spots = false;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("fig5-search",
+                                 "seeded search for a Fig. 5 configuration: five spots and an initial pose for which "
+                                 "L(s*, Z-hat) diverges and L(s*, Z*), L(s, Z) converge (ideal features)");
+    c->add_option("scenario", scenario, "scenario YAML file (the cylinder, projector and desired pose)")->required();
+    c->add_option("--tries", search.tries, "configurations drawn")->capture_default_str()->check(CLI::Range(1, 100000));
+    c->add_option("--seed", search.seed, "seed of the draw")->capture_default_str();
+    c->add_option("--z-hat", search.z_hat_m, "depth of the constant-depth model (m)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.01, 100.0));
+    c->add_option("--gain", search.gain, "constant gain")->capture_default_str()->check(CLI::Range(1e-6, 100.0));
+    c->add_option("--max-iterations", search.max_iterations, "iteration cap per run")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    c->add_option("--max-translation-cm", search.max_translation_cm, "offset per axis in [-this, this] (cm)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 200.0));
+    c->add_option("--max-tilt-deg", search.max_tilt_deg, "rotation about x and y in [-this, this] (deg)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 180.0));
+    c->add_option("--max-roll-deg", search.max_roll_deg, "rotation about the optical axis in [-this, this] (deg)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 180.0));
+    c->add_flag("--keep-spots", keep_spots, "keep the scenario's only_spots (draw only the initial pose)");
+    c->add_option("--threads", search.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 64));
+    c->add_option("-o,--output", search.out_dir, "folder for candidates.csv and best.yaml");
+    return c;
+  }
+  int run() {
+    search.vary_spots = !keep_spots;
+    const sim::Scenario sc = load_scenario_for_run(scenario);
+    const auto r = cellsim::search_divergence(sc, search);
+    int kept = 0;
+    for (const auto& c : r.candidates) kept += c.kept;
+    std::printf("%s: %d of %d configurations kept (L(s*, Z-hat = %.2f) diverges, L(s*, Z*) converges, L(s, Z) "
+                "converges faster)\n",
+                sc.name.c_str(), kept, search.tries, search.z_hat_m);
+    if (r.best < 0) return 4;
+    const auto& b = r.candidates[static_cast<std::size_t>(r.best)];
+    std::printf("  least displaced: try %d, spots", b.index);
+    for (const auto& rc : b.spots) std::printf(" (%d, %d)", rc[0], rc[1]);
+    std::printf(", offset %.2f %.2f %.2f cm, %.2f %.2f %.2f deg\n", b.offset[0], b.offset[1], b.offset[2], b.offset[3],
+                b.offset[4], b.offset[5]);
+    std::printf("  constant depth: %s after %d; desired: converged in %d; current: converged in %d\n",
+                b.constant_depth.stop_reason.c_str(), b.constant_depth.iterations, b.desired.iterations,
+                b.current.iterations);
+    if (!search.out_dir.empty())
+      std::printf("  %s/candidates.csv, %s/best.yaml\n", search.out_dir.c_str(), search.out_dir.c_str());
+    return 0;
+  }
+};
+
+// "I/N": digits only, at most six each (sscanf's %d wrapped 1/4294967297 to 1/1, issue 18)
+std::pair<int, int> parse_shard(const std::string& shard) {
+  const std::size_t slash = shard.find('/');
+  const auto digits = [](const std::string& t) {
+    return !t.empty() && t.size() <= 6 && t.find_first_not_of("0123456789") == std::string::npos;
+  };
+  const std::string is = slash == std::string::npos ? "" : shard.substr(0, slash),
+                    ns = slash == std::string::npos ? "" : shard.substr(slash + 1);
+  const int i = digits(is) ? std::stoi(is) : 0, n = digits(ns) ? std::stoi(ns) : 0;
+  if (!digits(is) || !digits(ns) || n < 1 || n > 100000 || i < 1 || i > n)
+    throw std::invalid_argument("--shard '" + config::printable(shard) + "': expected I/N with 1 <= I <= N <= 100000");
+  return {i, n};
+}
+
+struct CampaignCommand {
+  std::string scenario, shard, merge_out;
+  std::vector<std::string> merge_dirs;
+  CampaignFlags flags;
+  CLI::App* merge = nullptr;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("campaign", "many random initial poses per interaction-matrix model");
+    c->add_option("scenario", scenario, "scenario YAML file");
+    c->add_option("--shard", shard,
+                  "run slice I of N (I/N): every N-th initial pose; merge the slices with `campaign merge`");
+    merge = c->add_subcommand("merge", "combine the folders of a sharded campaign into the unsharded result");
+    merge->add_option("folders", merge_dirs, "the shards' output folders")->required();
+    merge->add_option("-o,--output", merge_out, "folder for the merged campaign.csv and summary.md")->required();
+    flags.add(c);
+    return c;
+  }
+  int run() const {
+    if (*merge) {
+      std::vector<std::filesystem::path> dirs(merge_dirs.begin(), merge_dirs.end());
+      std::printf("%s", cellsim::merge_campaigns(dirs, merge_out).c_str());
+      if (!flags.no_plot) cellsim::plot_campaign(merge_out, "merged campaign");
+      return 0;
+    }
+    if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
+    if (flags.dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
+    const auto cell = sim::build_cell(load_scenario_for_run(scenario));
+    cellsim::CampaignOptions o = flags.options(*cell);
+    if (!shard.empty()) std::tie(o.shard_index, o.shard_count) = parse_shard(shard);
+    std::printf("%s", cellsim::run_campaign(*cell, o).c_str());
+    if (!flags.no_plot) cellsim::plot_campaign(flags.dir, cell->scenario.name + " campaign");
+    return 0;
+  }
+};
+
+struct StudyCommand {
+  std::string scenario;
+  std::vector<std::string> axes;
+  CampaignFlags flags;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("study", "a campaign at every point of one or two axes (depth, errors, delays, gain)");
+    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    std::string names;
+    for (const auto& n : cellsim::study_axis_names()) names += " " + n;
+    c->add_option("--axis", axes, "NAME=V1,V2,... (once or twice: a grid); names:" + names)->required();
+    flags.add(c);
+    return c;
+  }
+  int run() const {
+    cellsim::StudyOptions so;
+    for (const auto& a : axes) so.axes.push_back(cellsim::parse_study_axis(a));
+    if (so.axes.size() > 2) throw std::invalid_argument("study: at most two --axis");
+    if (so.axes.size() == 2 && so.axes[0].name == so.axes[1].name)
+      throw std::invalid_argument("study: --axis " + config::printable(so.axes[0].name) +
+                                  " given twice (give its values once: NAME=V1,V2,...)");
+    if (flags.dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
+    const sim::Scenario sc = load_scenario_for_run(scenario);
+    const auto cell = sim::build_cell(sc);
+    so.campaign = flags.options(*cell);
+    so.out_dir = flags.dir;
+    std::printf("%s", cellsim::run_study(sc, so).c_str());
+    if (!flags.no_plot) cellsim::plot_study(flags.dir, sc.name + " study");
+    return 0;
+  }
+};
+
+struct ServeCommand {
+  std::string scenario, mode = "lockstep", trace;
+  cellsim::ServiceOptions svc;
+  cell_dds::DdsFlags dds;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("serve", "run the simulated cell as a DDS service");
+    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    c->add_option("--mode", mode, "lockstep | realtime")->capture_default_str();
+    dds.add_to(*c);
+    c->add_option("--watchdog-ms", svc.watchdog_ms, "stop the robot after this long without a valid twist")
+        ->capture_default_str();
+    c->add_option("--republish-ms", svc.republish_ms, "lockstep: send an unanswered frame again after this long")
+        ->capture_default_str();
+    c->add_flag("--autorun", svc.autorun, "teach, reset to the initial pose and start without an external client");
+    c->add_option("--max-frames", svc.max_frames, "exit after this many frames")->capture_default_str();
+    c->add_flag("--exit-on-converged", svc.exit_on_converged, "exit when the servo reports CONVERGED");
+    c->add_flag("--exit-on-stop", svc.exit_on_stop,
+                "also exit on any other stop of a run: the servo stopping itself (a lasting safe stop, a "
+                "runaway) or the robot stopping (a collision); the summary line names it");
+    c->add_option("--trace", trace, "folder for trace.csv");
+    c->add_option("--scenarios", svc.scenarios_dir,
+                  "the folder LOAD_SCENARIO may read scenarios from, links resolved (default: the served scenario's)");
+    return c;
+  }
+  int run() {
+    svc.scenario = scenario;
+    if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");
+    // flags are untrusted input like any file: NaN and absurd values are refused here
+    const auto within = [](const char* flag, double v, double lo, double hi) {
+      if (!(v >= lo && v <= hi))
+        throw std::invalid_argument(std::string(flag) + " must be in [" + std::to_string(lo) + ", " +
+                                    std::to_string(hi) + "], got " + std::to_string(v));
+    };
+    within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
+    within("--republish-ms", svc.republish_ms, 1, 600000);
+    within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
+    svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
+    dds.apply_to(svc);
+    svc.trace_dir = trace;
+    return cellsim::run_sim_service(svc);
+  }
+};
+
+struct CalibrationCommand {
+  std::string scenario, out;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("calibration", "write the projector calibration the servo triangulates with");
+    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    c->add_option("-o,--output", out, "calibration YAML to write")->required();
+    return c;
+  }
+  int run() const {
+    const sim::Scenario s = load_scenario_for_run(scenario);
+    const pattern::MArray a = pattern::read_marray(s.projector.pattern);
+    const auto& k = s.projector.intrinsics;
+    control::ProjectorModel m;
+    m.fx = k.fx, m.fy = k.fy, m.cx = k.cx, m.cy = k.cy;
+    m.spot_pitch_px = s.projector.spot_pitch_px;
+    m.rows = a.rows, m.cols = a.cols;
+    // what a calibration would give: off by the scenario's projector errors, if any
+    m.world_T_projector = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
+    const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
+    servo::write_projector_calibration(m, out,
+                                       "projector calibration of scenario " + s.name +
+                                           (off ? " (with the scenario's projector errors: " +
+                                                      sim::describe(s.errors, {}) + ")"
+                                                : " (exact: the simulator's own)"));
+    std::printf("wrote %s\n", out.c_str());
+    return 0;
+  }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"cellsim: simulator of a camera-projector robot cell"};
   app.require_subcommand(1);
-  std::string scenario, pose = "desired", out, truth;
-  std::uint64_t frame = 0;
-  auto* render = app.add_subcommand("render", "render one camera frame of a scenario");
-  render->add_option("scenario", scenario, "scenario YAML file")->required();
-  render->add_option("--pose", pose,
-                     "desired | initial | \"x y z rx ry rz\": offset from the desired pose, cm and deg "
-                     "(translation along the desired camera axes, then rotations about X, Y, Z)")
-      ->capture_default_str();
-  render->add_option("-o,--output", out, "PNG image to write")->required();
-  render->add_option("--truth", truth, "ground-truth JSON to write");
-  render->add_option("--frame", frame, "frame index (selects the noise draw)")->capture_default_str();
-  std::vector<double> observer;
-  render->add_option("--observer", observer,
-                     "render from an observer camera instead (eye x y z, target x y z, metres): the arm in view")
-      ->expected(6)
-      ->check(CLI::Range(-100.0, 100.0));
-  cellsim::SweepOptions sweep;
-  std::string sweep_dir;
-  bool tolerant = false;
-  auto* ds = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
-  ds->add_option("scenario", scenario, "scenario YAML file")->required();
-  ds->add_option("--poses", sweep.poses, "random poses")->capture_default_str()->check(CLI::PositiveNumber);
-  ds->add_option("--seed", sweep.seed, "seed of the pose draw and the noise")->capture_default_str();
-  ds->add_option("--noise", sweep.noise_sigmas, "sensor noise sigmas to cycle through (8-bit units)");
-  ds->add_option("--min-votes", sweep.decoder.min_votes, "windows that must name a spot")->capture_default_str();
-  ds->add_option("--min-island", sweep.decoder.min_island, "smallest island of decoded spots kept (0: off)")
-      ->capture_default_str();
-  ds->add_flag("--tolerant", tolerant, "error-tolerant window reading");
-  std::string sweep_projector;
-  ds->add_option("--projector", sweep_projector,
-                 "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
-                 "epipolar lines");
-  ds->add_option("--epipolar-px", sweep.decoder.epipolar.tolerance_px,
-                 "with --projector: how far (px) a spot may lie from its id's epipolar line")
-      ->capture_default_str()
-      ->check(CLI::Range(0.01, 100.0));
-  ds->add_option("--segment-length", sweep.decoder.epipolar.segment_length,
-                 "with --projector: spots in a 1 x N segment reading (0: off)")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 15));
-  ds->add_option("--propagate-sources", sweep.decoder.epipolar.min_sources,
-                 "with --projector: decoded neighbours that must propose the same id")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 4));
-  bool no_propagate = false;
-  ds->add_flag("--no-propagate", no_propagate, "with --projector: do not propagate ids to linked neighbours");
-  ds->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
-  ds->add_option("--max-translation-cm", sweep.max_translation_cm,
-                 "draw each translation component in +-this (default: the scenario's initial offset per axis)")
-      ->check(config::finite_in(0, 100));
-  ds->add_option("--max-rotation-deg", sweep.max_rotation_deg,
-                 "draw each rotation component in +-this (default: the scenario's initial offset per axis)")
-      ->check(config::finite_in(0, 90));
-  ds->add_option("-o,--output", sweep_dir, "folder for sweep.csv and overlays of poses with wrong ids");
-  LawFlags law;
-  std::string source = "decoded", initial, exp_dir;
-  int max_iterations = 400;
-  bool no_plot = false;
-  auto* ex = app.add_subcommand("experiment", "teach at the desired pose, start at the initial pose, servo (in-process)");
-  ex->add_option("scenario", scenario, "scenario YAML file")->required();
-  law.add(ex);
-  ex->add_option("--features", source, "decoded | ideal (the simulator's true image positions)")->capture_default_str();
-  ex->add_option("--max-iterations", max_iterations, "iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
-  ex->add_option("--initial", initial, "initial pose instead of the scenario's: \"x y z rx ry rz\" (cm, deg)");
-  ex->add_option("-o,--output", exp_dir, "folder for trace.csv, features.jsonl and the plots");
-  ex->add_flag("--no-plot", no_plot, "do not draw the plots");
-  ConditionFlags ex_conditions;
-  ex_conditions.add(ex);
-
-  cellsim::DivergenceSearchOptions search;
-  auto* fs = app.add_subcommand("fig5-search",
-                                "seeded search for a Fig. 5 configuration: five spots and an initial pose for which "
-                                "L(s*, Z-hat) diverges and L(s*, Z*), L(s, Z) converge (ideal features)");
-  fs->add_option("scenario", scenario, "scenario YAML file (the cylinder, projector and desired pose)")->required();
-  fs->add_option("--tries", search.tries, "configurations drawn")->capture_default_str()->check(CLI::Range(1, 100000));
-  fs->add_option("--seed", search.seed, "seed of the draw")->capture_default_str();
-  fs->add_option("--z-hat", search.z_hat_m, "depth of the constant-depth model (m)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.01, 100.0));
-  fs->add_option("--gain", search.gain, "constant gain")->capture_default_str()->check(CLI::Range(1e-6, 100.0));
-  fs->add_option("--max-iterations", search.max_iterations, "iteration cap per run")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 100000));
-  fs->add_option("--max-translation-cm", search.max_translation_cm, "offset per axis in [-this, this] (cm)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 200.0));
-  fs->add_option("--max-tilt-deg", search.max_tilt_deg, "rotation about x and y in [-this, this] (deg)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 180.0));
-  fs->add_option("--max-roll-deg", search.max_roll_deg, "rotation about the optical axis in [-this, this] (deg)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 180.0));
-  bool keep_spots = false;
-  fs->add_flag("--keep-spots", keep_spots, "keep the scenario's only_spots (draw only the initial pose)");
-  fs->add_option("--threads", search.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 64));
-  fs->add_option("-o,--output", search.out_dir, "folder for candidates.csv and best.yaml");
-
-  CampaignFlags camp;
-  auto* cp = app.add_subcommand("campaign", "many random initial poses per interaction-matrix model");
-  cp->add_option("scenario", scenario, "scenario YAML file");
-  std::string shard;
-  cp->add_option("--shard", shard, "run slice I of N (I/N): every N-th initial pose; merge the slices with `campaign merge`");
-  std::vector<std::string> merge_dirs;
-  std::string merge_out;
-  auto* merge = cp->add_subcommand("merge", "combine the folders of a sharded campaign into the unsharded result");
-  merge->add_option("folders", merge_dirs, "the shards' output folders")->required();
-  merge->add_option("-o,--output", merge_out, "folder for the merged campaign.csv and summary.md")->required();
-  camp.add(cp);
-
-  CampaignFlags study;
-  std::vector<std::string> study_axes;
-  auto* st = app.add_subcommand("study", "a campaign at every point of one or two axes (depth, errors, delays, gain)");
-  st->add_option("scenario", scenario, "scenario YAML file")->required();
-  {
-    std::string names;
-    for (const auto& n : cellsim::study_axis_names()) names += " " + n;
-    st->add_option("--axis", study_axes, "NAME=V1,V2,... (once or twice: a grid); names:" + names)->required();
-  }
-  study.add(st);
-
-  cellsim::ServiceOptions svc;
-  std::string mode = "lockstep", svc_trace;
-  cell_dds::DdsFlags dds;
-  auto* sv = app.add_subcommand("serve", "run the simulated cell as a DDS service");
-  sv->add_option("scenario", scenario, "scenario YAML file")->required();
-  sv->add_option("--mode", mode, "lockstep | realtime")->capture_default_str();
-  dds.add_to(*sv);
-  sv->add_option("--watchdog-ms", svc.watchdog_ms, "stop the robot after this long without a valid twist")
-      ->capture_default_str();
-  sv->add_option("--republish-ms", svc.republish_ms, "lockstep: send an unanswered frame again after this long")
-      ->capture_default_str();
-  sv->add_flag("--autorun", svc.autorun, "teach, reset to the initial pose and start without an external client");
-  sv->add_option("--max-frames", svc.max_frames, "exit after this many frames")->capture_default_str();
-  sv->add_flag("--exit-on-converged", svc.exit_on_converged, "exit when the servo reports CONVERGED");
-  sv->add_flag("--exit-on-stop", svc.exit_on_stop,
-               "also exit on any other stop of a run: the servo stopping itself (a lasting safe stop, a "
-               "runaway) or the robot stopping (a collision); the summary line names it");
-  sv->add_option("--trace", svc_trace, "folder for trace.csv");
-  sv->add_option("--scenarios", svc.scenarios_dir,
-                 "the folder LOAD_SCENARIO may read scenarios from, links resolved (default: the served scenario's)");
-
-  std::string calib_out;
-  auto* cal = app.add_subcommand("calibration", "write the projector calibration the servo triangulates with");
-  cal->add_option("scenario", scenario, "scenario YAML file")->required();
-  cal->add_option("-o,--output", calib_out, "calibration YAML to write")->required();
-
-  for (CLI::App* sub : {render, ds, ex, fs, cp, st, cal})
-    sub->add_option("--pattern", g_pattern_override,
-                    "pattern file the projector casts instead of the scenario's (e.g. "
-                    "servo/pattern/data/marray_20x20_k3_w3_d3.txt, the distance-3 one)");
+  RenderCommand render;
+  DecodeSweepCommand sweep;
+  ExperimentCommand experiment;
+  Fig5SearchCommand fig5;
+  CampaignCommand campaign;
+  StudyCommand study;
+  ServeCommand serve;
+  CalibrationCommand calibration;
+  const std::vector<std::pair<CLI::App*, std::function<int()>>> commands = {
+      {render.add(app), [&] { return render.run(); }},
+      {sweep.add(app), [&] { return sweep.run(); }},
+      {experiment.add(app), [&] { return experiment.run(); }},
+      {fig5.add(app), [&] { return fig5.run(); }},
+      {campaign.add(app), [&] { return campaign.run(); }},
+      {study.add(app), [&] { return study.run(); }},
+      {serve.add(app), [&] { return serve.run(); }},
+      {calibration.add(app), [&] { return calibration.run(); }},
+  };
+  for (const auto& [sub, run] : commands)
+    if (sub->get_name() != "serve")
+      sub->add_option("--pattern", g_pattern_override,
+                      "pattern file the projector casts instead of the scenario's (e.g. "
+                      "servo/pattern/data/marray_20x20_k3_w3_d3.txt, the distance-3 one)");
   config::require_finite_numbers(app);
   if (const int rc = config::parse_command_line(app, argc, argv, "cellsim"); rc >= 0) return rc;
   try {
-    if (*cal) {
-      const sim::Scenario s = load_scenario_for_run(scenario);
-      const pattern::MArray a = pattern::read_marray(s.projector.pattern);
-      const auto& k = s.projector.intrinsics;
-      control::ProjectorModel m;
-      m.fx = k.fx, m.fy = k.fy, m.cx = k.cx, m.cy = k.cy;
-      m.spot_pitch_px = s.projector.spot_pitch_px;
-      m.rows = a.rows, m.cols = a.cols;
-      // what a calibration would give: off by the scenario's projector errors, if any
-      m.world_T_projector = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
-      const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
-      servo::write_projector_calibration(
-          m, calib_out,
-          "projector calibration of scenario " + s.name +
-              (off ? " (with the scenario's projector errors: " + sim::describe(s.errors, {}) + ")"
-                   : " (exact: the simulator's own)"));
-      std::printf("wrote %s\n", calib_out.c_str());
-      return 0;
-    }
-    if (*sv) {
-      svc.scenario = scenario;
-      if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");
-      // flags are untrusted input like any file: NaN and absurd values are refused here
-      const auto within = [](const char* flag, double v, double lo, double hi) {
-        if (!(v >= lo && v <= hi))
-          throw std::invalid_argument(std::string(flag) + " must be in [" + std::to_string(lo) + ", " +
-                                      std::to_string(hi) + "], got " + std::to_string(v));
-      };
-      within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
-      within("--republish-ms", svc.republish_ms, 1, 600000);
-      within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
-      svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
-      dds.apply_to(svc);
-      svc.trace_dir = svc_trace;
-      return cellsim::run_sim_service(svc);
-    }
-    if (*ex) return run_experiment_cli(scenario, law, ex_conditions, source, max_iterations, initial, exp_dir, !no_plot);
-    if (*fs) {
-      search.vary_spots = !keep_spots;
-      const sim::Scenario sc = load_scenario_for_run(scenario);
-      const auto r = cellsim::search_divergence(sc, search);
-      int kept = 0;
-      for (const auto& c : r.candidates) kept += c.kept;
-      std::printf("%s: %d of %d configurations kept (L(s*, Z-hat = %.2f) diverges, L(s*, Z*) converges, L(s, Z) "
-                  "converges faster)\n",
-                  sc.name.c_str(), kept, search.tries, search.z_hat_m);
-      if (r.best < 0) return 4;
-      const auto& b = r.candidates[static_cast<std::size_t>(r.best)];
-      std::printf("  least displaced: try %d, spots", b.index);
-      for (const auto& rc : b.spots) std::printf(" (%d, %d)", rc[0], rc[1]);
-      std::printf(", offset %.2f %.2f %.2f cm, %.2f %.2f %.2f deg\n", b.offset[0], b.offset[1], b.offset[2],
-                  b.offset[3], b.offset[4], b.offset[5]);
-      std::printf("  constant depth: %s after %d; desired: converged in %d; current: converged in %d\n",
-                  b.constant_depth.stop_reason.c_str(), b.constant_depth.iterations, b.desired.iterations,
-                  b.current.iterations);
-      if (!search.out_dir.empty())
-        std::printf("  %s/candidates.csv, %s/best.yaml\n", search.out_dir.c_str(), search.out_dir.c_str());
-      return 0;
-    }
-    if (*cp) {
-      if (*merge) {
-        std::vector<std::filesystem::path> dirs(merge_dirs.begin(), merge_dirs.end());
-        std::printf("%s", cellsim::merge_campaigns(dirs, merge_out).c_str());
-        if (!camp.no_plot) cellsim::plot_campaign(merge_out, "merged campaign");
-        return 0;
-      }
-      if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
-      if (camp.dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
-      const auto cell = sim::build_cell(load_scenario_for_run(scenario));
-      cellsim::CampaignOptions o = camp.options(*cell);
-      if (!shard.empty()) {
-        // digits only, at most six each: sscanf's %d wrapped 1/4294967297 to 1/1 (issue 18, item 18)
-        const std::size_t slash = shard.find('/');
-        const auto digits = [](const std::string& t) {
-          return !t.empty() && t.size() <= 6 && t.find_first_not_of("0123456789") == std::string::npos;
-        };
-        const std::string is = slash == std::string::npos ? "" : shard.substr(0, slash),
-                          ns = slash == std::string::npos ? "" : shard.substr(slash + 1);
-        const int i = digits(is) ? std::stoi(is) : 0, n = digits(ns) ? std::stoi(ns) : 0;
-        if (!digits(is) || !digits(ns) || n < 1 || n > 100000 || i < 1 || i > n)
-          throw std::invalid_argument("--shard '" + config::printable(shard) +
-                                      "': expected I/N with 1 <= I <= N <= 100000");
-        o.shard_index = i;
-        o.shard_count = n;
-      }
-      const auto table = cellsim::run_campaign(*cell, o);
-      std::printf("%s", table.c_str());
-      if (!camp.no_plot) cellsim::plot_campaign(camp.dir, cell->scenario.name + " campaign");
-      return 0;
-    }
-    if (*st) {
-      cellsim::StudyOptions so;
-      for (const auto& a : study_axes) so.axes.push_back(cellsim::parse_study_axis(a));
-      if (so.axes.size() > 2) throw std::invalid_argument("study: at most two --axis");
-      if (so.axes.size() == 2 && so.axes[0].name == so.axes[1].name)
-        throw std::invalid_argument("study: --axis " + config::printable(so.axes[0].name) +
-                                    " given twice (give its values once: NAME=V1,V2,...)");
-      if (study.dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
-      const sim::Scenario sc = load_scenario_for_run(scenario);
-      const auto cell = sim::build_cell(sc);
-      so.campaign = study.options(*cell);
-      so.out_dir = study.dir;
-      std::printf("%s", cellsim::run_study(sc, so).c_str());
-      if (!study.no_plot) cellsim::plot_study(study.dir, sc.name + " study");
-      return 0;
-    }
-    if (*render) return run_render(scenario, pose, out, truth, frame, observer);
-    if (*ds) {
-      sweep.decoder.tolerance.enabled = tolerant;
-      sweep.out_dir = sweep_dir;
-      sweep.decoder.epipolar.propagate = !no_propagate;
-      if (!sweep_projector.empty()) sweep.projector = servo::load_projector_calibration(sweep_projector);
-      return run_decode_sweep(scenario, sweep);
-    }
+    for (const auto& [sub, run] : commands)
+      if (*sub) return run();
   } catch (const std::exception& e) {
     std::cerr << "cellsim: " << e.what() << "\n";
     return 1;

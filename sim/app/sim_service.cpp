@@ -219,12 +219,16 @@ class SimService {
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
           p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
+    // every endpoint, the autorun's command writer included (issue 21: `ros2 topic info -v`
+    // showed it as _NODE_NAME_UNKNOWN_)
+    std::vector<eprosima::fastrtps::rtps::GUID_t> writers{image_->guid(),   info_->guid(),   pose_->guid(),
+                                                          sim_status_->guid(), truth_->guid(), clock_->guid(),
+                                                          joints_->guid(),  tf_->guid(),     description_->guid()};
+    if (control_out_) writers.push_back(control_out_->guid());
     node_ = std::make_unique<cell_dds::NodeAnnouncement>(
         p, "cellsim",
         std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
-        std::vector<eprosima::fastrtps::rtps::GUID_t>{image_->guid(), info_->guid(), pose_->guid(), sim_status_->guid(),
-                                                      truth_->guid(), clock_->guid(), joints_->guid(), tf_->guid(),
-                                                      description_->guid()}, o.ns.empty() ? std::string("/") : "/" + o.ns);
+        writers, o.ns.empty() ? std::string("/") : "/" + o.ns);
     publish_camera_info();
     publish_description();
     if (!o.trace_dir.empty()) {

@@ -1,0 +1,111 @@
+// Issue 21, item 2, against the real process: every reader and writer `cellsim serve` makes,
+// the one `--autorun` adds on rt/sim/control included, is named on ros_discovery_info, so
+// `ros2 topic info -v` shows none of them as _NODE_NAME_UNKNOWN_. The endpoints are what
+// discovery reports of cellsim's participant; the announcement is what a ROS 2 client reads.
+#include <gtest/gtest.h>
+
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "closed_loop/watcher.hpp"
+#include "dds/ros_graph.hpp"
+
+namespace {
+
+using namespace closed_loop;
+using eprosima::fastrtps::rtps::GUID_t;
+
+// The endpoints discovered, by participant: topic of each reader and writer.
+struct Endpoints : eprosima::fastdds::dds::DomainParticipantListener {
+  std::mutex m;
+  std::map<GUID_t, std::string> writers, readers;
+  void on_publisher_discovery(eprosima::fastdds::dds::DomainParticipant*,
+                              eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
+    std::lock_guard<std::mutex> l(m);
+    writers[info.info.guid()] = info.info.topicName().to_string();
+  }
+  void on_subscriber_discovery(eprosima::fastdds::dds::DomainParticipant*,
+                               eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
+    std::lock_guard<std::mutex> l(m);
+    readers[info.info.guid()] = info.info.topicName().to_string();
+  }
+};
+
+std::set<std::string> gids_of(const std::vector<rmw_dds_common::msg::dds_::Gid_>& seq) {
+  std::set<std::string> s;
+  for (const auto& g : seq) s.emplace(g.data().begin(), g.data().end());
+  return s;
+}
+
+TEST(RosGraphLoop, EveryEndpointOfCellsimWithAutorunIsNamedOnRosDiscoveryInfo) {
+  const int domain = unique_domain(33);
+  const std::string dir = tmp_dir("ros_graph");
+  cell_dds::ParticipantOptions o;
+  o.domain_id = domain;
+  o.name = "graph_client";
+  Endpoints found;
+  auto client = cell_dds::make_participant(o);
+  client->set_listener(&found, eprosima::fastdds::dds::StatusMask::none());
+  std::mutex m;
+  std::map<std::string, rmw_dds_common::msg::dds_::NodeEntitiesInfo_> cellsim_nodes;  // by participant gid
+  cell_dds::Reader<rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_PubSubType> graph(
+      *client, cell_dds::kRosDiscoveryTopic, cell_dds::reader_qos(cell_dds::Stream::kLatched),
+      [&](rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_&& i) {
+        std::lock_guard<std::mutex> l(m);
+        for (const auto& n : i.node_entities_info_seq())
+          if (n.node_name() == "cellsim")
+            cellsim_nodes[std::string(i.gid().data().begin(), i.gid().data().end())] = n;
+      });
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun"}, domain, dir + "/sim.log");
+
+  // cellsim's participant: the one whose announcement names the node "cellsim"; its endpoints
+  // are those discovery reports with its GUID prefix (the graph's own writer aside)
+  const auto cellsim_endpoints = [&](std::map<GUID_t, std::string>& w, std::map<GUID_t, std::string>& r) {
+    std::lock_guard<std::mutex> l(m), l2(found.m);
+    w.clear();
+    r.clear();
+    for (const auto& [guid, topic] : found.writers)
+      if (guid.guidPrefix != client->guid().guidPrefix && topic != cell_dds::kRosDiscoveryTopic) w[guid] = topic;
+    for (const auto& [guid, topic] : found.readers)
+      if (guid.guidPrefix != client->guid().guidPrefix && topic != cell_dds::kRosDiscoveryTopic) r[guid] = topic;
+  };
+  std::map<GUID_t, std::string> writers, readers;
+  // cellsim makes 10 writers with --autorun (image, camera_info, pose, sim status, truth,
+  // clock, joints, tf, robot_description, control) and 3 readers (twist, control, servo status)
+  const bool all = [&] {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (std::chrono::steady_clock::now() < until) {
+      cellsim_endpoints(writers, readers);
+      bool announced = false;
+      {
+        std::lock_guard<std::mutex> l(m);
+        announced = !cellsim_nodes.empty();
+      }
+      if (announced && writers.size() >= 10 && readers.size() >= 3) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+  }();
+  ASSERT_TRUE(all) << writers.size() << " writers, " << readers.size() << " readers discovered; see " << dir;
+  bool control_writer = false;
+  for (const auto& [guid, topic] : writers) control_writer |= topic == cell_dds::kControlTopic;
+  EXPECT_TRUE(control_writer) << "no writer on rt/sim/control with --autorun";
+
+  std::lock_guard<std::mutex> l(m);
+  ASSERT_EQ(cellsim_nodes.size(), 1u);
+  const auto& node = cellsim_nodes.begin()->second;
+  const std::set<std::string> named_writers = gids_of(node.writer_gid_seq()), named_readers = gids_of(node.reader_gid_seq());
+  const auto key = [](const GUID_t& g) {
+    const auto gid = cell_dds::NodeAnnouncement::gid_of(g).data();
+    return std::string(gid.begin(), gid.end());
+  };
+  for (const auto& [guid, topic] : writers)
+    EXPECT_EQ(named_writers.count(key(guid)), 1u) << "cellsim's writer on " << topic << " is not named";
+  for (const auto& [guid, topic] : readers)
+    EXPECT_EQ(named_readers.count(key(guid)), 1u) << "cellsim's reader on " << topic << " is not named";
+  client->set_listener(nullptr);
+}
+
+}  // namespace

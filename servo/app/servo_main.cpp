@@ -1,5 +1,6 @@
 // `servo`: the visual-servoing controller's command line. `decode` decodes one image.
 #include <CLI/CLI.hpp>
+#include <functional>
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -284,80 +285,157 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"servo: structured-light visual-servoing controller"};
-  app.require_subcommand(1);
-  std::string pattern_file, json_out, json_dir, overlay_out;
+namespace {
+
+// One struct per subcommand: its flags, and what it runs once they are parsed.
+struct DecodeCommand {
+  std::string pattern_file, json_out, json_dir, overlay_out, projector;
   std::vector<std::string> images;
   bool tolerant = false;
   int min_votes = vision::DecoderOptions{}.min_votes;
-  auto* decode = app.add_subcommand("decode", "segment and decode the coded spots of images (files or folders)");
-  decode->add_option("images", images, "image files (PNG, JPEG, ...) or folders of them")->required();
-  decode->add_option("--pattern", pattern_file, "pattern file")->required();
-  decode->add_option("--json", json_out, "decoded spots as JSON (one image)");
-  decode->add_option("--json-dir", json_dir, "one JSON per image, named after it, with its warm decoding time_ms");
-  decode->add_option("--overlay", overlay_out, "image with the decoded ids drawn on it");
-  decode->add_flag("--tolerant", tolerant, "error-tolerant window reading (beyond the paper)");
-  decode->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
-      ->check(CLI::Range(1, 9))->capture_default_str();
-  std::string decode_projector;
   int segment_length = vision::EpipolarOptions{}.segment_length;
-  decode->add_option("--segment-length", segment_length,
-                     "with --projector: spots in a 1 x N row or column reading (0: off; more ids on curved "
-                     "objects, rare wrong ids at depth edges: docs/decoding.md)")
-      ->check(CLI::Range(0, 15))
-      ->capture_default_str();
-  std::vector<double> decode_camera, decode_pose;
-  decode->add_option("--projector", decode_projector,
-                     "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
-                     "epipolar lines; needs --camera and a camera pose");
-  decode->add_option("--camera", decode_camera, "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]")->expected(4, 9);
-  decode->add_option("--camera-pose", decode_pose,
-                     "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
-                     "<stem>.json camera_pose, as `cellsim render --truth` writes)")
-      ->expected(7);
+  std::vector<double> camera, pose;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("decode", "segment and decode the coded spots of images (files or folders)");
+    c->add_option("images", images, "image files (PNG, JPEG, ...) or folders of them")->required();
+    c->add_option("--pattern", pattern_file, "pattern file")->required();
+    c->add_option("--json", json_out, "decoded spots as JSON (one image)");
+    c->add_option("--json-dir", json_dir, "one JSON per image, named after it, with its warm decoding time_ms");
+    c->add_option("--overlay", overlay_out, "image with the decoded ids drawn on it");
+    c->add_flag("--tolerant", tolerant, "error-tolerant window reading (beyond the paper)");
+    c->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
+        ->check(CLI::Range(1, 9))
+        ->capture_default_str();
+    c->add_option("--segment-length", segment_length,
+                  "with --projector: spots in a 1 x N row or column reading (0: off; more ids on curved "
+                  "objects, rare wrong ids at depth edges: docs/decoding.md)")
+        ->check(CLI::Range(0, 15))
+        ->capture_default_str();
+    c->add_option("--projector", projector,
+                  "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
+                  "epipolar lines; needs --camera and a camera pose");
+    c->add_option("--camera", camera, "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]")->expected(4, 9);
+    c->add_option("--camera-pose", pose,
+                  "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
+                  "<stem>.json camera_pose, as `cellsim render --truth` writes)")
+        ->expected(7);
+    return c;
+  }
+  int run() const {
+    EpipolarInputs epi;
+    if (!projector.empty()) {
+      if (camera.size() != 4 && camera.size() != 9)
+        throw std::runtime_error("--projector needs --camera fx fy cx cy [k1 k2 p1 p2 k3]");
+      epi.projector = servo::load_projector_calibration(projector);
+    }
+    if (!camera.empty()) {
+      if (camera.size() != 4 && camera.size() != 9)
+        throw std::runtime_error("--camera: 4 numbers (fx fy cx cy) or 9 (and k1 k2 p1 p2 k3)");
+      check_finite("--camera", camera, 1e6);
+      if (!(camera[0] > 0 && camera[1] > 0)) throw std::runtime_error("--camera: fx and fy must be > 0");
+      epi.camera = {camera[0], camera[1], camera[2], camera[3]};
+      for (std::size_t k = 4; k < camera.size(); ++k) {
+        check_finite("--camera distortion", {camera[k]}, 10);
+        epi.camera.distortion[k - 4] = camera[k];
+      }
+    }
+    if (!pose.empty())
+      epi.fixed_pose = pose_from("--camera-pose", {pose[0], pose[1], pose[2]}, {pose[3], pose[4], pose[5], pose[6]});
+    return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes, epi, segment_length);
+  }
+};
+
+struct RunCommand {
   servo::ServiceOptions svc;
-  std::string config_file, model, reference, projector_file;
-  double z_hat = 0, gain = 0;
+  std::string pattern_file, config_file, model, reference, projector_file, robust;
+  double z_hat = 0, gain = 0, divergence_ratio = -1;
+  int points = -1;
+  bool no_epipolar = false;
   cell_dds::DdsFlags dds;
-  auto* run = app.add_subcommand("run", "run the controller as a DDS service");
-  run->add_option("--pattern", pattern_file, "pattern file")->required();
-  run->add_option("--config", config_file, "servo configuration (YAML)");
-  run->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
-  run->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
-  run->add_option("--gain", gain, "constant gain")->check(config::finite_in(1e-9, 1e3));
-  dds.add_to(*run);
-  run->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
-  run->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
-  run->add_option("--projector", projector_file,
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("run", "run the controller as a DDS service");
+    c->add_option("--pattern", pattern_file, "pattern file")->required();
+    c->add_option("--config", config_file, "servo configuration (YAML)");
+    c->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
+    c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
+    c->add_option("--gain", gain, "constant gain")->check(config::finite_in(1e-9, 1e3));
+    dds.add_to(*c);
+    c->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
+    c->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
+    c->add_option("--projector", projector_file,
                   "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
                   "desired, current and mean models, and decoding with the epipolar check");
-  run->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
-  double divergence_ratio = -1;
-  std::string robust;
-  run->add_option("--robust", robust,
+    c->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
+    c->add_option("--robust", robust,
                   "tukey | huber | none: M-estimator weights on the points (v = -lambda (W L)^+ W (s - s*); config "
                   "key robust)");
-  run->add_option("--divergence-ratio", divergence_ratio,
+    c->add_option("--divergence-ratio", divergence_ratio,
                   "stop (zero twist, STOPPED) when |e| rises above this x its first value after START (0: never)")
-      ->check(CLI::Range(0.0, 1e6));
-  int points = -1;
-  run->add_option("--points", points,
+        ->check(CLI::Range(0.0, 1e6));
+    c->add_option("--points", points,
                   "servo on this many points, chosen at teaching for the best-conditioned interaction matrix "
                   "(0: all)")
-      ->check(CLI::Range(0, 4096));
-  bool no_epipolar = false;
-  run->add_flag("--no-epipolar", no_epipolar,
+        ->check(CLI::Range(0, 4096));
+    c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
+    return c;
+  }
+  int run() {
+    svc.pattern = pattern_file;
+    config::require_within("--lost-ms", svc.lost_ms, 1, 60000);
+    if (!config_file.empty()) servo::load_servo_config(config_file, svc.config);
+    if (!model.empty()) svc.config.law.model = control::parse_interaction_model(model);
+    if (z_hat != 0) {
+      config::require_within("--z-hat", z_hat, 1e-3, 100);
+      svc.config.law.z_hat_m = z_hat;
+    }
+    if (gain != 0) {
+      config::require_within("--gain", gain, 1e-6, 100);
+      svc.config.law.gain = {gain, gain, 0};
+    }
+    dds.apply_to(svc);
+    svc.reference = reference;
+    if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
+    svc.config.decoder.epipolar.enabled = !no_epipolar;
+    if (points >= 0) svc.config.points = points;
+    if (divergence_ratio >= 0) svc.config.divergence_ratio = divergence_ratio;
+    if (!robust.empty()) svc.config.law.robust = control::parse_robust_estimator(robust);
+    return servo::run_servo_service(svc);
+  }
+};
 
+struct ViewCommand {
   servo::ViewOptions view;
-  std::string view_out;
-  auto* vw = app.add_subcommand("view", "live view of the camera with the decoded ids (window, or PNGs headless)");
-  dds.add_to(*vw);
-  vw->add_option("-o,--output", view_out, "write a PNG sequence here instead of opening a window");
-  vw->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
-  vw->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
+  std::string out;
+  cell_dds::DdsFlags dds;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("view", "live view of the camera with the decoded ids (window, or PNGs headless)");
+    dds.add_to(*c);
+    c->add_option("-o,--output", out, "write a PNG sequence here instead of opening a window");
+    c->add_option("--frames", view.frames, "stop after this many frames")->capture_default_str();
+    c->add_option("--every", view.every, "keep one frame in N")->capture_default_str()->check(CLI::PositiveNumber);
+    return c;
+  }
+  int run() {
+    dds.apply_to(view);
+    view.output = out;
+    return servo::run_viewer(view);
+  }
+};
 
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"servo: structured-light visual-servoing controller"};
+  app.require_subcommand(1);
+  DecodeCommand decode;
+  RunCommand run;
+  ViewCommand view;
+  const std::vector<std::pair<CLI::App*, std::function<int()>>> commands = {
+      {decode.add(app), [&] { return decode.run(); }},
+      {run.add(app), [&] { return run.run(); }},
+      {view.add(app), [&] { return view.run(); }},
+  };
   // a backstop for the formats whose header read_rgb does not read: OpenCV refuses to
   // decode beyond this many pixels (read once, before the first decode)
   setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(servo::kMaxImagePixels).c_str(), 1);
@@ -367,62 +445,8 @@ int main(int argc, char** argv) {
   // pool: measured 2.1 ms per VGA frame with it, 1.5 ms without (docs/performance.md).
   cv::setNumThreads(1);
   try {
-    if (*vw) {
-      dds.apply_to(view);
-      view.output = view_out;
-      return servo::run_viewer(view);
-    }
-    if (*run) {
-      svc.pattern = pattern_file;
-      // flags are untrusted input like any file: NaN and absurd values are refused here
-      const auto within = [](const char* flag, double v, double lo, double hi) {
-        if (!(v >= lo && v <= hi))
-          throw std::invalid_argument(std::string(flag) + " must be in [" + std::to_string(lo) + ", " +
-                                      std::to_string(hi) + "], got " + std::to_string(v));
-      };
-      within("--lost-ms", svc.lost_ms, 1, 60000);
-      if (!config_file.empty()) servo::load_servo_config(config_file, svc.config);
-      if (!model.empty()) svc.config.law.model = control::parse_interaction_model(model);
-      if (z_hat != 0) {
-        within("--z-hat", z_hat, 1e-3, 100);
-        svc.config.law.z_hat_m = z_hat;
-      }
-      if (gain != 0) {
-        within("--gain", gain, 1e-6, 100);
-        svc.config.law.gain = {gain, gain, 0};
-      }
-      dds.apply_to(svc);
-      svc.reference = reference;
-      if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
-      svc.config.decoder.epipolar.enabled = !no_epipolar;
-      if (points >= 0) svc.config.points = points;
-      if (divergence_ratio >= 0) svc.config.divergence_ratio = divergence_ratio;
-      if (!robust.empty()) svc.config.law.robust = control::parse_robust_estimator(robust);
-      return servo::run_servo_service(svc);
-    }
-    if (*decode) {
-      EpipolarInputs epi;
-      if (!decode_projector.empty()) {
-        if (decode_camera.size() != 4 && decode_camera.size() != 9)
-          throw std::runtime_error("--projector needs --camera fx fy cx cy [k1 k2 p1 p2 k3]");
-        epi.projector = servo::load_projector_calibration(decode_projector);
-      }
-      if (!decode_camera.empty()) {
-        if (decode_camera.size() != 4 && decode_camera.size() != 9)
-          throw std::runtime_error("--camera: 4 numbers (fx fy cx cy) or 9 (and k1 k2 p1 p2 k3)");
-        check_finite("--camera", decode_camera, 1e6);
-        if (!(decode_camera[0] > 0 && decode_camera[1] > 0)) throw std::runtime_error("--camera: fx and fy must be > 0");
-        epi.camera = {decode_camera[0], decode_camera[1], decode_camera[2], decode_camera[3]};
-        for (std::size_t k = 4; k < decode_camera.size(); ++k) {
-          check_finite("--camera distortion", {decode_camera[k]}, 10);
-          epi.camera.distortion[k - 4] = decode_camera[k];
-        }
-      }
-      if (!decode_pose.empty())
-        epi.fixed_pose = pose_from("--camera-pose", {decode_pose[0], decode_pose[1], decode_pose[2]},
-                                   {decode_pose[3], decode_pose[4], decode_pose[5], decode_pose[6]});
-      return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes, epi, segment_length);
-    }
+    for (const auto& [sub, go] : commands)
+      if (*sub) return go();
   } catch (const std::exception& e) {
     std::string what = e.what();
     for (char& ch : what)

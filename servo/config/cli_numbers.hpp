@@ -4,6 +4,9 @@
 // campaign. Header-only, for the apps' command lines (CLI11).
 #pragma once
 
+#include <stdexcept>
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -37,6 +40,14 @@ inline CLI::Validator finite_in(double lo, double hi) {
 // Every floating-point option of `app` and of its subcommands, at any depth, gets the finite check
 // with the common bound (a tighter range given at the option still holds): no number escapes
 // the check because its option was added without one.
+// A flag's value checked after parsing (flags are untrusted input like any file: NaN and
+// absurd values are refused with the flag's name).
+inline void require_within(const char* flag, double v, double lo, double hi) {
+  if (!(v >= lo && v <= hi))
+    throw std::invalid_argument(std::string(flag) + " must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                                "], got " + std::to_string(v));
+}
+
 inline void require_finite_numbers(CLI::App& app) {
   for (CLI::Option* o : app.get_options()) {
     const std::string t = o->get_type_name();

@@ -588,15 +588,9 @@ struct ServeCommand {
   int run() {
     svc.scenario = scenario;
     if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");
-    // flags are untrusted input like any file: NaN and absurd values are refused here
-    const auto within = [](const char* flag, double v, double lo, double hi) {
-      if (!(v >= lo && v <= hi))
-        throw std::invalid_argument(std::string(flag) + " must be in [" + std::to_string(lo) + ", " +
-                                    std::to_string(hi) + "], got " + std::to_string(v));
-    };
-    within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
-    within("--republish-ms", svc.republish_ms, 1, 600000);
-    within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
+    config::require_within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
+    config::require_within("--republish-ms", svc.republish_ms, 1, 600000);
+    config::require_within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
     svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
     dds.apply_to(svc);
     svc.trace_dir = trace;

@@ -249,7 +249,7 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
     if (!res.stop_reason.empty()) return res;
     if (out.done) break;
     // the cell ordered nothing: after the teach frame it waits for commands; twice is a stall
-    idle_rounds = out.frames.empty() ? idle_rounds + 1 : 0;
+    idle_rounds = exchanges.empty() ? idle_rounds + 1 : 0;
     if (idle_rounds > 3) {
       res.stop_reason = started ? "the cell made no frame" : "no teach frame";
       break;

@@ -58,9 +58,10 @@ bool InMemoryLoop::command(const sim::CommandMsg& c) {
   return cell_.on_command(c, now_s_);
 }
 
-LoopExchange InMemoryLoop::exchange(const sim::FrameOrder& f) {
+LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
   LoopExchange x;
-  x.frame = f;
+  x.frame = std::move(order);
+  const sim::FrameOrder& f = x.frame;
   const sim::FrameStamp fs = sim::frame_stamp(f.index, cell_.dt());
   const servo::Stamp stamp{static_cast<std::int32_t>(fs.sec), fs.nanosec};
   // the order the service publishes in: sim status and pose before the image
@@ -108,7 +109,9 @@ LoopExchange InMemoryLoop::exchange(const sim::FrameOrder& f) {
 sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
   now_s_ += cell_.dt();
   sim::CellOutput out = cell_.poll(now_s_);
-  for (const auto& f : out.frames) exchanges.push_back(exchange(f));
+  // the frames are moved on into the exchanges (their link poses and joints are the large
+  // part of an order); out.frames keeps their count, not their content
+  for (auto& f : out.frames) exchanges.push_back(exchange(std::move(f)));
   return out;
 }
 

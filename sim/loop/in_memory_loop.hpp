@@ -51,14 +51,15 @@ class InMemoryLoop {
   // A command on rt/sim/control: both state machines hear it. False when the cell refused it.
   bool command(const sim::CommandMsg& c);
   // One round: the cell advances; every frame it orders is rendered, answered by the servo,
-  // and the answer delivered back (status, then twist). The exchanges are appended.
+  // and the answer delivered back (status, then twist). The exchanges are appended, the
+  // frames moved into them.
   sim::CellOutput round(std::vector<LoopExchange>& exchanges);
 
   const sim::CellStateMachine& cell() const { return cell_; }
   const servo::ServoStateMachine& servo() const { return servo_; }
 
  private:
-  LoopExchange exchange(const sim::FrameOrder& f);
+  LoopExchange exchange(sim::FrameOrder order);
 
   const sim::Cell& world_;
   std::uint64_t noise_seed_;

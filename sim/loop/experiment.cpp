@@ -134,21 +134,23 @@ nlohmann::json features_line(int k, const ExperimentOptions& o, const LoopExchan
 
 }  // namespace
 
-ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) {
-  const std::uint64_t seed = o.noise_seed ? o.noise_seed : cell.scenario.seed;
+namespace {
+
+// The loop an experiment runs: the scenario with the options' errors and delays; the servo and
+// the robot's controller told the draw, the simulator keeping the truth (and the robot
+// forgetting what make_robot drew from the scenario when the options say otherwise).
+LoopSetup loop_setup(const sim::Cell& cell, const ExperimentOptions& o, std::uint64_t seed) {
   LoopSetup setup;
   setup.scenario = cell.scenario;
   setup.scenario.errors = o.errors.value_or(cell.scenario.errors);
   setup.scenario.latency = o.latency.value_or(cell.scenario.latency);
-  const sim::Scenario& run_scenario = setup.scenario;
+  const sim::Scenario& sc = setup.scenario;
   setup.robot = sim::make_robot(cell);
   setup.servo = o.servo;
-  // the simulator keeps the truth; the servo and the robot's controller get the draw (and
-  // the robot forgets what make_robot drew from the scenario when the options say otherwise)
   setup.robot->set_belief({});
-  if (run_scenario.errors.any()) {
-    const sim::DrawnErrors drawn = sim::scenario_errors(run_scenario, run_scenario.errors, seed);
-    setup.servo.camera = camera_intrinsics_of(sim::believed_camera(run_scenario.camera, drawn));
+  if (sc.errors.any()) {
+    const sim::DrawnErrors drawn = sim::scenario_errors(sc, sc.errors, seed);
+    setup.servo.camera = camera_intrinsics_of(sim::believed_camera(sc.camera, drawn));
     if (setup.servo.projector) setup.servo.projector = believed_projector(*setup.servo.projector, drawn);
     setup.robot->set_belief(drawn.robot);
   }
@@ -156,124 +158,174 @@ ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& 
   setup.source = o.source;
   setup.outlier_fraction = o.outlier_fraction;
   setup.max_steps = o.max_iterations;
-  const Eigen::Isometry3d initial = o.initial.value_or(run_scenario.world_T_initial());
-  InMemoryLoop loop(cell, std::move(setup));
-  const sim::Scenario& sc = loop.cell().scenario();
-  ExperimentResult res;
-
-  std::ofstream trace, features, occlusion;
-  if (!o.out_dir.empty()) {
-    std::filesystem::create_directories(o.out_dir);
-    trace.open(o.out_dir / "trace.csv");
-    if (!trace) throw std::runtime_error((o.out_dir / "trace.csv").string() + ": cannot write");
-    trace << "# scenario " << sc.name << ", model " << control::to_string(o.servo.law.model) << ", features "
-          << to_string(o.source) << (o.source == FeatureSource::kIdeal ? " (simulator truth, not decoded)" : "")
-          << "\n";
-    trace << sim::kTraceHeader << "\n";
-    trace << std::setprecision(9);
-  }
-
-  // as `cellsim serve --autorun` does: TEACH, then RESET and START once the servo is taught
-  using sim::SessionEnd;
-  loop.command({static_cast<int>(cell_dds::SimCommand::kTeach), "", 0, std::nullopt});
-  bool started = false;
-  int idle_rounds = 0;
-  // the law's own numbers for each applied step, in order: the cell's trace rows come a round later
-  std::deque<std::pair<double, int>> step_extras;
-  int k = 0;  // iterations of the run (applied frames)
-  for (;;) {
-    std::vector<LoopExchange> exchanges;
-    sim::CellOutput out = loop.round(exchanges);
-    for (const auto& r : out.trace) {
-      IterationRecord rec;
-      rec.t_s = r.time_s;
-      rec.twist = r.twist;
-      rec.error_norm = r.status ? r.status->error_norm : std::nan("");
-      rec.decoded = r.status ? static_cast<int>(r.status->decoded) : 0;
-      rec.matched = r.status ? static_cast<int>(r.status->matched) : 0;
-      rec.translation_error_m = r.translation_error_m;
-      rec.rotation_error_deg = r.rotation_error_deg;
-      rec.robot_limits = r.robot_limits;
-      if (!step_extras.empty()) {
-        std::tie(rec.feature_rms, rec.swapped) = step_extras.front();
-        step_extras.pop_front();
-      }
-      res.trace.push_back(rec);
-      if (trace.is_open()) sim::write_trace_row(trace, r, false);
-    }
-    for (const auto& x : exchanges) {
-      if (x.frame.teach) {
-        if (!x.reply.taught) {
-          res.stop_reason = "not taught: " + x.reply.reason;
-          return res;
-        }
-        res.decoded_desired = static_cast<int>(x.reply.matched);
-        sim::CommandMsg reset{static_cast<int>(cell_dds::SimCommand::kReset), "", 0, initial};
-        // the teach frame's answer is applied by the next round; the RESET waits behind it
-        if (!loop.command(reset)) {
-          res.stop_reason = "initial pose refused (" + sc.file.filename().string() + ")";
-          return res;
-        }
-        loop.command({static_cast<int>(cell_dds::SimCommand::kStart), "", 0, std::nullopt});
-        started = true;
-        if (!o.out_dir.empty()) write_scene(cell, sc.world_T_desired, initial, o.out_dir / "scene.json");
-        if (o.write_features && !o.out_dir.empty()) {
-          features.open(o.out_dir / "features.jsonl");
-          if (!x.frame.world_T_links.empty()) {
-            occlusion.open(o.out_dir / "occlusion.csv");
-            occlusion << "t,visible,hidden_by_arm,on_arm\n";
-          }
-        }
-        continue;
-      }
-      if (!x.frame.applies_twist) continue;
-      if (k == 0) res.decoded_initial = static_cast<int>(x.reply.decoded);
-      step_extras.emplace_back(x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped);
-      if (occlusion.is_open()) {
-        // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
-        int visible = 0, hidden = 0, on_arm = 0;
-        for (const auto& t : sim::compute_truth(cell, x.frame.world_T_camera, &x.frame.world_T_links)) {
-          visible += t.visible;
-          hidden += t.hidden_by_arm;
-          on_arm += t.on_arm;
-        }
-        occlusion << k * sc.dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
-      }
-      if (features.is_open() && x.reply.step) features << features_line(k, o, x).dump() << '\n';
-      ++k;
-    }
-    for (const auto& line : out.log)
-      if (line.find("RESET refused: ") != std::string::npos && res.stop_reason.empty())
-        res.stop_reason = "initial pose refused (" + sc.file.filename().string() + "): " +
-                          line.substr(line.find("RESET refused: ") + 15);
-    if (!res.stop_reason.empty()) return res;
-    if (out.done) break;
-    // the cell ordered nothing: after the teach frame it waits for commands; twice is a stall
-    idle_rounds = exchanges.empty() ? idle_rounds + 1 : 0;
-    if (idle_rounds > 3) {
-      res.stop_reason = started ? "the cell made no frame" : "no teach frame";
-      break;
-    }
-  }
-  res.iterations = static_cast<int>(res.trace.size());
-  const sim::SessionEndReport& end = loop.cell().session_end();
-  if (res.stop_reason.empty()) res.stop_reason = end.reason;
-  res.converged = end.kind == SessionEnd::kConverged;
-  res.robot_stopped = end.kind == SessionEnd::kRobotStopped;
-  res.diverged = end.kind == SessionEnd::kServoStopped && end.reason.rfind("diverging", 0) == 0;
-  for (std::size_t i = 1; i < res.trace.size(); ++i)
-    res.error_rise += std::max(0.0, res.trace[i].error_norm - res.trace[i - 1].error_norm);
-  if (!res.trace.empty() && res.trace.front().error_norm > 0) {
-    res.error_rise /= res.trace.front().error_norm;
-    double top = 0;
-    for (const auto& r : res.trace) top = std::max(top, r.error_norm);
-    res.max_error_ratio = top / res.trace.front().error_norm;
-  }
-  const Eigen::Isometry3d wTc = loop.cell().world_T_camera();
-  res.final_translation_error_m = sim::translation_error(wTc, sc.world_T_desired);
-  res.final_rotation_error_deg = sim::rotation_error(wTc, sc.world_T_desired) * kRadToDeg;
-  return res;
+  return setup;
 }
+
+IterationRecord record_of(const sim::TraceRow& r) {
+  IterationRecord rec;
+  rec.t_s = r.time_s;
+  rec.twist = r.twist;
+  rec.error_norm = r.status ? r.status->error_norm : std::nan("");
+  rec.decoded = r.status ? static_cast<int>(r.status->decoded) : 0;
+  rec.matched = r.status ? static_cast<int>(r.status->matched) : 0;
+  rec.translation_error_m = r.translation_error_m;
+  rec.rotation_error_deg = r.rotation_error_deg;
+  rec.robot_limits = r.robot_limits;
+  return rec;
+}
+
+// One experiment on the in-memory loop, as `cellsim serve --autorun` runs it over DDS: TEACH,
+// then RESET and START once the servo is taught, then rounds until the cell ends the session.
+class Experiment {
+ public:
+  Experiment(const sim::Cell& cell, const ExperimentOptions& o)
+      : cell_(cell), o_(o), seed_(o.noise_seed ? o.noise_seed : cell.scenario.seed),
+        initial_(o.initial.value_or(cell.scenario.world_T_initial())), loop_(cell, loop_setup(cell, o, seed_)) {}
+
+  ExperimentResult run() {
+    open_trace();
+    loop_.command({static_cast<int>(cell_dds::SimCommand::kTeach), "", 0, std::nullopt});
+    int idle_rounds = 0;
+    for (;;) {
+      std::vector<LoopExchange> exchanges;
+      const sim::CellOutput out = loop_.round(exchanges);
+      for (const auto& r : out.trace) record(r);
+      for (const auto& x : exchanges) {
+        if (x.frame.teach) {
+          if (!taught(x)) return res_;
+        } else if (x.frame.applies_twist) {
+          stepped(x);
+        }
+      }
+      for (const auto& line : out.log) refused_reset(line);
+      if (!res_.stop_reason.empty()) return res_;
+      if (out.done) break;
+      // the cell ordered nothing: after the teach frame it waits for commands; more is a stall
+      idle_rounds = exchanges.empty() ? idle_rounds + 1 : 0;
+      if (idle_rounds > 3) {
+        res_.stop_reason = started_ ? "the cell made no frame" : "no teach frame";
+        break;
+      }
+    }
+    finish();
+    return res_;
+  }
+
+ private:
+  const sim::Scenario& scenario() const { return loop_.cell().scenario(); }
+
+  void open_trace() {
+    if (o_.out_dir.empty()) return;
+    std::filesystem::create_directories(o_.out_dir);
+    trace_.open(o_.out_dir / "trace.csv");
+    if (!trace_) throw std::runtime_error((o_.out_dir / "trace.csv").string() + ": cannot write");
+    trace_ << "# scenario " << scenario().name << ", model " << control::to_string(o_.servo.law.model) << ", features "
+           << to_string(o_.source) << (o_.source == FeatureSource::kIdeal ? " (simulator truth, not decoded)" : "")
+           << "\n"
+           << sim::kTraceHeader << "\n"
+           << std::setprecision(9);
+  }
+
+  // a trace row of the cell, with the law's own numbers of its step (they come a round earlier)
+  void record(const sim::TraceRow& r) {
+    IterationRecord rec = record_of(r);
+    if (!step_extras_.empty()) {
+      std::tie(rec.feature_rms, rec.swapped) = step_extras_.front();
+      step_extras_.pop_front();
+    }
+    res_.trace.push_back(rec);
+    if (trace_.is_open()) sim::write_trace_row(trace_, r, false);
+  }
+
+  // The teach frame's answer: the servo taught, the robot sent to the initial pose and started.
+  // False when the run cannot go on.
+  bool taught(const LoopExchange& x) {
+    if (!x.reply.taught) {
+      res_.stop_reason = "not taught: " + x.reply.reason;
+      return false;
+    }
+    res_.decoded_desired = static_cast<int>(x.reply.matched);
+    // the teach frame's answer is applied by the next round; the RESET waits behind it
+    if (!loop_.command({static_cast<int>(cell_dds::SimCommand::kReset), "", 0, initial_})) {
+      res_.stop_reason = "initial pose refused (" + scenario().file.filename().string() + ")";
+      return false;
+    }
+    loop_.command({static_cast<int>(cell_dds::SimCommand::kStart), "", 0, std::nullopt});
+    started_ = true;
+    if (o_.out_dir.empty()) return true;
+    write_scene(cell_, scenario().world_T_desired, initial_, o_.out_dir / "scene.json");
+    if (o_.write_features) {
+      features_.open(o_.out_dir / "features.jsonl");
+      if (!x.frame.world_T_links.empty()) {
+        occlusion_.open(o_.out_dir / "occlusion.csv");
+        occlusion_ << "t,visible,hidden_by_arm,on_arm\n";
+      }
+    }
+    return true;
+  }
+
+  // An applied frame: what the law did, for the trace, features.jsonl and occlusion.csv.
+  void stepped(const LoopExchange& x) {
+    if (k_ == 0) res_.decoded_initial = static_cast<int>(x.reply.decoded);
+    step_extras_.emplace_back(x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped);
+    if (occlusion_.is_open()) {
+      // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
+      int visible = 0, hidden = 0, on_arm = 0;
+      for (const auto& t : sim::compute_truth(cell_, x.frame.world_T_camera, &x.frame.world_T_links)) {
+        visible += t.visible;
+        hidden += t.hidden_by_arm;
+        on_arm += t.on_arm;
+      }
+      occlusion_ << k_ * scenario().dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
+    }
+    if (features_.is_open() && x.reply.step) features_ << features_line(k_, o_, x).dump() << '\n';
+    ++k_;
+  }
+
+  // the RESET to the initial pose waited behind the teach frame: its refusal is in the log
+  void refused_reset(const std::string& line) {
+    const std::string key = "RESET refused: ";
+    const std::size_t at = line.find(key);
+    if (at == std::string::npos || !res_.stop_reason.empty()) return;
+    res_.stop_reason =
+        "initial pose refused (" + scenario().file.filename().string() + "): " + line.substr(at + key.size());
+  }
+
+  void finish() {
+    res_.iterations = static_cast<int>(res_.trace.size());
+    const sim::SessionEndReport& end = loop_.cell().session_end();
+    if (res_.stop_reason.empty()) res_.stop_reason = end.reason;
+    res_.converged = end.kind == sim::SessionEnd::kConverged;
+    res_.robot_stopped = end.kind == sim::SessionEnd::kRobotStopped;
+    res_.diverged = end.kind == sim::SessionEnd::kServoStopped && end.reason.rfind("diverging", 0) == 0;
+    for (std::size_t i = 1; i < res_.trace.size(); ++i)
+      res_.error_rise += std::max(0.0, res_.trace[i].error_norm - res_.trace[i - 1].error_norm);
+    if (!res_.trace.empty() && res_.trace.front().error_norm > 0) {
+      res_.error_rise /= res_.trace.front().error_norm;
+      double top = 0;
+      for (const auto& r : res_.trace) top = std::max(top, r.error_norm);
+      res_.max_error_ratio = top / res_.trace.front().error_norm;
+    }
+    const Eigen::Isometry3d wTc = loop_.cell().world_T_camera();
+    res_.final_translation_error_m = sim::translation_error(wTc, scenario().world_T_desired);
+    res_.final_rotation_error_deg = sim::rotation_error(wTc, scenario().world_T_desired) * kRadToDeg;
+  }
+
+  const sim::Cell& cell_;
+  const ExperimentOptions& o_;
+  std::uint64_t seed_;
+  Eigen::Isometry3d initial_;
+  InMemoryLoop loop_;
+  ExperimentResult res_;
+  std::ofstream trace_, features_, occlusion_;
+  std::deque<std::pair<double, int>> step_extras_;  // (feature rms, swapped) per applied step, in order
+  int k_ = 0;                                       // applied frames so far
+  bool started_ = false;
+};
+
+}  // namespace
+
+ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) { return Experiment(cell, o).run(); }
 
 bool run_plot_script(const std::string& script_name, const std::filesystem::path& dir, const std::string& title) {
   const std::filesystem::path script = std::filesystem::path(CELL_SOURCE_DIR) / "bin" / script_name;

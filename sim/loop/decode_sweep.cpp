@@ -19,16 +19,23 @@ namespace cellsim {
 namespace {
 // a decoded blob this close to where some of the named spot's light lands is that light
 constexpr double kPartialPx = 4.0;
-}  // namespace
 
-SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
-  const sim::Scenario& sc = cell.scenario;
+struct WrongId {
+  int pose, row, col;
+  double u, v;
+  int nearest_row, nearest_col;
+  double nearest_px;
+  bool named_visible;
+  double named_px;  // from the decoded position to where the named spot's centre projects
+};
+
+// All poses drawn up front from one seeded stream: the sweep does not depend on threading.
+std::vector<SweepRow> draw_rows(const sim::Scenario& sc, const SweepOptions& o) {
   std::array<double, 6> range{};
   for (int i = 0; i < 3; ++i) {
     range[i] = o.max_translation_cm.value_or(std::max(2.0, std::abs(sc.initial_translation_cm[i])));
     range[3 + i] = o.max_rotation_deg.value_or(std::max(2.0, std::abs(sc.initial_rotation_deg[i])));
   }
-  // all poses drawn up front from one seeded stream: the sweep does not depend on threading
   std::mt19937_64 rng(o.seed);
   std::vector<SweepRow> rows(static_cast<std::size_t>(o.poses));
   for (int k = 0; k < o.poses; ++k) {
@@ -36,151 +43,113 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     rows[k].noise_sigma = o.noise_sigmas[static_cast<std::size_t>(k) % o.noise_sigmas.size()];
     for (int i = 0; i < 6; ++i) rows[k].offset[i] = std::uniform_real_distribution<double>(-range[i], range[i])(rng);
   }
-  const control::CameraIntrinsics camera = camera_intrinsics_of(cell);
-  std::atomic<int> next{0};
-  std::mutex io;
-  struct WrongId {
-    int pose, row, col;
-    double u, v;
-    int nearest_row, nearest_col;
-    double nearest_px;
-    bool named_visible;
-    double named_px;  // from the decoded position to where the named spot's centre projects
-  };
-  std::vector<WrongId> wrong_ids;
-  int failure_images = 0;
-  const auto work = [&] {
-    sim::RenderScratch scratch;
-    // a decoder per thread (decoding is const and thread-safe, but cheap to own)
-    const vision::SpotDecoder decoder(pattern::WindowTable(cell.projector->pattern(), {3, 3}), o.decoder);
-    for (int k; (k = next++) < o.poses;) {
-      SweepRow& row = rows[k];
-      const Eigen::Isometry3d wTc = sim::offset_pose(sc.world_T_desired, {row.offset[0], row.offset[1], row.offset[2]},
-                                                     {row.offset[3], row.offset[4], row.offset[5]},
-                                                     sc.offset_frame_rotation_deg);
-      sim::CameraSpec sensor = sc.camera;
-      sensor.noise_sigma = row.noise_sigma;
-      cv::Mat img = sim::render_image(cell, wTc, sim::frame_seed(o.seed, static_cast<std::uint64_t>(k)), &scratch,
-                                      &sensor);
-      const auto truth = sim::compute_truth(cell, wTc);
-      const auto t0 = std::chrono::steady_clock::now();
-      std::optional<vision::EpipolarGeometry> geometry;
-      if (o.projector) geometry.emplace(camera, *o.projector, wTc, o.decoder.epipolar.tolerance_px);
-      const vision::DecodeResult r = decoder.decode(img, geometry ? &*geometry : nullptr);
-      row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      const int cols = cell.projector->pattern().cols, rows_n = cell.projector->pattern().rows;
-      for (const auto& t : truth) row.visible += t.visible;
-      // decodable: covered by a fully visible 3 x 3 window
-      for (const auto& t : truth) row.resolved += t.resolved;
-      std::vector<char> right(truth.size(), 0);
-      // the spots covered by a 3 x 3 window all of whose spots pass `seen`
-      const auto in_full_window = [&](auto seen) {
-        std::vector<char> covered(truth.size(), 0);
-        for (int r0 = 0; r0 + 3 <= rows_n; ++r0)
-          for (int c0 = 0; c0 + 3 <= cols; ++c0) {
-            bool all = true;
-            for (int i = 0; i < 9 && all; ++i) all = seen(truth[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3]);
-            if (!all) continue;
-            for (int i = 0; i < 9; ++i) covered[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
-          }
-        return covered;
-      };
-      const std::vector<char> decodable = in_full_window([](const sim::SpotTruth& t) { return t.visible; });
-      const std::vector<char> readable = in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
-      row.detected = static_cast<int>(r.detected.size());
-      row.decoded = static_cast<int>(r.decoded.size());
-      for (const auto& d : r.decoded) {
-        const sim::SpotTruth* nearest = nullptr;
-        double best = 1e18;
-        for (const auto& t : truth) {
-          if (!t.visible) continue;
-          const double dist = std::hypot(t.uv.x() - d.u, t.uv.y() - d.v);
-          if (dist < best) best = dist, nearest = &t;
-        }
-        const sim::SpotTruth& named = truth[static_cast<std::size_t>(d.row) * cols + d.col];
-        // inside (or within kPartialPx of) the outline of the named spot's light: a blob cut
-        // by an edge has its centroid inside the footprint, far from the centre and the rim
-        bool named_light = false;
-        if (!named.light_px.empty()) {
-          std::vector<cv::Point2f> pts, hull;
-          for (const auto& p : named.light_px) pts.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
-          cv::convexHull(pts, hull);
-          named_light = cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(d.u), static_cast<float>(d.v)), true) >=
-                        -kPartialPx;
-        }
-        if ((!nearest || nearest->row != d.row || nearest->col != d.col) && named_light) {
-          ++row.partial;
-        } else if (!nearest || nearest->row != d.row || nearest->col != d.col) {
-          ++row.wrong;
-          WrongId w{k, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
-                    nearest ? best : -1, named.visible, std::hypot(named.uv.x() - d.u, named.uv.y() - d.v)};
-          std::lock_guard<std::mutex> lock(io);
-          wrong_ids.push_back(w);
-        } else if (best > o.match_tolerance_px) ++row.mislocated;
-        else {
-          ++row.correct;
-          right[static_cast<std::size_t>(d.row) * cols + d.col] = 1;
-        }
-      }
-      // the funnel: each detected blob's true id (the visible spot within the tolerance)
-      std::vector<int> truth_of(r.detected.size(), -1), blob_of(truth.size(), -1);
-      for (std::size_t b = 0; b < r.detected.size(); ++b) {
-        double best = o.match_tolerance_px;
-        for (std::size_t i = 0; i < truth.size(); ++i) {
-          if (!truth[i].visible) continue;
-          const double dist = std::hypot(truth[i].uv.x() - r.detected[b].u, truth[i].uv.y() - r.detected[b].v);
-          if (dist < best) best = dist, truth_of[b] = static_cast<int>(i);
-        }
-        const int i = truth_of[b];
-        if (i >= 0 && cell.projector->pattern().at(i / cols, i % cols) == r.detected[b].colour) blob_of[i] = static_cast<int>(b);
-      }
-      const vision::AdjacencyGraph& graph = r.graph;
-      const vision::Neighbourhoods& hoods = r.hoods;
-      for (std::size_t i = 0; i < truth.size(); ++i) {
-        if (!readable[i] || blob_of[i] < 0) continue;
-        ++row.readable_segmented;
-        const int pr = static_cast<int>(i) / cols, pc = static_cast<int>(i) % cols;
-        const auto truth_blob = [&](int rr, int cc) {
-          return rr < 0 || cc < 0 || rr >= rows_n || cc >= cols ? -2 : blob_of[static_cast<std::size_t>(rr) * cols + cc];
-        };
-        // image directions against pattern directions: east = +col, south = +row
-        const int dr[4] = {0, 1, 0, -1}, dc[4] = {1, 0, -1, 0};
-        bool linked = true;
-        for (int k = 0; k < 4 && linked; ++k) {
-          const int want = truth_blob(pr + dr[k], pc + dc[k]);
-          if (want != -2) linked = graph.next[blob_of[i]][k] == want && want >= 0;
-        }
-        row.readable_linked += linked;
-        bool windowed = true;
-        for (int w = 0; w < 9 && windowed; ++w) {
-          const int want = truth_blob(pr + w / 3 - 1, pc + w % 3 - 1);
-          if (want != -2) windowed = hoods.window[blob_of[i]][w] == want && want >= 0;
-        }
-        row.readable_windowed += windowed;
-      }
-      for (std::size_t i = 0; i < truth.size(); ++i) {
-        row.decodable += decodable[i];
-        row.correct_decodable += decodable[i] && right[i];
-        row.readable += readable[i];
-        row.correct_readable += readable[i] && right[i];
-      }
-      if (row.wrong > 0 && !o.out_dir.empty()) {
-        std::lock_guard<std::mutex> lock(io);
-        if (failure_images++ < 20) {
-          cv::Mat bgr;
-          cv::cvtColor(vision::draw_overlay(img, r), bgr, cv::COLOR_RGB2BGR);
-          cv::imwrite((o.out_dir / ("wrong_pose_" + std::to_string(k) + ".png")).string(), bgr);
-          cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);  // the frame itself, to decode again
-          cv::imwrite((o.out_dir / ("wrong_pose_" + std::to_string(k) + "_frame.png")).string(), bgr);
-        }
-      }
-    }
-  };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
-  work();
-  for (auto& t : threads) t.join();
+  return rows;
+}
 
+// The truth of one frame in pattern terms.
+struct FrameTruth {
+  const std::vector<sim::SpotTruth>& spots;
+  int rows, cols;
+  const sim::SpotTruth& at(int r, int c) const { return spots[static_cast<std::size_t>(r) * cols + c]; }
+  // the spots covered by a 3 x 3 window all of whose spots pass `seen`
+  template <typename Seen>
+  std::vector<char> in_full_window(Seen seen) const {
+    std::vector<char> covered(spots.size(), 0);
+    for (int r0 = 0; r0 + 3 <= rows; ++r0)
+      for (int c0 = 0; c0 + 3 <= cols; ++c0) {
+        bool all = true;
+        for (int i = 0; i < 9 && all; ++i) all = seen(at(r0 + i / 3, c0 + i % 3));
+        if (!all) continue;
+        for (int i = 0; i < 9; ++i) covered[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
+      }
+    return covered;
+  }
+};
+
+// Inside (or within kPartialPx of) the outline of the named spot's light: a blob cut by an
+// edge has its centroid inside the footprint, far from the centre and the rim.
+bool on_named_light(const sim::SpotTruth& named, double u, double v) {
+  if (named.light_px.empty()) return false;
+  std::vector<cv::Point2f> pts, hull;
+  for (const auto& p : named.light_px) pts.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+  cv::convexHull(pts, hull);
+  return cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(u), static_cast<float>(v)), true) >= -kPartialPx;
+}
+
+// Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong.
+// Returns which spots were named right; the wrong ones are appended to `wrong`.
+std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, double tolerance_px,
+                            std::vector<WrongId>& wrong) {
+  std::vector<char> right(truth.spots.size(), 0);
+  for (const auto& d : r.decoded) {
+    const sim::SpotTruth* nearest = nullptr;
+    double best = 1e18;
+    for (const auto& t : truth.spots) {
+      if (!t.visible) continue;
+      const double dist = std::hypot(t.uv.x() - d.u, t.uv.y() - d.v);
+      if (dist < best) best = dist, nearest = &t;
+    }
+    const sim::SpotTruth& named = truth.at(d.row, d.col);
+    const bool nearest_is_named = nearest && nearest->row == d.row && nearest->col == d.col;
+    if (!nearest_is_named && on_named_light(named, d.u, d.v)) {
+      ++row.partial;
+    } else if (!nearest_is_named) {
+      ++row.wrong;
+      wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
+                       nearest ? best : -1, named.visible, std::hypot(named.uv.x() - d.u, named.uv.y() - d.v)});
+    } else if (best > tolerance_px) {
+      ++row.mislocated;
+    } else {
+      ++row.correct;
+      right[static_cast<std::size_t>(d.row) * truth.cols + d.col] = 1;
+    }
+  }
+  return right;
+}
+
+// Where the readable spots are lost: segmented as a blob of their colour, all four links
+// right, the whole window right after the graph check.
+void loss_funnel(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, const pattern::MArray& pattern,
+                 const std::vector<char>& readable, double tolerance_px) {
+  const int cols = truth.cols, rows_n = truth.rows;
+  // each detected blob's true id (the visible spot within the tolerance)
+  std::vector<int> blob_of(truth.spots.size(), -1);
+  for (std::size_t b = 0; b < r.detected.size(); ++b) {
+    double best = tolerance_px;
+    int id = -1;
+    for (std::size_t i = 0; i < truth.spots.size(); ++i) {
+      if (!truth.spots[i].visible) continue;
+      const double dist = std::hypot(truth.spots[i].uv.x() - r.detected[b].u, truth.spots[i].uv.y() - r.detected[b].v);
+      if (dist < best) best = dist, id = static_cast<int>(i);
+    }
+    if (id >= 0 && pattern.at(id / cols, id % cols) == r.detected[b].colour) blob_of[id] = static_cast<int>(b);
+  }
+  const auto truth_blob = [&](int rr, int cc) {
+    return rr < 0 || cc < 0 || rr >= rows_n || cc >= cols ? -2 : blob_of[static_cast<std::size_t>(rr) * cols + cc];
+  };
+  for (std::size_t i = 0; i < truth.spots.size(); ++i) {
+    if (!readable[i] || blob_of[i] < 0) continue;
+    ++row.readable_segmented;
+    const int pr = static_cast<int>(i) / cols, pc = static_cast<int>(i) % cols;
+    // image directions against pattern directions: east = +col, south = +row
+    const int dr[4] = {0, 1, 0, -1}, dc[4] = {1, 0, -1, 0};
+    bool linked = true;
+    for (int k = 0; k < 4 && linked; ++k) {
+      const int want = truth_blob(pr + dr[k], pc + dc[k]);
+      if (want != -2) linked = r.graph.next[blob_of[i]][k] == want && want >= 0;
+    }
+    row.readable_linked += linked;
+    bool windowed = true;
+    for (int w = 0; w < 9 && windowed; ++w) {
+      const int want = truth_blob(pr + w / 3 - 1, pc + w % 3 - 1);
+      if (want != -2) windowed = r.hoods.window[blob_of[i]][w] == want && want >= 0;
+    }
+    row.readable_windowed += windowed;
+  }
+}
+
+// The rows' totals and mean rates, and the decode time's median and 99th percentile.
+SweepSummary summarize(const std::vector<SweepRow>& rows) {
   SweepSummary s;
   s.rows = rows;
   std::vector<double> ms;
@@ -225,29 +194,108 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     s.median_ms = ms[ms.size() / 2];
     s.p99_ms = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
   }
-  if (!o.out_dir.empty()) {
-    // every wrong id, to look at: what was named, what is there
-    std::sort(wrong_ids.begin(), wrong_ids.end(), [](const WrongId& a, const WrongId& b) { return a.pose < b.pose; });
-    std::ofstream w(o.out_dir / "wrong_ids.csv");
-    w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px\n";
-    for (const WrongId& x : wrong_ids)
-      w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
-        << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << '\n';
+  return s;
+}
+
+// every wrong id, to look at: what was named, what is there
+void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
+  std::sort(wrong.begin(), wrong.end(), [](const WrongId& a, const WrongId& b) { return a.pose < b.pose; });
+  std::ofstream w(file);
+  w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px\n";
+  for (const WrongId& x : wrong)
+    w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
+      << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << '\n';
+}
+
+void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {
+  std::ofstream csv(file);
+  csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
+         "partial,"
+         "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
+         "readable_windowed\n";
+  for (const auto& r : rows) {
+    csv << r.pose << ',' << r.noise_sigma;
+    for (double x : r.offset) csv << ',' << x;
+    csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
+        << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
+        << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
+        << r.readable_linked << ',' << r.readable_windowed << '\n';
   }
-  if (!o.out_dir.empty()) {
-    std::ofstream csv(o.out_dir / "sweep.csv");
-    csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
-           "partial,"
-           "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
-           "readable_windowed\n";
-    for (const auto& r : rows) {
-      csv << r.pose << ',' << r.noise_sigma;
-      for (double x : r.offset) csv << ',' << x;
-      csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
-          << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable << ','
-          << r.resolved << ',' << r.readable << ',' << r.correct_readable << ','
-          << r.readable_segmented << ',' << r.readable_linked << ',' << r.readable_windowed << '\n';
+}
+
+// the first frames with a wrong id, drawn and as rendered (to decode again)
+void write_failure_images(const cv::Mat& img, const vision::DecodeResult& r, int pose, const std::filesystem::path& dir) {
+  cv::Mat bgr;
+  cv::cvtColor(vision::draw_overlay(img, r), bgr, cv::COLOR_RGB2BGR);
+  cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + ".png")).string(), bgr);
+  cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);
+  cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + "_frame.png")).string(), bgr);
+}
+
+}  // namespace
+
+SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
+  const sim::Scenario& sc = cell.scenario;
+  std::vector<SweepRow> rows = draw_rows(sc, o);
+  const control::CameraIntrinsics camera = camera_intrinsics_of(cell);
+  const pattern::MArray& pattern = cell.projector->pattern();
+  std::atomic<int> next{0};
+  std::mutex io;
+  std::vector<WrongId> wrong_ids;
+  int failure_images = 0;
+  const auto work = [&] {
+    sim::RenderScratch scratch;
+    // a decoder per thread (decoding is const and thread-safe, but cheap to own)
+    const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), o.decoder);
+    std::vector<WrongId> wrong;
+    for (int k; (k = next++) < o.poses;) {
+      SweepRow& row = rows[k];
+      const Eigen::Isometry3d wTc = sim::offset_pose(sc.world_T_desired, {row.offset[0], row.offset[1], row.offset[2]},
+                                                     {row.offset[3], row.offset[4], row.offset[5]},
+                                                     sc.offset_frame_rotation_deg);
+      sim::CameraSpec sensor = sc.camera;
+      sensor.noise_sigma = row.noise_sigma;
+      cv::Mat img = sim::render_image(cell, wTc, sim::frame_seed(o.seed, static_cast<std::uint64_t>(k)), &scratch,
+                                      &sensor);
+      const auto spots = sim::compute_truth(cell, wTc);
+      const auto t0 = std::chrono::steady_clock::now();
+      std::optional<vision::EpipolarGeometry> geometry;
+      if (o.projector) geometry.emplace(camera, *o.projector, wTc, o.decoder.epipolar.tolerance_px);
+      const vision::DecodeResult r = decoder.decode(img, geometry ? &*geometry : nullptr);
+      row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+
+      const FrameTruth truth{spots, pattern.rows, pattern.cols};
+      for (const auto& t : spots) row.visible += t.visible;
+      for (const auto& t : spots) row.resolved += t.resolved;
+      // decodable: covered by a fully visible 3 x 3 window; readable: by a fully resolved one
+      const std::vector<char> decodable = truth.in_full_window([](const sim::SpotTruth& t) { return t.visible; });
+      const std::vector<char> readable = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
+      row.detected = static_cast<int>(r.detected.size());
+      row.decoded = static_cast<int>(r.decoded.size());
+      wrong.clear();
+      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, wrong);
+      loss_funnel(row, r, truth, pattern, readable, o.match_tolerance_px);
+      for (std::size_t i = 0; i < spots.size(); ++i) {
+        row.decodable += decodable[i];
+        row.correct_decodable += decodable[i] && right[i];
+        row.readable += readable[i];
+        row.correct_readable += readable[i] && right[i];
+      }
+      if (row.wrong == 0) continue;
+      std::lock_guard<std::mutex> lock(io);
+      wrong_ids.insert(wrong_ids.end(), wrong.begin(), wrong.end());
+      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(img, r, k, o.out_dir);
     }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
+  work();
+  for (auto& t : threads) t.join();
+
+  SweepSummary s = summarize(rows);
+  if (!o.out_dir.empty()) {
+    write_wrong_ids(wrong_ids, o.out_dir / "wrong_ids.csv");
+    write_sweep_csv(rows, o.out_dir / "sweep.csv");
   }
   return s;
 }

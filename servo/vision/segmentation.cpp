@@ -34,24 +34,11 @@ int otsu(const std::array<int, 256>& hist, int total) {
   return t_best;
 }
 
-}  // namespace
-
-Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, SegmentationScratch* scratch) {
-  if (rgb.empty()) throw std::invalid_argument("segment_spots: empty image");
-  if (rgb.type() != CV_8UC3)
-    throw std::invalid_argument("segment_spots: expected an 8-bit 3-channel RGB image, got type " +
-                                std::to_string(rgb.type()) + " with " + std::to_string(rgb.channels()) + " channels");
-  if (p.colours < 2 || p.colours > static_cast<int>(pattern::kPalette.size()))
-    throw std::invalid_argument("segment_spots: colours must be in 2..10");
-  Segmentation out;
+// chroma = max - min channel, and the min channel, in one pass over the interleaved RGB
+// with OpenCV's universal intrinsics (16 pixels at a time; split + 5 whole-image operations
+// cost three times as much)
+void chroma_and_min(const cv::Mat& rgb, cv::Mat& lo, cv::Mat& chroma) {
   const int W = rgb.cols, H = rgb.rows;
-
-  // chroma = max - min channel, and the min channel, in one pass over the interleaved RGB
-  // with OpenCV's universal intrinsics (16 pixels at a time; split + 5 whole-image
-  // operations cost three times as much)
-  SegmentationScratch local;
-  SegmentationScratch& sc = scratch ? *scratch : local;
-  cv::Mat &lo = sc.lo, &chroma = sc.chroma;
   lo.create(H, W, CV_8U);
   chroma.create(H, W, CV_8U);
   for (int v = 0; v < H; ++v) {
@@ -75,6 +62,15 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
       c[u] = static_cast<std::uint8_t>(std::max({r, g, b}) - mn);
     }
   }
+}
+
+struct ChromaLevels {
+  int floor = 0;      // no pixel at or below it is foreground
+  int threshold = 0;  // the global (Otsu) level, above the floor
+};
+
+ChromaLevels chroma_levels(const cv::Mat& chroma, const SegmentationParams& p) {
+  const int W = chroma.cols, H = chroma.rows;
   std::array<int, 256> hist{};
   int sampled = 0;
   // four partial histograms: a run of equal bytes (most of the background) would otherwise
@@ -90,29 +86,25 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     sampled += W;
   }
   for (int i = 0; i < 256; ++i) hist[i] = part[0][i] + part[1][i] + part[2][i] + part[3][i];
-
   // the floor rises with the sensor noise: the chroma of a noisy grey pixel is the spread of
   // three noisy channels, and most pixels are background, so the median chroma measures it
   int median = 0;
   for (int acc = 0; median < 255 && (acc += hist[median]) < sampled / 2;) ++median;
-  const int floor_level = std::max(p.min_threshold, static_cast<int>(p.noise_floor_factor * median));
-  out.threshold = std::max(floor_level, otsu(hist, sampled));
+  ChromaLevels l;
+  l.floor = std::max(p.min_threshold, static_cast<int>(p.noise_floor_factor * median));
+  l.threshold = std::max(l.floor, otsu(hist, sampled));
+  return l;
+}
 
-  // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
-  // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate
-  // from their neighbours. The global Otsu level caps that local level, the floor bounds it.
-  cv::Mat &peak = sc.peak, &mask = sc.mask;
-  cv::dilate(chroma, peak, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
-  // the local level of a local peak x: clamp(round(peak_ratio x), floor, Otsu), tabulated
-  std::array<std::uint8_t, 256> level_of{};
-  for (int x = 0; x < 256; ++x)
-    level_of[x] = static_cast<std::uint8_t>(
-        std::min(out.threshold, std::max(floor_level, static_cast<int>(cv::saturate_cast<std::uint8_t>(x * p.peak_ratio)))));
-  // The mask holds each foreground pixel's weight in its blob's centroid, chroma - level + 1
-  // (>= 1; at most 256 - floor: a byte), 0 for background; the runs of foreground of each row
-  // are collected in the same pass. No pixel at or below the floor is foreground, and most are
-  // (spots cover a tenth of the image): 16 pixels are tested against the floor at once, and
-  // the table is read only in the chunks that pass.
+// The mask holds each foreground pixel's weight in its blob's centroid, chroma - level + 1
+// (>= 1; at most 256 - floor: a byte), 0 for background; the runs of foreground of each row
+// are collected in the same pass. No pixel at or below the floor is foreground, and most are
+// (spots cover a tenth of the image): 16 pixels are tested against the floor at once, and
+// the table is read only in the chunks that pass.
+void foreground_runs(const cv::Mat& chroma, const cv::Mat& peak, const std::array<std::uint8_t, 256>& level_of,
+                     int floor_level, SegmentationScratch& sc) {
+  const int W = chroma.cols, H = chroma.rows;
+  cv::Mat& mask = sc.mask;
   mask.create(H, W, CV_8U);
   std::vector<SegmentationScratch::RowRun>& row_runs = sc.row_runs;
   row_runs.clear();
@@ -155,10 +147,12 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     if (open >= 0) row_runs.push_back({v, open, W - 1});
   }
   row_start[H] = static_cast<int>(row_runs.size());
+}
 
-  // palette colours as unit chroma vectors (colour minus its smallest channel)
-  std::vector<std::array<double, 3>> palette(p.colours);
-  for (int k = 0; k < p.colours; ++k) {
+// palette colours as unit chroma vectors (colour minus its smallest channel)
+std::vector<std::array<double, 3>> palette_directions(int colours) {
+  std::vector<std::array<double, 3>> palette(colours);
+  for (int k = 0; k < colours; ++k) {
     const pattern::Rgb c = pattern::symbol_colour(k);
     const double lo_c = std::min({c.r, c.g, c.b});
     std::array<double, 3> x{c.r - lo_c, c.g - lo_c, c.b - lo_c};
@@ -166,17 +160,24 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     for (double& e : x) e /= norm;
     palette[k] = x;
   }
+  return palette;
+}
 
-  // 8-connected components of the mask as runs: each row's runs of foreground carry their
-  // sums, and a run
-  // joins every run of the row above that it touches, diagonals included (union-find). Every
-  // foreground pixel is read once, in a loop without branches on the pixel; a flood fill reads
-  // each pixel's rows above and below as well, and mispredicts at every run's edge.
-  struct Blob {
-    int area = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
-    double sw = 0, su = 0, sv = 0;
-    std::array<double, 3> col{0, 0, 0};
-  };
+struct Blob {
+  int area = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  double sw = 0, su = 0, sv = 0;
+  std::array<double, 3> col{0, 0, 0};
+};
+
+// 8-connected components of the mask as runs: each row's runs of foreground carry their sums,
+// and a run joins every run of the row above that it touches, diagonals included (union-find).
+// Every foreground pixel is read once, in a loop without branches on the pixel; a flood fill
+// reads each pixel's rows above and below as well, and mispredicts at every run's edge.
+// The blobs come in the order of their first pixel (raster order, as a scan would meet them).
+std::vector<Blob> connected_blobs(const cv::Mat& rgb, SegmentationScratch& sc) {
+  const int W = rgb.cols, H = rgb.rows;
+  const std::vector<SegmentationScratch::RowRun>& row_runs = sc.row_runs;
+  const std::vector<int>& row_start = sc.row_start;
   const int n_runs = static_cast<int>(row_runs.size());
   std::vector<int>& parent = sc.parent;
   parent.resize(static_cast<std::size_t>(n_runs));
@@ -197,12 +198,11 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
       }
     }
   }
-  // sums per component, in the order of their first pixel (raster order, as a scan would meet them)
   std::vector<Blob> blobs;
   std::vector<int>& blob_of = sc.blob_of;
   blob_of.assign(static_cast<std::size_t>(n_runs), -1);
-  const std::uint8_t* weight_px = mask.ptr<std::uint8_t>(0);  // continuous (created above)
-  const std::uint8_t* lo_px = lo.ptr<std::uint8_t>(0);
+  const std::uint8_t* weight_px = sc.mask.ptr<std::uint8_t>(0);  // continuous (created above)
+  const std::uint8_t* lo_px = sc.lo.ptr<std::uint8_t>(0);
   for (int i = 0; i < n_runs; ++i) {
     const int root = find(i);
     if (blob_of[root] < 0) {
@@ -233,12 +233,14 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     b.col[1] += static_cast<double>(g);
     b.col[2] += static_cast<double>(bl);
   }
-  const int n = static_cast<int>(blobs.size()) + 1;  // (label 0 was the background)
-  blobs.insert(blobs.begin(), Blob{});
+  return blobs;
+}
 
-  out.spots.reserve(static_cast<std::size_t>(n));
-  for (int i = 1; i < n; ++i) {
-    const Blob& b = blobs[static_cast<std::size_t>(i)];
+// The blobs that are spots: their size, shape and fill, and a dominant palette colour.
+void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, int W, int H, Segmentation& out) {
+  const std::vector<std::array<double, 3>> palette = palette_directions(p.colours);
+  out.spots.reserve(blobs.size() + 1);
+  for (const Blob& b : blobs) {
     const int w = b.x1 - b.x0 + 1, h = b.y1 - b.y0 + 1;
     const double elongation = static_cast<double>(std::max(w, h)) / std::min(w, h);
     if (b.area < p.min_area_px || b.area > p.max_area_px || elongation > p.max_elongation ||
@@ -270,6 +272,35 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     spot.truncated = b.x0 == 0 || b.y0 == 0 || b.x1 == W - 1 || b.y1 == H - 1;
     out.spots.push_back(spot);
   }
+}
+
+}  // namespace
+
+Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, SegmentationScratch* scratch) {
+  if (rgb.empty()) throw std::invalid_argument("segment_spots: empty image");
+  if (rgb.type() != CV_8UC3)
+    throw std::invalid_argument("segment_spots: expected an 8-bit 3-channel RGB image, got type " +
+                                std::to_string(rgb.type()) + " with " + std::to_string(rgb.channels()) + " channels");
+  if (p.colours < 2 || p.colours > static_cast<int>(pattern::kPalette.size()))
+    throw std::invalid_argument("segment_spots: colours must be in 2..10");
+  Segmentation out;
+  SegmentationScratch local;
+  SegmentationScratch& sc = scratch ? *scratch : local;
+  chroma_and_min(rgb, sc.lo, sc.chroma);
+  const ChromaLevels levels = chroma_levels(sc.chroma, p);
+  out.threshold = levels.threshold;
+
+  // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
+  // of its own peak, so dim spots (dark or oblique surfaces) and bright ones both separate
+  // from their neighbours. The global Otsu level caps that local level, the floor bounds it.
+  cv::dilate(sc.chroma, sc.peak, cv::getStructuringElement(cv::MORPH_RECT, {p.local_window_px, p.local_window_px}));
+  // the local level of a local peak x: clamp(round(peak_ratio x), floor, Otsu), tabulated
+  std::array<std::uint8_t, 256> level_of{};
+  for (int x = 0; x < 256; ++x)
+    level_of[x] = static_cast<std::uint8_t>(std::min(
+        out.threshold, std::max(levels.floor, static_cast<int>(cv::saturate_cast<std::uint8_t>(x * p.peak_ratio)))));
+  foreground_runs(sc.chroma, sc.peak, level_of, levels.floor, sc);
+  spots_of(connected_blobs(rgb, sc), p, rgb.cols, rgb.rows, out);
   return out;
 }
 

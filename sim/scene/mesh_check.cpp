@@ -166,7 +166,13 @@ int ply_type_size(const std::string& t, bool& is_float) {
   return 0;
 }
 
-MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data) {
+struct PlyHeader {
+  std::string format;           // ascii | binary_little_endian | binary_big_endian
+  std::size_t body = 0;         // offset of the first byte after end_header
+  std::vector<PlyElement> elements;
+};
+
+PlyHeader read_ply_header(const std::filesystem::path& p, const std::string& data) {
   if (data.rfind("ply", 0) != 0) fail(p, "not a PLY file (no 'ply' magic)");
   // end_header alone on its line: assimp reads "end_headerX" as no end and loops for ever
   std::size_t end_header = std::string::npos, body = 0;
@@ -231,96 +237,110 @@ MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data
     }
   }
   if (format.empty()) fail(p, "PLY header has no format line");
-  MeshFileCounts c;
-  for (const auto& e : elements)
-    if (e.name == "vertex") c.vertices = e.count;
+  return {format, body, elements};
+}
 
-  if (format == "ascii") {
-    check_text(p, data, body, data.size());
-    // one element per line, exactly its values: assimp reads ASCII PLY line by line and
-    // asserts (aborting the process) on an element split over two lines
-    std::istringstream lines(data.substr(body));
-    for (const auto& e : elements)
-      for (std::size_t i = 0; i < e.count; ++i) {
-        std::string text;
-        if (!std::getline(lines, text))
-          fail(p, "PLY body ends early: element '" + shown(e.name) + "' " + std::to_string(i) + " of " +
-                      std::to_string(e.count) + " is missing");
-        std::istringstream b(text);
-        std::string tok;
-        const auto next = [&]() {
-          if (!(b >> tok))
-            fail(p, "PLY element '" + shown(e.name) + "' " + std::to_string(i) + " has too few values on its line");
-          double v;
-          if (!parse_double(tok, v)) fail(p, "PLY value '" + shown(tok) + "' is not a finite number");
-          return v;
-        };
-        for (const auto& prop : e.props) {
-          if (!prop.list) {
-            next();
-            continue;
-          }
-          const double n = next();
-          if (n < 0 || n > kMaxFaceCorners || n != std::floor(n)) fail(p, "PLY list of length '" + shown(tok) + "'");
-          for (int k = 0; k < static_cast<int>(n); ++k) {
-            const double idx = next();
-            if (e.name == "face" && (idx < 0 || idx >= static_cast<double>(c.vertices) || idx != std::floor(idx)))
-              fail(p, "PLY face " + std::to_string(i) + " refers to vertex " + shown(tok) + " of " + std::to_string(c.vertices));
-          }
-          if (e.name == "face") {
-            if (n < 3) fail(p, "PLY face " + std::to_string(i) + " has fewer than 3 corners");
-            add_triangles(p, c, static_cast<std::size_t>(n));
-          }
+// one element per line, exactly its values: assimp reads ASCII PLY line by line and asserts
+// (aborting the process) on an element split over two lines
+void check_ply_ascii(const std::filesystem::path& p, const std::string& data, const PlyHeader& h, MeshFileCounts& c) {
+  const std::size_t body = h.body;
+  const std::vector<PlyElement>& elements = h.elements;
+  check_text(p, data, body, data.size());
+  std::istringstream lines(data.substr(body));
+  for (const auto& e : elements)
+    for (std::size_t i = 0; i < e.count; ++i) {
+      std::string text;
+      if (!std::getline(lines, text))
+        fail(p, "PLY body ends early: element '" + shown(e.name) + "' " + std::to_string(i) + " of " +
+                    std::to_string(e.count) + " is missing");
+      std::istringstream b(text);
+      std::string tok;
+      const auto next = [&]() {
+        if (!(b >> tok))
+          fail(p, "PLY element '" + shown(e.name) + "' " + std::to_string(i) + " has too few values on its line");
+        double v;
+        if (!parse_double(tok, v)) fail(p, "PLY value '" + shown(tok) + "' is not a finite number");
+        return v;
+      };
+      for (const auto& prop : e.props) {
+        if (!prop.list) {
+          next();
+          continue;
         }
-        if (b >> tok) fail(p, "PLY element '" + shown(e.name) + "' " + std::to_string(i) + " has extra values on its line");
+        const double n = next();
+        if (n < 0 || n > kMaxFaceCorners || n != std::floor(n)) fail(p, "PLY list of length '" + shown(tok) + "'");
+        for (int k = 0; k < static_cast<int>(n); ++k) {
+          const double idx = next();
+          if (e.name == "face" && (idx < 0 || idx >= static_cast<double>(c.vertices) || idx != std::floor(idx)))
+            fail(p, "PLY face " + std::to_string(i) + " refers to vertex " + shown(tok) + " of " + std::to_string(c.vertices));
+        }
+        if (e.name == "face") {
+          if (n < 3) fail(p, "PLY face " + std::to_string(i) + " has fewer than 3 corners");
+          add_triangles(p, c, static_cast<std::size_t>(n));
+        }
       }
-  } else {
-    const bool swap = format == "binary_big_endian";
-    std::size_t at = body;
-    const auto read_uint = [&](int size, bool is_float, const std::string& what) -> double {
-      if (data.size() - at < static_cast<std::size_t>(size))
-        fail(p, "PLY body ends early (" + std::to_string(data.size()) + " bytes) while reading " + what);
-      unsigned char b[8];
-      std::memcpy(b, data.data() + at, static_cast<std::size_t>(size));
-      at += static_cast<std::size_t>(size);
-      if (swap) std::reverse(b, b + size);
-      if (is_float) {
-        if (size == 4) {
-          float f;
-          std::memcpy(&f, b, 4);
-          return f;
-        }
-        double d;
-        std::memcpy(&d, b, 8);
-        return d;
+      if (b >> tok) fail(p, "PLY element '" + shown(e.name) + "' " + std::to_string(i) + " has extra values on its line");
+    }
+}
+
+void check_ply_binary(const std::filesystem::path& p, const std::string& data, const PlyHeader& h, MeshFileCounts& c) {
+  const std::string& format = h.format;
+  const std::size_t body = h.body;
+  const std::vector<PlyElement>& elements = h.elements;
+  const bool swap = format == "binary_big_endian";
+  std::size_t at = body;
+  const auto read_uint = [&](int size, bool is_float, const std::string& what) -> double {
+    if (data.size() - at < static_cast<std::size_t>(size))
+      fail(p, "PLY body ends early (" + std::to_string(data.size()) + " bytes) while reading " + what);
+    unsigned char b[8];
+    std::memcpy(b, data.data() + at, static_cast<std::size_t>(size));
+    at += static_cast<std::size_t>(size);
+    if (swap) std::reverse(b, b + size);
+    if (is_float) {
+      if (size == 4) {
+        float f;
+        std::memcpy(&f, b, 4);
+        return f;
       }
-      std::uint64_t v = 0;
-      std::memcpy(&v, b, static_cast<std::size_t>(size));
-      return static_cast<double>(v);
-    };
-    for (const auto& e : elements)
-      for (std::size_t i = 0; i < e.count; ++i)
-        for (const auto& prop : e.props) {
-          const std::string what = "element '" + shown(e.name) + "' " + std::to_string(i) + " of " + std::to_string(e.count);
-          if (!prop.list) {
-            const double v = read_uint(prop.size, prop.is_float, what);
-            if (prop.is_float && !std::isfinite(v)) fail(p, "PLY value of " + what + " is not a finite number");
-            continue;
-          }
-          const double n = read_uint(prop.count_size, false, what);
-          if (n > kMaxFaceCorners) fail(p, "PLY list of " + what + " has length " + std::to_string(static_cast<long long>(n)));
-          for (int k = 0; k < static_cast<int>(n); ++k) {
-            const double idx = read_uint(prop.size, prop.is_float, what);
-            if (e.name == "face" && (prop.is_float || idx >= static_cast<double>(c.vertices)))
-              fail(p, "PLY " + what + " refers to vertex " + std::to_string(static_cast<long long>(idx)) + " of " +
-                          std::to_string(c.vertices));
-          }
-          if (e.name == "face") {
-            if (n < 3) fail(p, "PLY " + what + " has fewer than 3 corners");
-            add_triangles(p, c, static_cast<std::size_t>(n));
-          }
+      double d;
+      std::memcpy(&d, b, 8);
+      return d;
+    }
+    std::uint64_t v = 0;
+    std::memcpy(&v, b, static_cast<std::size_t>(size));
+    return static_cast<double>(v);
+  };
+  for (const auto& e : elements)
+    for (std::size_t i = 0; i < e.count; ++i)
+      for (const auto& prop : e.props) {
+        const std::string what = "element '" + shown(e.name) + "' " + std::to_string(i) + " of " + std::to_string(e.count);
+        if (!prop.list) {
+          const double v = read_uint(prop.size, prop.is_float, what);
+          if (prop.is_float && !std::isfinite(v)) fail(p, "PLY value of " + what + " is not a finite number");
+          continue;
         }
-  }
+        const double n = read_uint(prop.count_size, false, what);
+        if (n > kMaxFaceCorners) fail(p, "PLY list of " + what + " has length " + std::to_string(static_cast<long long>(n)));
+        for (int k = 0; k < static_cast<int>(n); ++k) {
+          const double idx = read_uint(prop.size, prop.is_float, what);
+          if (e.name == "face" && (prop.is_float || idx >= static_cast<double>(c.vertices)))
+            fail(p, "PLY " + what + " refers to vertex " + std::to_string(static_cast<long long>(idx)) + " of " +
+                        std::to_string(c.vertices));
+        }
+        if (e.name == "face") {
+          if (n < 3) fail(p, "PLY " + what + " has fewer than 3 corners");
+          add_triangles(p, c, static_cast<std::size_t>(n));
+        }
+      }
+}
+
+MeshFileCounts check_ply(const std::filesystem::path& p, const std::string& data) {
+  const PlyHeader h = read_ply_header(p, data);
+  MeshFileCounts c;
+  for (const auto& e : h.elements)
+    if (e.name == "vertex") c.vertices = e.count;
+  if (h.format == "ascii") check_ply_ascii(p, data, h, c);
+  else check_ply_binary(p, data, h, c);
   if (c.triangles == 0) fail(p, "mesh has no faces");
   return c;
 }

@@ -193,15 +193,11 @@ void complete_links(AdjacencyGraph& g, const std::vector<Spot>& spots, const Spa
   }
 }
 
-}  // namespace
-
-AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
-  AdjacencyGraph g;
+// Each spot's nearest neighbour distance, and the grid's direction (modulo 90 deg, the mean of
+// the nearest-neighbour directions x 4) into `grid_angle_rad`; a first spacing estimate from
+// a coarse grid finds the neighbours.
+std::vector<double> nearest_distances(const std::vector<Spot>& spots, double& grid_angle_rad) {
   const std::size_t n = spots.size();
-  g.next.assign(n, {-1, -1, -1, -1});
-  if (n < 2) return g;
-
-  // a first spacing estimate from a coarse grid, then the nearest neighbour of every spot
   double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
   for (const Spot& s : spots) u0 = std::min(u0, s.u), v0 = std::min(v0, s.v), u1 = std::max(u1, s.u), v1 = std::max(v1, s.v);
   const double coarse = std::max(4.0, std::sqrt(std::max(1.0, (u1 - u0) * (v1 - v0)) / static_cast<double>(n)));
@@ -225,14 +221,19 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
     sx += c2 * c2 - s2 * s2;
     sy += 2 * c2 * s2;
   }
-  g.grid_angle_rad = std::atan2(sy, sx) / 4.0;
-  const double spacing = median(nn_dist);
+  grid_angle_rad = std::atan2(sy, sx) / 4.0;
+  return nn_dist;
+}
 
+// The candidate east, south, west and north neighbours of every spot.
+std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, const SpatialGrid& near,
+                                                const std::vector<double>& nn_dist, double spacing,
+                                                double grid_angle_rad) {
+  const std::size_t n = spots.size();
   // Rows first: the closest spot within +-35 deg of the pattern's east and west. Then columns,
   // against each spot's own row direction: under perspective the columns shear away from the
   // perpendicular and a diagonal neighbour can be nearer than the true one, so the north and
   // south candidates are ranked by distance weighted by their angle to the local perpendicular.
-  const SpatialGrid near(spots, std::max(2.0, spacing));
   std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
   struct Candidate {
     int j;
@@ -242,7 +243,7 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
   const double row_cos = std::cos(35.0 * kPi / 180.0);
   const double col_cos = std::cos(45.0 * kPi / 180.0);
   const double row_cos2 = row_cos * row_cos, col_cos2 = col_cos * col_cos;
-  const double ce = std::cos(g.grid_angle_rad), se = std::sin(g.grid_angle_rad);
+  const double ce = std::cos(grid_angle_rad), se = std::sin(grid_angle_rad);
   for (std::size_t i = 0; i < n; ++i) {
     const double reach = 3.5 * std::max(nn_dist[i], 0.5 * spacing);
     const double reach2 = reach * reach;
@@ -288,6 +289,13 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
       if (dot < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
     }
   }
+  return cand;
+}
+
+// The links kept: mutual candidates, regularly spaced, symmetric.
+void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::array<int, 4>>& cand,
+                        AdjacencyGraph& g) {
+  const std::size_t n = spots.size();
   std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 4; ++k) {
@@ -317,6 +325,19 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
       const int j = g.next[i][k];
       if (j >= 0 && g.next[j][(k + 2) % 4] != static_cast<int>(i)) g.next[i][k] = -1;
     }
+}
+
+}  // namespace
+
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
+  AdjacencyGraph g;
+  const std::size_t n = spots.size();
+  g.next.assign(n, {-1, -1, -1, -1});
+  if (n < 2) return g;
+  const std::vector<double> nn_dist = nearest_distances(spots, g.grid_angle_rad);
+  const double spacing = median(nn_dist);
+  const SpatialGrid near(spots, std::max(2.0, spacing));
+  keep_regular_links(spots, link_candidates(spots, near, nn_dist, spacing, g.grid_angle_rad), g);
   if (!mend) return g;
   align_chains(g, kEast, kSouth);  // columns between row chains
   complete_links(g, spots, near);

@@ -363,17 +363,26 @@ std::string scenario_fingerprint(const sim::Scenario& sc) {
   return hex;
 }
 
-std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
+namespace {
+
+struct InitialPoses {
+  std::vector<std::array<double, 6>> offsets;  // x y z (cm), rx ry rz (deg) per run
+  int redrawn = 0;
+  int visible_desired = 0;  // spots the camera sees at the desired pose
+};
+
+// The same initial poses for every model. A draw from which the camera does not see at least
+// 80 % of the spots it sees at the desired pose, or that the arm cannot reach, is drawn again:
+// the campaign compares control laws, not whether the object is in view.
+InitialPoses draw_initial_poses(const sim::Cell& cell, const CampaignOptions& o) {
   const sim::Scenario& sc = cell.scenario;
-  // The same initial poses for every model. A draw from which the camera does not see at
-  // least 80 % of the spots it sees at the desired pose is drawn again: the campaign compares
-  // control laws, not whether the object is in view.
   const auto visible = [&](const Eigen::Isometry3d& wTc) {
     int n = 0;
     for (const auto& t : sim::compute_truth(cell, wTc)) n += t.visible;
     return n;
   };
-  const int visible_desired = visible(sc.world_T_desired);
+  InitialPoses poses;
+  poses.visible_desired = visible(sc.world_T_desired);
   // an arm must reach the pose too (a free-flying camera always does)
   const std::unique_ptr<sim::Robot> probe = sim::make_robot(cell);
   const auto reachable = [&](const Eigen::Isometry3d& wTc) {
@@ -385,9 +394,8 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
     }
   };
   std::mt19937_64 rng(o.seed);
-  std::vector<std::array<double, 6>> offsets(static_cast<std::size_t>(o.runs));
-  int redrawn = 0;
-  for (auto& off : offsets) {
+  poses.offsets.resize(static_cast<std::size_t>(o.runs));
+  for (auto& off : poses.offsets) {
     for (int attempt = 0;; ++attempt) {
       for (int i = 0; i < 6; ++i) {
         const double range =
@@ -396,47 +404,56 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
       }
       const auto wTc = sim::offset_pose(sc.world_T_desired, {off[0], off[1], off[2]}, {off[3], off[4], off[5]},
                                         sc.offset_frame_rotation_deg);
-      if ((visible(wTc) >= 0.8 * visible_desired && reachable(wTc)) || attempt >= 1000) break;
-      ++redrawn;
+      if ((visible(wTc) >= 0.8 * poses.visible_desired && reachable(wTc)) || attempt >= 1000) break;
+      ++poses.redrawn;
     }
   }
-  struct Job {
-    std::size_t model;
-    int run;
-    ExperimentResult result;
-  };
-  std::vector<Job> jobs;
-  // a shard runs every N-th initial pose: the draws above are the same for every shard
-  for (std::size_t m = 0; m < o.models.size(); ++m)
-    for (int r = 0; r < o.runs; ++r)
-      if (r % o.shard_count == o.shard_index - 1) jobs.push_back({m, r, {}});
+  return poses;
+}
+
+struct CampaignJob {
+  std::size_t model;
+  int run;
+  ExperimentResult result;
+};
+
+// One run of the campaign: its model, its initial pose, its own noise seed.
+ExperimentResult run_job(const sim::Cell& cell, const CampaignOptions& o, const CampaignJob& job,
+                         const std::array<double, 6>& off) {
+  const sim::Scenario& sc = cell.scenario;
+  ExperimentOptions e;
+  e.servo = o.base;
+  e.servo.law.model = o.models[job.model];
+  e.source = o.source;
+  e.max_iterations = o.max_iterations;
+  e.initial = sim::offset_pose(sc.world_T_desired, {off[0], off[1], off[2]}, {off[3], off[4], off[5]},
+                               sc.offset_frame_rotation_deg);
+  e.noise_seed = o.seed * 1000003 + static_cast<std::uint64_t>(job.run);
+  e.errors = o.errors;
+  e.latency = o.latency;
+  e.servo.divergence_ratio = o.divergence_ratio;
+  e.outlier_fraction = o.outlier_fraction;
+  ExperimentResult r = run_experiment(cell, e);
+  r.trace.clear();  // keep memory flat: only the outcome matters here
+  return r;
+}
+
+// The jobs on `threads` threads, one run per thread at a time, with the time left on stderr.
+void run_jobs(const sim::Cell& cell, const CampaignOptions& o, const InitialPoses& poses,
+              std::vector<CampaignJob>& jobs) {
   std::atomic<std::size_t> next{0}, done{0};
   std::mutex io;
   const auto started = std::chrono::steady_clock::now();  // for the estimate of the time left only
   const auto work = [&] {
     for (std::size_t j; (j = next++) < jobs.size();) {
-      Job& job = jobs[j];
-      ExperimentOptions e;
-      e.servo = o.base;
-      e.servo.law.model = o.models[job.model];
-      e.source = o.source;
-      e.max_iterations = o.max_iterations;
-      const auto& off = offsets[static_cast<std::size_t>(job.run)];
-      e.initial = sim::offset_pose(sc.world_T_desired, {off[0], off[1], off[2]}, {off[3], off[4], off[5]},
-                                   sc.offset_frame_rotation_deg);
-      e.noise_seed = o.seed * 1000003 + static_cast<std::uint64_t>(job.run);
-      e.errors = o.errors;
-      e.latency = o.latency;
-      e.servo.divergence_ratio = o.divergence_ratio;
-      e.outlier_fraction = o.outlier_fraction;
-      job.result = run_experiment(cell, e);
-      job.result.trace.clear();  // keep memory flat: only the outcome matters here
+      CampaignJob& job = jobs[j];
+      job.result = run_job(cell, o, job, poses.offsets[static_cast<std::size_t>(job.run)]);
       const std::size_t n = ++done;
       std::lock_guard<std::mutex> lock(io);
       const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
       const double left = elapsed / static_cast<double>(n) * static_cast<double>(jobs.size() - n);
-      std::fprintf(stderr, "\rcampaign %s: %zu/%zu runs, %.0f s, about %.0f s left   ", sc.name.c_str(), n, jobs.size(),
-                   elapsed, left);
+      std::fprintf(stderr, "\rcampaign %s: %zu/%zu runs, %.0f s, about %.0f s left   ", cell.scenario.name.c_str(), n,
+                   jobs.size(), elapsed, left);
       if (n == jobs.size()) std::fprintf(stderr, "\n");
     }
   };
@@ -444,20 +461,28 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
   work();
   for (auto& t : threads) t.join();
+}
 
+// campaign.csv's rows, by model, written and read back as the file has them
+std::vector<CampaignRow> rows_of(const CampaignOptions& o, const InitialPoses& poses,
+                                 const std::vector<CampaignJob>& jobs) {
   std::vector<CampaignRow> rows;
   for (std::size_t m = 0; m < o.models.size(); ++m)
-    for (const Job& job : jobs) {
+    for (const CampaignJob& job : jobs) {
       if (job.model != m) continue;
       const auto& r = job.result;
       std::ostringstream line;
       line << std::setprecision(17) << control::to_string(o.models[m]) << ',' << job.run;
-      for (double x : offsets[static_cast<std::size_t>(job.run)]) line << ',' << x;
+      for (double x : poses.offsets[static_cast<std::size_t>(job.run)]) line << ',' << x;
       line << ',' << r.converged << ',' << r.iterations << ',' << 1e3 * r.final_translation_error_m << ','
-           << r.final_rotation_error_deg << ',' << r.decoded_initial << ',' << r.diverged << ',' << r.error_rise << ',' << r.max_error_ratio << ",\""
-           << r.stop_reason << "\"";
+           << r.final_rotation_error_deg << ',' << r.decoded_initial << ',' << r.diverged << ',' << r.error_rise << ','
+           << r.max_error_ratio << ",\"" << r.stop_reason << "\"";
       rows.push_back(parse_row(line.str(), "campaign"));
     }
+  return rows;
+}
+
+CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const InitialPoses& poses) {
   CampaignMeta meta;
   meta.scenario = sc.name;
   meta.seed = o.seed;
@@ -467,8 +492,8 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
   meta.scale = o.scale;
   meta.conditions = sim::describe(o.errors.value_or(sc.errors), o.latency.value_or(sc.latency));
   meta.max_iterations = o.max_iterations;
-  meta.redrawn = redrawn;
-  meta.visible_desired = visible_desired;
+  meta.redrawn = poses.redrawn;
+  meta.visible_desired = poses.visible_desired;
   meta.shard_index = o.shard_index;
   meta.shard_count = o.shard_count;
   meta.scenario_hash = scenario_fingerprint(sc);
@@ -485,6 +510,21 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
                      {"epipolar", o.base.decoder.epipolar.enabled},
                      {"robust", control::to_string(law.robust)},
                      {"outliers", o.outlier_fraction}};
+  return meta;
+}
+
+}  // namespace
+
+std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
+  const InitialPoses poses = draw_initial_poses(cell, o);
+  std::vector<CampaignJob> jobs;
+  // a shard runs every N-th initial pose: the draws above are the same for every shard
+  for (std::size_t m = 0; m < o.models.size(); ++m)
+    for (int r = 0; r < o.runs; ++r)
+      if (r % o.shard_count == o.shard_index - 1) jobs.push_back({m, r, {}});
+  run_jobs(cell, o, poses, jobs);
+  const std::vector<CampaignRow> rows = rows_of(o, poses, jobs);
+  const CampaignMeta meta = meta_of(cell.scenario, o, poses);
   const std::string md = summarize(meta, rows);
   if (!o.out_dir.empty()) write_campaign(o.out_dir, meta, rows, md);
   return md;

@@ -170,22 +170,7 @@ void read_errors(const Reader& r, CalibrationErrors& e) {
       }
 }
 
-Scenario read_scenario(const std::filesystem::path& file) {
-  const YAML::Node root = config::load_yaml_file(file, "scenario file");
-  Scenario s;
-  s.file = std::filesystem::absolute(file).lexically_normal();
-  const Reader top(s.file, root, "");
-  top.only_keys({"name", "seed", "timing", "objects", "projector", "camera", "robot", "desired_pose", "initial_offset",
-                 "workspace", "errors", "latency"});
-  s.name = top.at("name").text(200);
-  s.seed = top.at("seed").unsigned_integer();
-
-  if (top.has("timing")) {
-    const Reader t = top.at("timing");
-    t.only_keys({"dt_s"});
-    s.dt_s = t.at("dt_s").in_range(kMinDtS, kMaxDtS);
-  }
-
+void read_objects(const Reader& top, Scenario& s) {
   const Reader objs = top.at("objects");
   if (objs.size_at_most(kMaxObjects) == 0) objs.fail("needs at least one object");
   for (std::size_t i = 0; i < objs.size(); ++i) {
@@ -206,54 +191,50 @@ Scenario read_scenario(const std::filesystem::path& file) {
     s.objects.push_back(spec);
   }
 
-  {
-    const Reader p = top.at("projector");
-    p.only_keys({"pose", "resolution", "focal_px", "fov_deg", "principal_point_px", "pattern", "spot_pitch_px",
-                 "spot_radius_px", "brightness", "focus_range_m", "defocus_px_per_m", "focused_blur_px", "only_spots"});
-    ProjectorSpec& pr = s.projector;
-    pr.world_T_projector = read_pose(p.at("pose"), Eigen::Vector3d::UnitZ());
-    pr.intrinsics = read_intrinsics(p, pr.intrinsics);
-    pr.pattern = p.at("pattern").existing_file();
-    pr.spot_pitch_px = p.at("spot_pitch_px").in_range(1, 1000);
-    pr.spot_radius_px = p.at("spot_radius_px").in_range(0.1, 500);
-    if (pr.spot_radius_px >= 0.5 * pr.spot_pitch_px) p.at("spot_radius_px").fail("must be less than half spot_pitch_px (spots would merge)");
-    if (p.has("brightness")) pr.brightness = p.at("brightness").in_range(1e-6, 1e3);
-    if (p.has("focus_range_m")) {
-      const auto f = p.at("focus_range_m").numbers_in<2>(0, kMaxCoordinateM);
-      if (!(f[0] > 0 && f[1] >= f[0])) p.at("focus_range_m").fail("must be [near, far] with 0 < near <= far");
-      pr.focus_near_m = f[0];
-      pr.focus_far_m = f[1];
-    }
-    if (p.has("defocus_px_per_m")) pr.defocus_px_per_m = p.at("defocus_px_per_m").in_range(0, 1e3);
-    if (p.has("focused_blur_px")) pr.focused_blur_px = p.at("focused_blur_px").in_range(0, 100);
-    if (p.has("only_spots")) {
-      const Reader list = p.at("only_spots");
-      for (std::size_t i = 0; i < list.size_at_most(kMaxPatternSide * kMaxPatternSide); ++i) {
-        const Reader rc = list.at(i);
-        if (rc.size() != 2) rc.fail("must be [row, col]");
-        pr.only_spots.push_back({rc.at(std::size_t{0}).integer_in(0, kMaxPatternSide - 1),
-                                 rc.at(std::size_t{1}).integer_in(0, kMaxPatternSide - 1)});
-      }
+}
+
+void read_projector(const Reader& p, ProjectorSpec& pr) {
+  p.only_keys({"pose", "resolution", "focal_px", "fov_deg", "principal_point_px", "pattern", "spot_pitch_px",
+               "spot_radius_px", "brightness", "focus_range_m", "defocus_px_per_m", "focused_blur_px", "only_spots"});
+  pr.world_T_projector = read_pose(p.at("pose"), Eigen::Vector3d::UnitZ());
+  pr.intrinsics = read_intrinsics(p, pr.intrinsics);
+  pr.pattern = p.at("pattern").existing_file();
+  pr.spot_pitch_px = p.at("spot_pitch_px").in_range(1, 1000);
+  pr.spot_radius_px = p.at("spot_radius_px").in_range(0.1, 500);
+  if (pr.spot_radius_px >= 0.5 * pr.spot_pitch_px) p.at("spot_radius_px").fail("must be less than half spot_pitch_px (spots would merge)");
+  if (p.has("brightness")) pr.brightness = p.at("brightness").in_range(1e-6, 1e3);
+  if (p.has("focus_range_m")) {
+    const auto f = p.at("focus_range_m").numbers_in<2>(0, kMaxCoordinateM);
+    if (!(f[0] > 0 && f[1] >= f[0])) p.at("focus_range_m").fail("must be [near, far] with 0 < near <= far");
+    pr.focus_near_m = f[0];
+    pr.focus_far_m = f[1];
+  }
+  if (p.has("defocus_px_per_m")) pr.defocus_px_per_m = p.at("defocus_px_per_m").in_range(0, 1e3);
+  if (p.has("focused_blur_px")) pr.focused_blur_px = p.at("focused_blur_px").in_range(0, 100);
+  if (p.has("only_spots")) {
+    const Reader list = p.at("only_spots");
+    for (std::size_t i = 0; i < list.size_at_most(kMaxPatternSide * kMaxPatternSide); ++i) {
+      const Reader rc = list.at(i);
+      if (rc.size() != 2) rc.fail("must be [row, col]");
+      pr.only_spots.push_back({rc.at(std::size_t{0}).integer_in(0, kMaxPatternSide - 1),
+                               rc.at(std::size_t{1}).integer_in(0, kMaxPatternSide - 1)});
     }
   }
+}
 
-  {
-    const Reader c = top.at("camera");
-    c.only_keys({"resolution", "focal_px", "fov_deg", "principal_point_px", "distortion", "exposure", "ambient",
-                 "noise_sigma", "shot_noise", "crosstalk"});
-    CameraSpec& cam = s.camera;
-    cam.intrinsics = read_intrinsics(c, cam.intrinsics);
-    if (c.has("distortion")) cam.distortion = c.at("distortion").numbers_in<5>(-kMaxDistortion, kMaxDistortion);
-    if (c.has("exposure")) cam.exposure = c.at("exposure").in_range(1e-6, 1e3);
-    if (c.has("ambient")) cam.ambient = c.at("ambient").in_range(0, 1);
-    if (c.has("noise_sigma")) cam.noise_sigma = c.at("noise_sigma").in_range(0, 255);
-    if (c.has("shot_noise")) cam.shot_noise = c.at("shot_noise").in_range(0, 255);
-    if (c.has("crosstalk")) cam.crosstalk = c.at("crosstalk").in_range(0, 0.5);
-  }
+void read_camera(const Reader& c, CameraSpec& cam) {
+  c.only_keys({"resolution", "focal_px", "fov_deg", "principal_point_px", "distortion", "exposure", "ambient",
+               "noise_sigma", "shot_noise", "crosstalk"});
+  cam.intrinsics = read_intrinsics(c, cam.intrinsics);
+  if (c.has("distortion")) cam.distortion = c.at("distortion").numbers_in<5>(-kMaxDistortion, kMaxDistortion);
+  if (c.has("exposure")) cam.exposure = c.at("exposure").in_range(1e-6, 1e3);
+  if (c.has("ambient")) cam.ambient = c.at("ambient").in_range(0, 1);
+  if (c.has("noise_sigma")) cam.noise_sigma = c.at("noise_sigma").in_range(0, 255);
+  if (c.has("shot_noise")) cam.shot_noise = c.at("shot_noise").in_range(0, 255);
+  if (c.has("crosstalk")) cam.crosstalk = c.at("crosstalk").in_range(0, 0.5);
+}
 
-  if (top.has("robot")) read_robot(top.at("robot"), s.robot);
-  if (top.has("desired_pose") || s.robot.arm.desired_joints_rad.empty())
-    s.world_T_desired = read_pose(top.at("desired_pose"), Eigen::Vector3d::UnitZ());
+void read_initial_offset(const Reader& top, Scenario& s) {
   if (top.has("initial_offset")) {
     const Reader o = top.at("initial_offset");
     o.only_keys({"translation_cm", "rotation_deg", "frame_rotation_deg"});
@@ -264,8 +245,9 @@ Scenario read_scenario(const std::filesystem::path& file) {
     if (o.has("rotation_deg")) s.initial_rotation_deg = o.at("rotation_deg").numbers_in<3>(-kMaxAngleDeg, kMaxAngleDeg);
   }
 
-  if (s.robot.arm_enabled) resolve_arm(top, s);
-  if (top.has("errors")) read_errors(top.at("errors"), s.errors);
+}
+
+void read_latency(const Reader& top, Scenario& s) {
   if (top.has("latency")) {
     const Reader l = top.at("latency");
     l.only_keys({"acquisition_frames", "processing_frames", "actuation_s"});
@@ -277,7 +259,10 @@ Scenario read_scenario(const std::filesystem::path& file) {
         }
   }
 
-  // the camera's workspace: given, or the desired and initial positions with a margin
+}
+
+// the camera's workspace: given, or the desired and initial positions with a margin
+void read_workspace(const Reader& top, Scenario& s) {
   if (top.has("workspace")) {
     const Reader w = top.at("workspace");
     w.only_keys({"min_m", "max_m"});
@@ -294,6 +279,33 @@ Scenario read_scenario(const std::filesystem::path& file) {
                                    {"initial_offset", s.world_T_initial()}})
     if (!s.workspace.contains(pose.translation()))
       (top.has(name) ? top.at(name) : top.at("robot")).fail(std::string(name) + ": the camera would be outside the workspace");
+}
+
+Scenario read_scenario(const std::filesystem::path& file) {
+  const YAML::Node root = config::load_yaml_file(file, "scenario file");
+  Scenario s;
+  s.file = std::filesystem::absolute(file).lexically_normal();
+  const Reader top(s.file, root, "");
+  top.only_keys({"name", "seed", "timing", "objects", "projector", "camera", "robot", "desired_pose", "initial_offset",
+                 "workspace", "errors", "latency"});
+  s.name = top.at("name").text(200);
+  s.seed = top.at("seed").unsigned_integer();
+  if (top.has("timing")) {
+    const Reader t = top.at("timing");
+    t.only_keys({"dt_s"});
+    s.dt_s = t.at("dt_s").in_range(kMinDtS, kMaxDtS);
+  }
+  read_objects(top, s);
+  read_projector(top.at("projector"), s.projector);
+  read_camera(top.at("camera"), s.camera);
+  if (top.has("robot")) read_robot(top.at("robot"), s.robot);
+  if (top.has("desired_pose") || s.robot.arm.desired_joints_rad.empty())
+    s.world_T_desired = read_pose(top.at("desired_pose"), Eigen::Vector3d::UnitZ());
+  read_initial_offset(top, s);
+  if (s.robot.arm_enabled) resolve_arm(top, s);
+  if (top.has("errors")) read_errors(top.at("errors"), s.errors);
+  read_latency(top, s);
+  read_workspace(top, s);
   return s;
 }
 

@@ -151,7 +151,9 @@ MArray trace_marray(int rows, int cols, int offset) {
   return a;
 }
 
-GenerationResult generate_marray(const GenerationParams& p) {
+namespace {
+
+void check_generation_params(const GenerationParams& p) {
   const auto fail_arg = [](const std::string& what) { throw std::invalid_argument("pattern generate: " + what); };
   if (p.colours < 2 || p.colours > 10) fail_arg("colours must be in 2..10, got " + std::to_string(p.colours));
   if (p.window.rows < 1 || p.window.cols < 1) fail_arg("window must be at least 1 x 1");
@@ -161,15 +163,11 @@ GenerationResult generate_marray(const GenerationParams& p) {
   if (p.min_hamming < 1 || p.min_hamming > p.window.size())
     fail_arg("min Hamming distance must be in 1.." + std::to_string(p.window.size()) + ", got " +
              std::to_string(p.min_hamming));
-  const std::uint64_t space = code_space_size(p.colours, p.window);
-  if (space == std::numeric_limits<std::uint64_t>::max()) fail_arg("window code space exceeds 64 bits");
   if (!(p.time_budget_s > 0)) fail_arg("time budget must be positive");
+}
 
-  GenerationResult result;
-  const double t0 = cpu_seconds();
-  const auto wall0 = std::chrono::steady_clock::now();
-  const auto elapsed = [&] { return cpu_seconds() - t0; };
-
+// Why no array can exist (sphere packing), or "".
+std::string packing_failure(const GenerationParams& p, std::uint64_t space) {
   // Necessary condition (sphere packing): W windows, pairwise distance >= h, need
   // W * |ball of radius floor((h-1)/2)| <= k^(n m).
   const std::uint64_t windows =
@@ -179,29 +177,38 @@ GenerationResult generate_marray(const GenerationParams& p) {
     std::ostringstream s;
     s << "cannot be satisfied: " << windows << " windows at Hamming distance >= " << p.min_hamming << " need "
       << saturating_mul(windows, ball) << " codes but only " << space << " exist (k^" << p.window.size() << ")";
+    return s.str();
+  }
+  return "";
+}
+
+// distance 3 over 3 colours in 3 x 3 windows: random search and annealing do not find it
+// (issue 19), the algebraic construction does; the seed picks its starting power
+GenerationResult trace_construction(const GenerationParams& p) {
+  GenerationResult result;
+  const auto wall = std::chrono::steady_clock::now();
+  MArray a = trace_marray(p.rows, p.cols, static_cast<int>((p.seed + 727) % 728));
+  const WindowPropertyReport rep = check_window_property(a, p.window);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
+  if (!rep.holds || rep.min_hamming < 3) {
+    std::ostringstream s;
+    s << "the GF(3^6) construction gives " << (rep.holds ? "windows at distance " + std::to_string(rep.min_hamming)
+                                                         : std::string("repeated windows"))
+      << " at " << p.rows << " x " << p.cols << "; it holds up to 20 x 20";
     result.failure = s.str();
     return result;
   }
+  result.array = std::move(a);
+  return result;
+}
 
-  // distance 3 over 3 colours in 3 x 3 windows: random search and annealing do not find it
-  // (issue 19), the algebraic construction does; the seed picks its starting power
-  if (p.min_hamming == 3 && p.colours == 3 && p.window.rows == 3 && p.window.cols == 3) {
-    const auto wall = std::chrono::steady_clock::now();
-    MArray a = trace_marray(p.rows, p.cols, static_cast<int>((p.seed + 727) % 728));
-    const WindowPropertyReport rep = check_window_property(a, p.window);
-    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
-    if (!rep.holds || rep.min_hamming < 3) {
-      std::ostringstream s;
-      s << "the GF(3^6) construction gives " << (rep.holds ? "windows at distance " + std::to_string(rep.min_hamming)
-                                                           : std::string("repeated windows"))
-        << " at " << p.rows << " x " << p.cols << "; it holds up to 20 x 20";
-      result.failure = s.str();
-      return result;
-    }
-    result.array = std::move(a);
-    return result;
-  }
-
+// Backtracking over the cells in raster order, each window's code kept at least min_hamming
+// from every placed one, with restarts; within the time budget.
+GenerationResult backtracking_search(const GenerationParams& p, std::uint64_t space) {
+  GenerationResult result;
+  const double t0 = cpu_seconds();
+  const auto wall0 = std::chrono::steady_clock::now();
+  const auto elapsed = [&] { return cpu_seconds() - t0; };
   const int total = p.rows * p.cols;
   const int k = p.colours;
   std::vector<std::uint64_t> pow(p.window.size());
@@ -273,6 +280,22 @@ GenerationResult generate_marray(const GenerationParams& p) {
   result.array = std::move(a);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return result;
+}
+
+}  // namespace
+
+GenerationResult generate_marray(const GenerationParams& p) {
+  check_generation_params(p);
+  const std::uint64_t space = code_space_size(p.colours, p.window);
+  if (space == std::numeric_limits<std::uint64_t>::max())
+    throw std::invalid_argument("pattern generate: window code space exceeds 64 bits");
+  if (const std::string why = packing_failure(p, space); !why.empty()) {
+    GenerationResult result;
+    result.failure = why;
+    return result;
+  }
+  if (p.min_hamming == 3 && p.colours == 3 && p.window.rows == 3 && p.window.cols == 3) return trace_construction(p);
+  return backtracking_search(p, space);
 }
 
 namespace {

@@ -363,6 +363,100 @@ Eigen::VectorXd RobotModel::effort_limits() const {
   return per_joint(*this, [](const ChainSegment& s) { return s.max_effort; });
 }
 
+namespace {
+
+// urdfdom's parse, its console output captured: its first error is the one line we give
+urdf::ModelInterfaceSharedPtr parse_urdf(const std::filesystem::path& file, const std::string& text) {
+  urdf::ModelInterfaceSharedPtr urdf;
+  std::lock_guard<std::mutex> lock(console_mutex());
+  CapturedLog captured;
+  console_bridge::useOutputHandler(&captured);
+  try {
+    urdf = urdf::parseURDF(text);
+  } catch (const std::exception& e) {
+    captured.first_error = e.what();
+  }
+  console_bridge::restorePreviousOutputHandler();
+  if (!urdf)
+    fail(file, "not a valid URDF: " +
+                   config::printable(captured.first_error.empty() ? "parse error" : captured.first_error, 160));
+  return urdf;
+}
+
+// from the camera link up to the root: the serial chain, root first
+std::vector<urdf::LinkConstSharedPtr> chain_to(const std::filesystem::path& file, const urdf::ModelInterface& urdf,
+                                               const urdf::LinkConstSharedPtr& tip, const std::string& camera_link) {
+  std::vector<urdf::LinkConstSharedPtr> links{tip};
+  while (links.back()->parent_joint) {
+    if (links.size() > kMaxChainSegments)
+      fail(file, "more than " + std::to_string(kMaxChainSegments) + " links from the root to '" + camera_link + "'");
+    urdf::LinkConstSharedPtr parent = urdf.getLink(links.back()->parent_joint->parent_link_name);
+    if (!parent) fail(file, "joint '" + links.back()->parent_joint->name + "' has no parent link");
+    links.push_back(parent);
+  }
+  std::reverse(links.begin(), links.end());
+  return links;
+}
+
+// One joint of the chain and the link it carries, checked: type, axis, limits, inertia.
+ChainSegment read_segment(const std::filesystem::path& file, const urdf::Link& link) {
+  const urdf::Joint& j = *link.parent_joint;
+  ChainSegment s;
+  s.joint = j.name;
+  s.link = link.name;
+  const std::string where = "joint '" + j.name + "'";
+  s.parent_T_origin = to_iso(j.parent_to_joint_origin_transform);
+  if (!finite_pose(s.parent_T_origin)) fail(file, where + ": origin must be finite, within 100 m");
+  switch (j.type) {
+    case urdf::Joint::FIXED: s.type = JointType::kFixed; break;
+    case urdf::Joint::REVOLUTE: s.type = JointType::kRevolute; break;
+    case urdf::Joint::CONTINUOUS:
+      s.type = JointType::kRevolute;
+      s.continuous = true;
+      break;
+    case urdf::Joint::PRISMATIC: s.type = JointType::kPrismatic; break;
+    default: fail(file, where + ": only fixed, revolute, continuous and prismatic joints are supported");
+  }
+  if (s.type != JointType::kFixed) {
+    s.axis = Eigen::Vector3d(j.axis.x, j.axis.y, j.axis.z);
+    // scaled by its largest component before normalising: (1e300, 0, 1) has a norm that
+    // overflows to infinity, and dividing by it gave a zero axis (the fuzzer found it)
+    const double largest = s.axis.allFinite() ? s.axis.cwiseAbs().maxCoeff() : 0.0;
+    if (!(largest > 0) || (s.axis / largest).norm() < 1e-9 || !std::isfinite(largest))
+      fail(file, where + ": axis must be a finite non-zero vector");
+    s.axis = (s.axis / largest).normalized();
+    if (!j.limits) fail(file, where + ": no <limit> (velocity and effort limits are required)");
+    s.max_velocity = j.limits->velocity;
+    s.max_effort = j.limits->effort;
+    if (!(s.max_velocity > 0 && s.max_velocity <= 100)) fail(file, where + ": velocity limit must be in (0, 100]");
+    if (!(s.max_effort > 0 && s.max_effort <= 1e5)) fail(file, where + ": effort limit must be in (0, 1e5]");
+    if (s.continuous) {
+      s.lower = -2 * kPi;
+      s.upper = 2 * kPi;
+    } else {
+      s.lower = j.limits->lower;
+      s.upper = j.limits->upper;
+      const double range = s.type == JointType::kRevolute ? 4 * kPi : 100.0;
+      if (!(std::isfinite(s.lower) && std::isfinite(s.upper) && s.lower < s.upper && s.lower >= -range && s.upper <= range))
+        fail(file, where + ": position limits must be finite with lower < upper (and within +-4 pi rad)");
+    }
+  }
+  if (link.inertial) {
+    const urdf::Inertial& in = *link.inertial;
+    s.mass = in.mass;
+    s.com = Eigen::Vector3d(in.origin.position.x, in.origin.position.y, in.origin.position.z);
+    s.inertia_diagonal = Eigen::Vector3d(in.ixx, in.iyy, in.izz);
+    if (!(s.mass >= 1e-6 && s.mass <= 1e4) || !s.com.allFinite() || s.com.norm() > 10 || !s.inertia_diagonal.allFinite() ||
+        s.inertia_diagonal.minCoeff() < 1e-9 || s.inertia_diagonal.maxCoeff() > 1e4)
+      fail(file, "link '" + link.name +
+                     "': inertial mass must be in [1e-6, 1e4] kg, its origin within 10 m, its diagonal inertia in "
+                     "[1e-9, 1e4] kg m^2");
+  }
+  return s;
+}
+
+}  // namespace
+
 RobotModel load_robot_model(const std::filesystem::path& file, const std::string& camera_link) {
   RobotModel model;
   model.file = file;
@@ -374,21 +468,7 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
   if (const std::string bad = check_xml_structure(model.urdf); !bad.empty()) fail(file, "not a valid URDF: " + bad);
   const auto geometry_counts = check_urdf_geometry(file, model.urdf);
   model.camera_link = camera_link;
-  urdf::ModelInterfaceSharedPtr urdf;
-  {
-    std::lock_guard<std::mutex> lock(console_mutex());
-    CapturedLog captured;
-    console_bridge::useOutputHandler(&captured);
-    try {
-      urdf = urdf::parseURDF(model.urdf);
-    } catch (const std::exception& e) {
-      captured.first_error = e.what();
-    }
-    console_bridge::restorePreviousOutputHandler();
-    if (!urdf)
-      fail(file, "not a valid URDF: " +
-                     config::printable(captured.first_error.empty() ? "parse error" : captured.first_error, 160));
-  }
+  const urdf::ModelInterfaceSharedPtr urdf = parse_urdf(file, model.urdf);
   for (const auto& [name, count] : geometry_counts) {
     const urdf::LinkConstSharedPtr link = urdf->getLink(name);
     if (link && (link->visual_array.size() != count.first || link->collision_array.size() != count.second))
@@ -400,75 +480,13 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
   urdf::LinkConstSharedPtr tip = urdf->getLink(camera_link);
   if (!tip) fail(file, "no link named '" + config::printable(camera_link) + "' (the camera link)");
 
-  // walk up from the camera link to the root: the serial chain
-  std::vector<urdf::LinkConstSharedPtr> links{tip};
-  while (links.back()->parent_joint) {
-    if (links.size() > kMaxChainSegments)
-      fail(file, "more than " + std::to_string(kMaxChainSegments) + " links from the root to '" + camera_link + "'");
-    urdf::LinkConstSharedPtr parent = urdf->getLink(links.back()->parent_joint->parent_link_name);
-    if (!parent) fail(file, "joint '" + links.back()->parent_joint->name + "' has no parent link");
-    links.push_back(parent);
-  }
-  std::reverse(links.begin(), links.end());
+  const std::vector<urdf::LinkConstSharedPtr> links = chain_to(file, *urdf, tip, camera_link);
   model.root_link = links.front()->name;
   std::size_t triangles = 0;
   model.root_has_shape = read_shape(file, *links.front(), model.root_shape, triangles);
-
   for (std::size_t i = 1; i < links.size(); ++i) {
-    const urdf::Link& link = *links[i];
-    const urdf::Joint& j = *link.parent_joint;
-    ChainSegment s;
-    s.joint = j.name;
-    s.link = link.name;
-    const std::string where = "joint '" + j.name + "'";
-    s.parent_T_origin = to_iso(j.parent_to_joint_origin_transform);
-    if (!finite_pose(s.parent_T_origin)) fail(file, where + ": origin must be finite, within 100 m");
-    switch (j.type) {
-      case urdf::Joint::FIXED: s.type = JointType::kFixed; break;
-      case urdf::Joint::REVOLUTE: s.type = JointType::kRevolute; break;
-      case urdf::Joint::CONTINUOUS:
-        s.type = JointType::kRevolute;
-        s.continuous = true;
-        break;
-      case urdf::Joint::PRISMATIC: s.type = JointType::kPrismatic; break;
-      default: fail(file, where + ": only fixed, revolute, continuous and prismatic joints are supported");
-    }
-    if (s.type != JointType::kFixed) {
-      s.axis = Eigen::Vector3d(j.axis.x, j.axis.y, j.axis.z);
-      // scaled by its largest component before normalising: (1e300, 0, 1) has a norm that
-      // overflows to infinity, and dividing by it gave a zero axis (the fuzzer found it)
-      const double largest = s.axis.allFinite() ? s.axis.cwiseAbs().maxCoeff() : 0.0;
-      if (!(largest > 0) || (s.axis / largest).norm() < 1e-9 || !std::isfinite(largest))
-        fail(file, where + ": axis must be a finite non-zero vector");
-      s.axis = (s.axis / largest).normalized();
-      if (!j.limits) fail(file, where + ": no <limit> (velocity and effort limits are required)");
-      s.max_velocity = j.limits->velocity;
-      s.max_effort = j.limits->effort;
-      if (!(s.max_velocity > 0 && s.max_velocity <= 100)) fail(file, where + ": velocity limit must be in (0, 100]");
-      if (!(s.max_effort > 0 && s.max_effort <= 1e5)) fail(file, where + ": effort limit must be in (0, 1e5]");
-      if (s.continuous) {
-        s.lower = -2 * kPi;
-        s.upper = 2 * kPi;
-      } else {
-        s.lower = j.limits->lower;
-        s.upper = j.limits->upper;
-        const double range = s.type == JointType::kRevolute ? 4 * kPi : 100.0;
-        if (!(std::isfinite(s.lower) && std::isfinite(s.upper) && s.lower < s.upper && s.lower >= -range && s.upper <= range))
-          fail(file, where + ": position limits must be finite with lower < upper (and within +-4 pi rad)");
-      }
-    }
-    if (link.inertial) {
-      const urdf::Inertial& in = *link.inertial;
-      s.mass = in.mass;
-      s.com = Eigen::Vector3d(in.origin.position.x, in.origin.position.y, in.origin.position.z);
-      s.inertia_diagonal = Eigen::Vector3d(in.ixx, in.iyy, in.izz);
-      if (!(s.mass >= 1e-6 && s.mass <= 1e4) || !s.com.allFinite() || s.com.norm() > 10 || !s.inertia_diagonal.allFinite() ||
-          s.inertia_diagonal.minCoeff() < 1e-9 || s.inertia_diagonal.maxCoeff() > 1e4)
-        fail(file, "link '" + link.name +
-                       "': inertial mass must be in [1e-6, 1e4] kg, its origin within 10 m, its diagonal inertia in "
-                       "[1e-9, 1e4] kg m^2");
-    }
-    s.has_shape = read_shape(file, link, s.shape, triangles);
+    ChainSegment s = read_segment(file, *links[i]);
+    s.has_shape = read_shape(file, *links[i], s.shape, triangles);
     model.chain.push_back(std::move(s));
   }
   if (model.dof() == 0) fail(file, "no moving joint between the root and '" + camera_link + "'");

@@ -161,14 +161,17 @@ std::vector<double> robust_weights(RobustEstimator e, const std::vector<double>&
   return w;
 }
 
-ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
-  check_params(params);
-  ControlOutput out;
-  // keep the points whose depths this model has
+namespace {
+
+// The points whose depths the model has, with those depths.
+struct UsablePoints {
   std::vector<const MatchedPoint*> points;
   std::vector<std::size_t> index;  // of each used point in `all`
   std::vector<Depths> depths;
-  out.z_model.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
+};
+
+UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
+  UsablePoints u;
   for (const MatchedPoint& p : all) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.x_star) || !std::isfinite(p.y_star))
       throw std::invalid_argument("control law: point (" + std::to_string(p.row) + ", " + std::to_string(p.col) +
@@ -177,69 +180,96 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
     const bool needs_current = params.model == InteractionModel::kCurrent || params.model == InteractionModel::kMean;
     const bool needs_desired = params.model != InteractionModel::kCurrent;
     if ((needs_current && !(d.current && *d.current > 0)) || (needs_desired && !(d.desired && *d.desired > 0))) continue;
-    points.push_back(&p);
-    index.push_back(static_cast<std::size_t>(&p - all.data()));
-    depths.push_back(d);
+    u.points.push_back(&p);
+    u.index.push_back(static_cast<std::size_t>(&p - all.data()));
+    u.depths.push_back(d);
   }
-  out.points = static_cast<int>(points.size());
+  return u;
+}
+
+// The stacked error s - s* and the model's interaction matrix L-hat; the depth each point's
+// rows used goes to z_model.
+void stack_system(const UsablePoints& u, const ControlLawParams& params, Eigen::VectorXd& error, Eigen::MatrixXd& L,
+                  std::vector<double>& z_model) {
+  const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
+  error.resize(2 * k);
+  L = Eigen::MatrixXd::Zero(2 * k, 6);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const MatchedPoint& p = *u.points[i];
+    error[2 * i] = p.x - p.x_star;
+    error[2 * i + 1] = p.y - p.y_star;
+    const Depths& d = u.depths[i];
+    switch (params.model) {
+      case InteractionModel::kDesiredConstantDepth:
+      case InteractionModel::kDesired:
+        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x_star, p.y_star, *d.desired);
+        z_model[u.index[i]] = *d.desired;
+        break;
+      case InteractionModel::kCurrent:
+        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x, p.y, *d.current);
+        z_model[u.index[i]] = *d.current;
+        break;
+      case InteractionModel::kMean:
+        L.block<2, 6>(2 * i, 0) = 0.5 * (point_interaction_matrix(p.x, p.y, *d.current) +
+                                         point_interaction_matrix(p.x_star, p.y_star, *d.desired));
+        z_model[u.index[i]] = *d.current;
+        break;
+    }
+  }
+}
+
+// The robust task function by IRLS: weights from the residuals of the last estimate, e from
+// the weighted system. Returns the points' last weights.
+std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawParams& params,
+                                Vector6d& task) {
+  const Eigen::Index k = L.rows() / 2;
+  std::vector<double> w(static_cast<std::size_t>(k), 1.0), residual(static_cast<std::size_t>(k));
+  Eigen::MatrixXd WL = L;
+  Eigen::VectorXd We = error;
+  task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+  for (int it = 0; it < params.robust_iterations; ++it) {
+    const Eigen::VectorXd r = error - L * task;
+    for (Eigen::Index i = 0; i < k; ++i) residual[static_cast<std::size_t>(i)] = r.segment<2>(2 * i).norm();
+    w = robust_weights(params.robust, residual, params.robust_min_scale);
+    for (Eigen::Index i = 0; i < k; ++i) {
+      WL.row(2 * i) = w[static_cast<std::size_t>(i)] * L.row(2 * i);
+      WL.row(2 * i + 1) = w[static_cast<std::size_t>(i)] * L.row(2 * i + 1);
+      We[2 * i] = w[static_cast<std::size_t>(i)] * error[2 * i];
+      We[2 * i + 1] = w[static_cast<std::size_t>(i)] * error[2 * i + 1];
+    }
+    task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold);
+  }
+  return w;
+}
+
+}  // namespace
+
+ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
+  check_params(params);
+  ControlOutput out;
+  out.z_model.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
+  const UsablePoints u = usable_points(all, params);
+  out.points = static_cast<int>(u.points.size());
   if (out.points < params.min_points) {
     out.status = static_cast<int>(all.size()) >= params.min_points ? ControlStatus::kNoDepth : ControlStatus::kTooFewPoints;
     out.reason = std::to_string(out.points) + " usable points (" + std::to_string(all.size()) + " matched), " +
                  std::to_string(params.min_points) + " needed";
     return out;
   }
-
   const Eigen::Index k = out.points;
-  Eigen::VectorXd error(2 * k);
-  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(2 * k, 6);
-  for (Eigen::Index i = 0; i < k; ++i) {
-    const MatchedPoint& p = *points[i];
-    error[2 * i] = p.x - p.x_star;
-    error[2 * i + 1] = p.y - p.y_star;
-    const Depths& d = depths[i];
-    switch (params.model) {
-      case InteractionModel::kDesiredConstantDepth:
-      case InteractionModel::kDesired:
-        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x_star, p.y_star, *d.desired);
-        out.z_model[index[i]] = *d.desired;
-        break;
-      case InteractionModel::kCurrent:
-        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x, p.y, *d.current);
-        out.z_model[index[i]] = *d.current;
-        break;
-      case InteractionModel::kMean:
-        L.block<2, 6>(2 * i, 0) = 0.5 * (point_interaction_matrix(p.x, p.y, *d.current) +
-                                         point_interaction_matrix(p.x_star, p.y_star, *d.desired));
-        out.z_model[index[i]] = *d.current;
-        break;
-    }
-  }
+  Eigen::VectorXd error;
+  Eigen::MatrixXd L;
+  stack_system(u, params, error, L, out.z_model);
   out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
   out.weights.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
   if (params.robust == RobustEstimator::kNone) {
     out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
-    for (Eigen::Index i = 0; i < k; ++i) out.weights[index[i]] = 1.0;
+    for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else {
-    // IRLS: weights from the residuals of the last estimate, e from the weighted system
-    std::vector<double> w(static_cast<std::size_t>(k), 1.0), residual(static_cast<std::size_t>(k));
-    Eigen::MatrixXd WL = L;
-    Eigen::VectorXd We = error;
-    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
-    for (int it = 0; it < params.robust_iterations; ++it) {
-      const Eigen::VectorXd r = error - L * out.task;
-      for (Eigen::Index i = 0; i < k; ++i) residual[static_cast<std::size_t>(i)] = r.segment<2>(2 * i).norm();
-      w = robust_weights(params.robust, residual, params.robust_min_scale);
-      for (Eigen::Index i = 0; i < k; ++i) {
-        WL.row(2 * i) = w[static_cast<std::size_t>(i)] * L.row(2 * i);
-        WL.row(2 * i + 1) = w[static_cast<std::size_t>(i)] * L.row(2 * i + 1);
-        We[2 * i] = w[static_cast<std::size_t>(i)] * error[2 * i];
-        We[2 * i + 1] = w[static_cast<std::size_t>(i)] * error[2 * i + 1];
-      }
-      out.task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold);
-    }
+    const std::vector<double> w = robust_task(L, error, params, out.task);
     int kept = 0;
     for (Eigen::Index i = 0; i < k; ++i) {
-      out.weights[index[i]] = w[static_cast<std::size_t>(i)];
+      out.weights[u.index[i]] = w[static_cast<std::size_t>(i)];
       kept += w[static_cast<std::size_t>(i)] > 0;
     }
     if (kept < params.min_points) {

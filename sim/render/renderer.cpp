@@ -96,42 +96,43 @@ void spot_boxes(const Cell& cell, const std::vector<SpotHit>& hits, const Eigen:
   }
 }
 
-}  // namespace
-
-FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buf, bool with_triangles) {
-  FrameScene scene{&cell.triangles, &cell.spot_hits, &cell.projector_depth, nullptr, false};
-  if (!links || links->empty() || cell.arm_meshes.size() == 0) return scene;
+// The scene's triangles with the arm's at its link poses: the static part is copied once per
+// buffer, then only the arm is replaced.
+SceneTriangles& posed_triangles(const Cell& cell, const LinkPoses& links, ArmFrameBuffers& buf) {
   const MovingMeshes& arm = cell.arm_meshes;
   const int object_offset = static_cast<int>(cell.object_names.size());
   const std::size_t first = cell.triangles.a.size();
-  if (with_triangles) {
-    // the static part is copied once per buffer, then only the arm is replaced
-    if (buf.triangles.a.size() < first || buf.triangles.object.empty() || buf.triangles.object[0] != cell.triangles.object[0] ||
-        buf.triangles.a.front() != cell.triangles.a.front())
-      buf.triangles = cell.triangles;
-    SceneTriangles& t = buf.triangles;
-    for (auto* v : {&t.a, &t.b, &t.c, &t.normal_w}) v->resize(first);
-    t.offset.resize(first);
-    t.object.resize(first);
-    t.albedo.resize(first);
-    for (std::size_t i = 0; i < arm.size(); ++i) {
-      const auto l = static_cast<std::size_t>(arm.link(i));
-      if (l >= links->size()) continue;
-      append_triangles(arm.mesh(i).vertices, arm.mesh(i).triangles, (*links)[l], object_offset + static_cast<int>(i),
-                       arm.albedo(i), t);
-    }
-    scene.triangles = &t;
+  // the static part is copied once per buffer, then only the arm is replaced
+  if (buf.triangles.a.size() < first || buf.triangles.object.empty() || buf.triangles.object[0] != cell.triangles.object[0] ||
+      buf.triangles.a.front() != cell.triangles.a.front())
+    buf.triangles = cell.triangles;
+  SceneTriangles& t = buf.triangles;
+  for (auto* v : {&t.a, &t.b, &t.c, &t.normal_w}) v->resize(first);
+  t.offset.resize(first);
+  t.object.resize(first);
+  t.albedo.resize(first);
+  for (std::size_t i = 0; i < arm.size(); ++i) {
+    const auto l = static_cast<std::size_t>(arm.link(i));
+    if (l >= links.size()) continue;
+    append_triangles(arm.mesh(i).vertices, arm.mesh(i).triangles, links[l], object_offset + static_cast<int>(i),
+                     arm.albedo(i), t);
   }
-  // is any of the arm in the projector's beam? its box on the projector's image plane
+  return t;
+}
+
+// The arm's box on the projector's image plane; `behind` when some of it is behind the
+// projector (the box then says nothing).
+Eigen::AlignedBox2d arm_box_in_projector(const Cell& cell, const LinkPoses& links, bool& behind) {
+  const MovingMeshes& arm = cell.arm_meshes;
   const Projector& proj = *cell.projector;
   const Intrinsics& kp = proj.spec().intrinsics;
   const Eigen::Isometry3d p_T_w = proj.projector_T_world();
   Eigen::AlignedBox2d box;
-  bool behind = false;
+  behind = false;
   for (std::size_t i = 0; i < arm.size(); ++i) {
     const auto l = static_cast<std::size_t>(arm.link(i));
-    if (l >= links->size()) continue;
-    const Eigen::Isometry3d p_T_mesh = p_T_w * (*links)[l];
+    if (l >= links.size()) continue;
+    const Eigen::Isometry3d p_T_mesh = p_T_w * links[l];
     for (const auto& v : arm.mesh(i).vertices) {
       const Eigen::Vector3d x = p_T_mesh * v;
       if (x.z() < 1e-3) {
@@ -141,61 +142,85 @@ FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers&
       box.extend(Eigen::Vector2d(kp.fx * x.x() / x.z() + kp.cx, kp.fy * x.y() / x.z() + kp.cy));
     }
   }
+  return box;
+}
+
+// The projector's depth with the arm: only the region the arm's box covers is redrawn over
+// the static depth, and only where spots can shine.
+const DepthBuffer& arm_projector_depth(const Cell& cell, const SceneTriangles& triangles, std::size_t first,
+                                       const Eigen::AlignedBox2d& box, bool behind, ArmFrameBuffers& buf) {
+  const Projector& proj = *cell.projector;
+  const Intrinsics& kp = proj.spec().intrinsics;
+  const Eigen::Isometry3d p_T_w = proj.projector_T_world();
+  DepthBuffer& d = buf.arm_projector_depth;
+  const DepthBuffer& full = cell.projector_depth;
+  const std::size_t n = static_cast<std::size_t>(full.width) * full.height;
+  if (d.width != full.width || d.height != full.height || d.margin != full.margin || d.inv_depth.size() != n) {
+    d.width = full.width;
+    d.height = full.height;
+    d.margin = full.margin;
+    d.inv_depth.assign(n, 0.0f);
+    d.triangle.assign(n, -1);
+    buf.dirty_u1 = buf.dirty_v1 = -1;
+  }
+  for (int v = std::max(0, buf.dirty_v0); v <= std::min(d.height - 1, buf.dirty_v1); ++v) {
+    const std::size_t row = static_cast<std::size_t>(v) * d.width;
+    const int u0 = std::max(0, buf.dirty_u0), u1 = std::min(d.width - 1, buf.dirty_u1);
+    if (u0 > u1) break;
+    std::fill(d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u0), d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), 0.0f);
+    std::fill(d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u0), d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), -1);
+  }
+  // only where spots can shine is the projector's depth ever read: the pattern's region,
+  // widened by the farthest a blurred spot reaches
+  const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
+  const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell.farthest_spot_m + 0.5) + 4.0;
+  RasterClip clip{static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin,
+                  static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin,
+                  static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin,
+                  static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin};
+  clip.x0 = std::max(clip.x0, 0);
+  clip.y0 = std::max(clip.y0, 0);
+  if (!behind) {
+    clip.x0 = std::max(clip.x0, static_cast<int>(std::floor(box.min().x())) + d.margin - 2);
+    clip.y0 = std::max(clip.y0, static_cast<int>(std::floor(box.min().y())) + d.margin - 2);
+    clip.x1 = std::min(clip.x1, static_cast<int>(std::ceil(box.max().x())) + d.margin + 2);
+    clip.y1 = std::min(clip.y1, static_cast<int>(std::ceil(box.max().y())) + d.margin + 2);
+  }
+  rasterize_more(triangles, first, p_T_w, kp, d, clip);
+  buf.dirty_u0 = clip.x0;
+  buf.dirty_v0 = clip.y0;
+  buf.dirty_u1 = clip.x1;
+  buf.dirty_v1 = clip.y1;
+  return d;
+}
+
+}  // namespace
+
+FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buf, bool with_triangles) {
+  FrameScene scene{&cell.triangles, &cell.spot_hits, &cell.projector_depth, nullptr, false};
+  if (!links || links->empty() || cell.arm_meshes.size() == 0) return scene;
+  if (with_triangles) scene.triangles = &posed_triangles(cell, *links, buf);
+  // is any of the arm in the projector's beam? its box on the projector's image plane
+  const Projector& proj = *cell.projector;
+  const Intrinsics& kp = proj.spec().intrinsics;
+  bool behind = false;
+  const Eigen::AlignedBox2d box = arm_box_in_projector(cell, *links, behind);
   const double reach = proj.spec().spot_radius_px + 2;
   const Eigen::AlignedBox2d image(Eigen::Vector2d(-reach, -reach), Eigen::Vector2d(kp.width + reach, kp.height + reach));
   if (!behind && (box.isEmpty() || !box.intersects(image))) return scene;
   scene.arm_in_beam = true;
   buf.spot_hits = cell.spot_hits;
+  const int object_offset = static_cast<int>(cell.object_names.size());
   for (SpotHit& h : buf.spot_hits) {
     const Eigen::Vector2d c = proj.spot_pixel(h.row, h.col);
     if (!behind && (c.x() < box.min().x() - reach || c.x() > box.max().x() + reach || c.y() < box.min().y() - reach ||
                     c.y() > box.max().y() + reach))
       continue;
-    proj.recast(h, arm, *links, object_offset);
+    proj.recast(h, cell.arm_meshes, *links, object_offset);
   }
   scene.spot_hits = &buf.spot_hits;
-  if (with_triangles) {
-    DepthBuffer& d = buf.arm_projector_depth;
-    const DepthBuffer& full = cell.projector_depth;
-    const std::size_t n = static_cast<std::size_t>(full.width) * full.height;
-    if (d.width != full.width || d.height != full.height || d.margin != full.margin || d.inv_depth.size() != n) {
-      d.width = full.width;
-      d.height = full.height;
-      d.margin = full.margin;
-      d.inv_depth.assign(n, 0.0f);
-      d.triangle.assign(n, -1);
-      buf.dirty_u1 = buf.dirty_v1 = -1;
-    }
-    for (int v = std::max(0, buf.dirty_v0); v <= std::min(d.height - 1, buf.dirty_v1); ++v) {
-      const std::size_t row = static_cast<std::size_t>(v) * d.width;
-      const int u0 = std::max(0, buf.dirty_u0), u1 = std::min(d.width - 1, buf.dirty_u1);
-      if (u0 > u1) break;
-      std::fill(d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u0), d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), 0.0f);
-      std::fill(d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u0), d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), -1);
-    }
-    // only where spots can shine is the projector's depth ever read: the pattern's region,
-    // widened by the farthest a blurred spot reaches
-    const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
-    const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell.farthest_spot_m + 0.5) + 4.0;
-    RasterClip clip{static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin,
-                    static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin,
-                    static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin,
-                    static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin};
-    clip.x0 = std::max(clip.x0, 0);
-    clip.y0 = std::max(clip.y0, 0);
-    if (!behind) {
-      clip.x0 = std::max(clip.x0, static_cast<int>(std::floor(box.min().x())) + d.margin - 2);
-      clip.y0 = std::max(clip.y0, static_cast<int>(std::floor(box.min().y())) + d.margin - 2);
-      clip.x1 = std::min(clip.x1, static_cast<int>(std::ceil(box.max().x())) + d.margin + 2);
-      clip.y1 = std::min(clip.y1, static_cast<int>(std::ceil(box.max().y())) + d.margin + 2);
-    }
-    rasterize_more(*scene.triangles, first, p_T_w, kp, d, clip);
-    buf.dirty_u0 = clip.x0;
-    buf.dirty_v0 = clip.y0;
-    buf.dirty_u1 = clip.x1;
-    buf.dirty_v1 = clip.y1;
-    scene.arm_projector_depth = &d;
-  }
+  if (with_triangles)
+    scene.arm_projector_depth = &arm_projector_depth(cell, *scene.triangles, cell.triangles.a.size(), box, behind, buf);
   return scene;
 }
 

@@ -28,6 +28,28 @@ void on_signal(int) { g_stop = true; }
 using StampKey = std::pair<int32_t, uint32_t>;
 StampKey key(const builtin_interfaces::msg::dds_::Time_& t) { return {t.sec(), t.nanosec()}; }
 
+// The frame with its decoded ids drawn on it, and a caption (BGR, for OpenCV's window and files).
+cv::Mat annotated(sensor_msgs::msg::dds_::Image_& img, const std::optional<cell_msgs::msg::dds_::DecodedSpots_>& ids) {
+  cv::Mat rgb(static_cast<int>(img.height()), static_cast<int>(img.width()), CV_8UC3, img.data().data(), img.step());
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  if (ids)
+    for (const auto& s : ids->spots()) {
+      // untrusted positions: only those on the image are drawn (a cast of 1e300 is undefined)
+      if (!(s.u() >= 0 && s.u() < bgr.cols && s.v() >= 0 && s.v() < bgr.rows)) continue;
+      cv::circle(bgr, {static_cast<int>(s.u() + 0.5), static_cast<int>(s.v() + 0.5)}, 5, cv::Scalar(255, 255, 255), 1,
+                 cv::LINE_AA);
+      cv::putText(bgr, std::to_string(s.row()) + "," + std::to_string(s.col()),
+                  {static_cast<int>(s.u()) + 4, static_cast<int>(s.v()) - 3}, cv::FONT_HERSHEY_PLAIN, 0.6,
+                  cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+    }
+  char caption[128];
+  std::snprintf(caption, sizeof caption, "t = %.2f s, %zu decoded", cell_dds::seconds(img.header().stamp()),
+                ids ? ids->spots().size() : 0);
+  cv::putText(bgr, caption, {8, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
+  return bgr;
+}
+
 }  // namespace
 
 int run_viewer(const ViewOptions& o) {
@@ -92,23 +114,7 @@ int run_viewer(const ViewOptions& o) {
       continue;
     }
     if (++seen % o.every == 0) {
-      cv::Mat rgb(static_cast<int>(img.height()), static_cast<int>(img.width()), CV_8UC3, img.data().data(), img.step());
-      cv::Mat bgr;
-      cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-      if (ids)
-        for (const auto& s : ids->spots()) {
-          // untrusted positions: only those on the image are drawn (a cast of 1e300 is undefined)
-          if (!(s.u() >= 0 && s.u() < bgr.cols && s.v() >= 0 && s.v() < bgr.rows)) continue;
-          cv::circle(bgr, {static_cast<int>(s.u() + 0.5), static_cast<int>(s.v() + 0.5)}, 5, cv::Scalar(255, 255, 255), 1,
-                     cv::LINE_AA);
-          cv::putText(bgr, std::to_string(s.row()) + "," + std::to_string(s.col()),
-                      {static_cast<int>(s.u()) + 4, static_cast<int>(s.v()) - 3}, cv::FONT_HERSHEY_PLAIN, 0.6,
-                      cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
-        }
-      char caption[128];
-      std::snprintf(caption, sizeof caption, "t = %.2f s, %zu decoded", cell_dds::seconds(img.header().stamp()),
-                    ids ? ids->spots().size() : 0);
-      cv::putText(bgr, caption, {8, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
+      const cv::Mat bgr = annotated(img, ids);
       if (window) {
         cv::imshow("servo view", bgr);
         if (cv::waitKey(1) == 27) g_stop = true;

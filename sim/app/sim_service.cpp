@@ -79,7 +79,7 @@ struct Inbox {
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-sim::CommandMsg to_command(const SimControl_& c) { return {c.command(), c.argument(), c.steps()}; }
+sim::CommandMsg to_command(const SimControl_& c) { return {c.command(), c.argument(), c.steps(), std::nullopt}; }
 
 sim::TwistMsg to_twist(const TwistStamped_& t) {
   sim::TwistMsg m;
@@ -157,93 +157,12 @@ class SimService {
   explicit SimService(const ServiceOptions& o) : o_(o) {
     cell_ = sim::build_cell(sim::load_scenario(o.scenario));
     announce_conditions(cell_->scenario, o.mode);
-    sim::CellParams cp;
-    cp.timing = o.mode == TimingMode::kLockstep ? sim::Timing::kLockstep : sim::Timing::kRealtime;
-    cp.watchdog_s = o.watchdog_ms / 1e3;
-    cp.republish_s = o.republish_ms / 1e3;
-    cp.max_frames = o.max_frames;
-    cp.exit_on_converged = o.exit_on_converged || o.exit_on_stop;
-    cp.exit_on_stop = o.exit_on_stop;
-    machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cp, sim::make_robot(*cell_));
-    {
-      std::error_code ec;
-      const std::filesystem::path dir = o.scenarios_dir.empty() ? std::filesystem::absolute(o.scenario).parent_path()
-                                                                : o.scenarios_dir;
-      allowed_dir_ = std::filesystem::canonical(dir, ec);
-      if (ec || !std::filesystem::is_directory(allowed_dir_))
-        throw std::runtime_error(dir.string() + ": not a folder (--scenarios)");
-    }
-    cell_dds::ParticipantOptions po;
-    po.domain_id = o.domain_id;
-    po.name = "cellsim";
-    po.discovery = o.discovery;
-    po.security = o.security;
-    // SROS2 lays enclaves out by node path: /NAME/cellsim under --namespace NAME (bin/keystore --namespace)
-    po.enclave = o.ns.empty() ? std::string("cellsim") : o.ns + "/cellsim";
-    participant_ = cell_dds::make_participant(po);
-    auto& p = *participant_;
-    using cell_dds::Stream;
-    image_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(
-        p, topic(cell_dds::kImageTopic), cell_dds::writer_qos(Stream::kFrame));
-    info_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>>(
-        p, topic(cell_dds::kCameraInfoTopic), cell_dds::writer_qos(Stream::kLatched));
-    pose_ = std::make_unique<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
-        p, topic(cell_dds::kCameraPoseTopic), cell_dds::writer_qos(Stream::kFrame));
-    sim_status_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimStatus_PubSubType>>(
-        p, topic(cell_dds::kSimStatusTopic), cell_dds::writer_qos(Stream::kFrame));
-    truth_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>>(
-        p, topic(cell_dds::kSpotTruthTopic), cell_dds::writer_qos(Stream::kFrame));
-    clock_ = std::make_unique<cell_dds::Writer<rosgraph_msgs::msg::dds_::Clock_PubSubType>>(
-        p, topic(cell_dds::kClockTopic), cell_dds::writer_qos(Stream::kClock));
-    joints_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::JointState_PubSubType>>(
-        p, topic(cell_dds::kJointStatesTopic), cell_dds::writer_qos(Stream::kFrame));
-    tf_ = std::make_unique<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>>(
-        p, topic(cell_dds::kTfTopic), cell_dds::writer_qos(Stream::kFrame));
-    description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
-        p, topic(cell_dds::kRobotDescriptionTopic), cell_dds::writer_qos(Stream::kLatched));
-    twist_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
-        p, topic(cell_dds::kTwistTopic), cell_dds::reader_qos(Stream::kFrame),
-        [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); });
-    control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-        p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
-        [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); });
-    status_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
-        p, topic(cell_dds::kStatusTopic), cell_dds::reader_qos(Stream::kLatched), [this](ServoStatus_&& s) {
-          {
-            std::lock_guard<std::mutex> l(inbox_.m);
-            inbox_.servo_seen = true;
-            if (s.reason().rfind("taught", 0) == 0) inbox_.taught_seen = true;
-          }
-          inbox_.push(inbox_.statuses, std::move(s), Inbox::kMaxStatuses);
-        });
-    if (o.autorun)
-      control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-          p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
-    // every endpoint, the autorun's command writer included (issue 21: `ros2 topic info -v`
-    // showed it as _NODE_NAME_UNKNOWN_)
-    std::vector<eprosima::fastrtps::rtps::GUID_t> writers{image_->guid(),   info_->guid(),   pose_->guid(),
-                                                          sim_status_->guid(), truth_->guid(), clock_->guid(),
-                                                          joints_->guid(),  tf_->guid(),     description_->guid()};
-    if (control_out_) writers.push_back(control_out_->guid());
-    node_ = std::make_unique<cell_dds::NodeAnnouncement>(
-        p, "cellsim",
-        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
-        writers, o.ns.empty() ? std::string("/") : "/" + o.ns);
+    machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cell_params(o), sim::make_robot(*cell_));
+    allowed_dir_ = allowed_scenarios_dir(o);
+    make_endpoints(o);
     publish_camera_info();
     publish_description();
-    if (!o.trace_dir.empty()) {
-      std::filesystem::create_directories(o.trace_dir);
-      trace_.open(o.trace_dir / "trace.csv");
-      if (!trace_) throw std::runtime_error((o.trace_dir / "trace.csv").string() + ": cannot write");
-      trace_ << "# scenario " << cell_->scenario.name << ", cellsim serve ("
-             << (o.mode == TimingMode::kLockstep ? "lockstep" : "realtime")
-             << "), one row per applied step, twists and status from the servo\n";
-      // realtime adds the measured processing time of each twist (lockstep has none to
-      // measure, and keeps the in-process runner's columns)
-      trace_ << sim::kTraceHeader << (o.mode == TimingMode::kRealtime ? ",processing_ms" : "") << "\n"
-             << std::setprecision(9);
-      trace_.flush();
-    }
+    open_trace(o);
   }
 
   int run() {
@@ -318,6 +237,104 @@ class SimService {
   }
 
  private:
+  static sim::CellParams cell_params(const ServiceOptions& o) {
+    sim::CellParams cp;
+    cp.timing = o.mode == TimingMode::kLockstep ? sim::Timing::kLockstep : sim::Timing::kRealtime;
+    cp.watchdog_s = o.watchdog_ms / 1e3;
+    cp.republish_s = o.republish_ms / 1e3;
+    cp.max_frames = o.max_frames;
+    cp.exit_on_converged = o.exit_on_converged || o.exit_on_stop;
+    cp.exit_on_stop = o.exit_on_stop;
+    return cp;
+  }
+
+  // the folder LOAD_SCENARIO may read from
+  static std::filesystem::path allowed_scenarios_dir(const ServiceOptions& o) {
+    std::error_code ec;
+    const std::filesystem::path dir = o.scenarios_dir.empty() ? std::filesystem::absolute(o.scenario).parent_path()
+                                                              : o.scenarios_dir;
+    const std::filesystem::path allowed = std::filesystem::canonical(dir, ec);
+    if (ec || !std::filesystem::is_directory(allowed))
+      throw std::runtime_error(dir.string() + ": not a folder (--scenarios)");
+    return allowed;
+  }
+
+  // the participant, every reader and writer, and the node that names them
+  void make_endpoints(const ServiceOptions& o) {
+    cell_dds::ParticipantOptions po;
+    po.domain_id = o.domain_id;
+    po.name = "cellsim";
+    po.discovery = o.discovery;
+    po.security = o.security;
+    // SROS2 lays enclaves out by node path: /NAME/cellsim under --namespace NAME (bin/keystore --namespace)
+    po.enclave = o.ns.empty() ? std::string("cellsim") : o.ns + "/cellsim";
+    participant_ = cell_dds::make_participant(po);
+    auto& p = *participant_;
+    using cell_dds::Stream;
+    image_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(
+        p, topic(cell_dds::kImageTopic), cell_dds::writer_qos(Stream::kFrame));
+    info_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>>(
+        p, topic(cell_dds::kCameraInfoTopic), cell_dds::writer_qos(Stream::kLatched));
+    pose_ = std::make_unique<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
+        p, topic(cell_dds::kCameraPoseTopic), cell_dds::writer_qos(Stream::kFrame));
+    sim_status_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimStatus_PubSubType>>(
+        p, topic(cell_dds::kSimStatusTopic), cell_dds::writer_qos(Stream::kFrame));
+    truth_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>>(
+        p, topic(cell_dds::kSpotTruthTopic), cell_dds::writer_qos(Stream::kFrame));
+    clock_ = std::make_unique<cell_dds::Writer<rosgraph_msgs::msg::dds_::Clock_PubSubType>>(
+        p, topic(cell_dds::kClockTopic), cell_dds::writer_qos(Stream::kClock));
+    joints_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::JointState_PubSubType>>(
+        p, topic(cell_dds::kJointStatesTopic), cell_dds::writer_qos(Stream::kFrame));
+    tf_ = std::make_unique<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>>(
+        p, topic(cell_dds::kTfTopic), cell_dds::writer_qos(Stream::kFrame));
+    description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
+        p, topic(cell_dds::kRobotDescriptionTopic), cell_dds::writer_qos(Stream::kLatched));
+    twist_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
+        p, topic(cell_dds::kTwistTopic), cell_dds::reader_qos(Stream::kFrame),
+        [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); });
+    control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
+        p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
+        [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); });
+    status_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
+        p, topic(cell_dds::kStatusTopic), cell_dds::reader_qos(Stream::kLatched), [this](ServoStatus_&& s) {
+          {
+            std::lock_guard<std::mutex> l(inbox_.m);
+            inbox_.servo_seen = true;
+            if (s.reason().rfind("taught", 0) == 0) inbox_.taught_seen = true;
+          }
+          inbox_.push(inbox_.statuses, std::move(s), Inbox::kMaxStatuses);
+        });
+    if (o.autorun)
+      control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
+          p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
+    // every endpoint, the autorun's command writer included (issue 21: `ros2 topic info -v`
+    // showed it as _NODE_NAME_UNKNOWN_)
+    std::vector<eprosima::fastrtps::rtps::GUID_t> writers{image_->guid(),   info_->guid(),   pose_->guid(),
+                                                          sim_status_->guid(), truth_->guid(), clock_->guid(),
+                                                          joints_->guid(),  tf_->guid(),     description_->guid()};
+    if (control_out_) writers.push_back(control_out_->guid());
+    node_ = std::make_unique<cell_dds::NodeAnnouncement>(
+        p, "cellsim",
+        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
+        writers, o.ns.empty() ? std::string("/") : "/" + o.ns);
+  }
+
+  void open_trace(const ServiceOptions& o) {
+    if (!o.trace_dir.empty()) {
+      std::filesystem::create_directories(o.trace_dir);
+      trace_.open(o.trace_dir / "trace.csv");
+      if (!trace_) throw std::runtime_error((o.trace_dir / "trace.csv").string() + ": cannot write");
+      trace_ << "# scenario " << cell_->scenario.name << ", cellsim serve ("
+             << (o.mode == TimingMode::kLockstep ? "lockstep" : "realtime")
+             << "), one row per applied step, twists and status from the servo\n";
+      // realtime adds the measured processing time of each twist (lockstep has none to
+      // measure, and keeps the in-process runner's columns)
+      trace_ << sim::kTraceHeader << (o.mode == TimingMode::kRealtime ? ",processing_ms" : "") << "\n"
+             << std::setprecision(9);
+      trace_.flush();
+    }
+  }
+
   // Does what the state machine asked; returns true when the session is over.
   bool carry_out(sim::CellOutput& out) {
     for (const auto& line : out.log) std::fprintf(stderr, "%s\n", line.c_str());

@@ -41,7 +41,7 @@ struct CommandMsg {
   std::string argument;  // LOAD_SCENARIO: path; RESET: desired | initial | "x y z rx ry rz"
   std::uint64_t steps = 0;
   // RESET to exactly this pose (the in-memory wiring; a DDS command carries text)
-  std::optional<Eigen::Isometry3d> pose;
+  std::optional<Eigen::Isometry3d> pose = std::nullopt;
 };
 
 struct TwistMsg {

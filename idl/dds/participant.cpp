@@ -382,17 +382,9 @@ int free_participant_id(int domain, int from) {
   return -1;
 }
 
-}  // namespace
-
-ParticipantPtr make_participant(const ParticipantOptions& o) {
-  if (!o.intraprocess) {
-    // library-wide: must be set before the first participant is created
-    eprosima::fastrtps::LibrarySettingsAttributes lib;
-    lib.intraprocess_delivery = eprosima::fastrtps::INTRAPROCESS_OFF;
-    eprosima::fastrtps::xmlparser::XMLProfileManager::library_settings(lib);
-  }
-  DomainParticipantQos qos = PARTICIPANT_QOS_DEFAULT;
-  qos.name(o.name);
+// The transports (UDPv4, loopback only unless the range or a static peer asks for more; shared
+// memory for large frames) and the peers discovery announces to.
+void configure_network(DomainParticipantQos& qos, const ParticipantOptions& o) {
   const Discovery& d = o.discovery;
   // nothing leaves the machine unless the range or a static peer asks for it
   const bool loopback_only = d.range != DiscoveryRange::kSubnet && d.static_peers.empty();
@@ -433,24 +425,45 @@ ParticipantPtr make_participant(const ParticipantOptions& o) {
     nowhere.port = 9;  // discard
     peers.push_back(nowhere);
   }
-  const bool secured = o.security.enabled && add_security(qos, o.security, o.enclave.empty() ? o.name : o.enclave);
-  OneLineLog& log = one_line_log();
-  log.hold(true);
+}
+
+// A participant on the first participant id free on this host (flock-claimed), or on Fast
+// DDS's own choice when none is; null when Fast DDS refuses.
+DomainParticipant* create_on_free_id(DomainParticipantQos& qos, int domain_id) {
   DomainParticipant* p = nullptr;
   {
     remove_orphaned_shm_ports();
     // another process may take the same id between the check and the bind: try the next
     for (int attempt = 0, id = 0; attempt < 5 && p == nullptr; ++attempt, ++id) {
-      id = free_participant_id(o.domain_id, id);
+      id = free_participant_id(domain_id, id);
       if (id < 0) break;
       qos.wire_protocol().participant_id = id;
-      p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
+      p = DomainParticipantFactory::get_instance()->create_participant(domain_id, qos);
     }
   }
   if (p == nullptr) {
     qos.wire_protocol().participant_id = -1;  // Fast DDS's own choice
-    p = DomainParticipantFactory::get_instance()->create_participant(o.domain_id, qos);
+    p = DomainParticipantFactory::get_instance()->create_participant(domain_id, qos);
   }
+  return p;
+}
+
+}  // namespace
+
+ParticipantPtr make_participant(const ParticipantOptions& o) {
+  if (!o.intraprocess) {
+    // library-wide: must be set before the first participant is created
+    eprosima::fastrtps::LibrarySettingsAttributes lib;
+    lib.intraprocess_delivery = eprosima::fastrtps::INTRAPROCESS_OFF;
+    eprosima::fastrtps::xmlparser::XMLProfileManager::library_settings(lib);
+  }
+  DomainParticipantQos qos = PARTICIPANT_QOS_DEFAULT;
+  qos.name(o.name);
+  configure_network(qos, o);
+  const bool secured = o.security.enabled && add_security(qos, o.security, o.enclave.empty() ? o.name : o.enclave);
+  OneLineLog& log = one_line_log();
+  log.hold(true);
+  DomainParticipant* p = create_on_free_id(qos, o.domain_id);
   eprosima::fastdds::dds::Log::Flush();
   const std::string reason = log.held();
   log.hold(false);

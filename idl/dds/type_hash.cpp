@@ -69,91 +69,109 @@ std::string ros_type_name(const std::string& dds) {
   return out;
 }
 
-void parse_idl_types(const std::string& text, TypeDescriptions& out) {
-  const std::vector<std::string> t = tokenize(text);
-  std::vector<std::string> modules;
-  std::size_t i = 0;
-  const auto expect = [&](const std::string& s) {
-    if (i >= t.size() || t[i] != s)
-      throw std::runtime_error("IDL: expected '" + s + "' at token " + std::to_string(i) + " ('" +
-                               (i < t.size() ? t[i] : "end") + "')");
-    ++i;
-  };
-  const auto scoped = [&](const std::string& name) {
-    std::string s;
-    for (const auto& m : modules) s += m + "::";
-    return s + name;
-  };
-  while (i < t.size()) {
-    if (t[i] == "module") {
-      modules.push_back(t[i + 1]);
-      i += 2;
-      expect("{");
-    } else if (t[i] == "}") {
-      ++i;
-      if (i < t.size() && t[i] == ";") ++i;
-      if (modules.empty()) throw std::runtime_error("IDL: unbalanced '}'");
-      modules.pop_back();
-    } else if (t[i] == "const") {
-      while (i < t.size() && t[i] != ";") ++i;
-      ++i;
-    } else if (t[i][0] == '@') {
-      ++i;
-    } else if (t[i] == "struct") {
-      const std::string name = ros_type_name(scoped(t[i + 1]));
-      i += 2;
-      expect("{");
-      std::vector<FieldDescription> fields;
-      while (i < t.size() && t[i] != "}") {
-        FieldDescription f;
-        int suffix = 0;  // 48 array, 96 bounded sequence, 144 unbounded sequence
-        std::string type;
-        if (t[i] == "sequence") {
-          i += 1;
-          expect("<");
-          type = t[i++];
-          suffix = 144;
-          if (t[i] == ",") {
-            i += 2;
-            suffix = 96;
-          }
-          expect(">");
-        } else {
-          type = t[i++];
-          if ((type == "string" || type == "wstring") && t[i] == "<") {
-            ++i;
-            f.string_capacity = std::stoi(t[i++]);
-            expect(">");
-          }
-        }
-        f.name = t[i++];
-        if (t[i] == "[") {
-          ++i;
-          f.capacity = std::stoi(t[i++]);
-          expect("]");
-          suffix = 48;
-        }
-        expect(";");
-        int base = basic_type_id(type);
-        if (base == 17 && f.string_capacity > 0) base = 21;
-        if (base == 18 && f.string_capacity > 0) base = 22;
-        if (base == 0) {
-          if (type.find("::") == std::string::npos) throw std::runtime_error("IDL: unknown type '" + type + "'");
-          base = 1;
-          f.nested_type_name = ros_type_name(type);
-        }
-        f.type_id = base + suffix;
-        fields.push_back(f);
+// The subset of IDL fastddsgen's ROS 2 files use: modules, constants (skipped), annotations
+// (skipped) and structs of basic, string, nested, array and sequence members.
+class IdlParser {
+ public:
+  explicit IdlParser(const std::string& text) : t_(tokenize(text)) {}
+
+  void parse(TypeDescriptions& out) {
+    while (i_ < t_.size()) {
+      if (t_[i_] == "module") {
+        modules_.push_back(t_[i_ + 1]);
+        i_ += 2;
+        expect("{");
+      } else if (t_[i_] == "}") {
+        ++i_;
+        if (i_ < t_.size() && t_[i_] == ";") ++i_;
+        if (modules_.empty()) throw std::runtime_error("IDL: unbalanced '}'");
+        modules_.pop_back();
+      } else if (t_[i_] == "const") {
+        while (i_ < t_.size() && t_[i_] != ";") ++i_;
+        ++i_;
+      } else if (t_[i_][0] == '@') {
+        ++i_;
+      } else if (t_[i_] == "struct") {
+        parse_struct(out);
+      } else {
+        throw std::runtime_error("IDL: unexpected token '" + t_[i_] + "'");
       }
-      expect("}");
-      expect(";");
-      if (fields.empty()) fields.push_back({"structure_needs_at_least_one_member", 3, 0, 0, ""});
-      out[name] = fields;
-    } else {
-      throw std::runtime_error("IDL: unexpected token '" + t[i] + "'");
     }
   }
-}
+
+ private:
+  void expect(const std::string& s) {
+    if (i_ >= t_.size() || t_[i_] != s)
+      throw std::runtime_error("IDL: expected '" + s + "' at token " + std::to_string(i_) + " ('" +
+                               (i_ < t_.size() ? t_[i_] : "end") + "')");
+    ++i_;
+  }
+  std::string scoped(const std::string& name) const {
+    std::string s;
+    for (const auto& m : modules_) s += m + "::";
+    return s + name;
+  }
+
+  void parse_struct(TypeDescriptions& out) {
+    const std::string name = ros_type_name(scoped(t_[i_ + 1]));
+    i_ += 2;
+    expect("{");
+    std::vector<FieldDescription> fields;
+    while (i_ < t_.size() && t_[i_] != "}") fields.push_back(parse_field());
+    expect("}");
+    expect(";");
+    if (fields.empty()) fields.push_back({"structure_needs_at_least_one_member", 3, 0, 0, ""});
+    out[name] = fields;
+  }
+
+  FieldDescription parse_field() {
+    FieldDescription f;
+    int suffix = 0;  // 48 array, 96 bounded sequence, 144 unbounded sequence
+    std::string type;
+    if (t_[i_] == "sequence") {
+      i_ += 1;
+      expect("<");
+      type = t_[i_++];
+      suffix = 144;
+      if (t_[i_] == ",") {
+        i_ += 2;
+        suffix = 96;
+      }
+      expect(">");
+    } else {
+      type = t_[i_++];
+      if ((type == "string" || type == "wstring") && t_[i_] == "<") {
+        ++i_;
+        f.string_capacity = std::stoi(t_[i_++]);
+        expect(">");
+      }
+    }
+    f.name = t_[i_++];
+    if (t_[i_] == "[") {
+      ++i_;
+      f.capacity = std::stoi(t_[i_++]);
+      expect("]");
+      suffix = 48;
+    }
+    expect(";");
+    int base = basic_type_id(type);
+    if (base == 17 && f.string_capacity > 0) base = 21;
+    if (base == 18 && f.string_capacity > 0) base = 22;
+    if (base == 0) {
+      if (type.find("::") == std::string::npos) throw std::runtime_error("IDL: unknown type '" + type + "'");
+      base = 1;
+      f.nested_type_name = ros_type_name(type);
+    }
+    f.type_id = base + suffix;
+    return f;
+  }
+
+  std::vector<std::string> t_;
+  std::vector<std::string> modules_;
+  std::size_t i_ = 0;
+};
+
+void parse_idl_types(const std::string& text, TypeDescriptions& out) { IdlParser(text).parse(out); }
 
 std::string hashable_json(const std::string& type_name, const TypeDescriptions& types) {
   const auto describe = [&](const std::string& name) {

@@ -26,6 +26,7 @@
 #include "tf2_msgsPubSubTypes.h"
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
+#include "sim/arm/robot_model.hpp"
 #include "sim/cell/cell_state_machine.hpp"
 
 namespace cellsim {

@@ -1,5 +1,7 @@
 #include "sim/loop/campaign.hpp"
 
+#include "sim/arm/robot_model.hpp"
+
 #include "servo/config/regular_file.hpp"
 #include "servo/config/strict_yaml.hpp"
 

@@ -9,6 +9,7 @@
 #include "sim/render/camera_model.hpp"
 #include "sim/render/projector.hpp"
 #include "sim/render/rasterizer.hpp"
+#include "sim/arm/arm_scenario.hpp"
 #include "sim/scenario/scenario.hpp"
 #include "sim/scene/world.hpp"
 

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <set>
 #include <sstream>
+#include <tuple>
 
-#include "sim/arm/kinematics.hpp"
 #include "sim/geometry/se3.hpp"
 
 namespace sim {
@@ -71,7 +71,7 @@ Intrinsics read_intrinsics(const Reader& r, Intrinsics in) {
 }
 
 std::vector<double> joint_list(const Reader& r) {
-  std::vector<double> q(r.size_at_most(kMaxChainSegments));
+  std::vector<double> q(r.size_at_most(kMaxJointAngles));
   for (std::size_t i = 0; i < q.size(); ++i) q[i] = r.at(i).in_range(-720, 720) * kDeg;
   return q;
 }
@@ -113,46 +113,6 @@ void read_robot(const Reader& r, RobotSpec& robot) {
     if (a.stop_condition <= a.slowdown_condition) c.fail("stop_condition must exceed slowdown_condition");
     if (c.has("joint_margin_deg")) a.joint_margin_rad = c.at("joint_margin_deg").in_range(0, 45) * kDeg;
     if (c.has("physics_hz")) a.physics_hz = c.at("physics_hz").in_range(250, 10000);
-  }
-}
-
-// The arm read from its URDF, and the joint angles of the desired and initial poses: a
-// pose out of the arm's reach is refused here, at load, not at the first RESET.
-void resolve_arm(const Reader& top, Scenario& s) {
-  const Reader r = top.at("robot");
-  ArmSpec& a = s.robot.arm;
-  try {
-    s.robot.model = std::make_shared<const RobotModel>(load_robot_model(a.urdf, a.camera_link));
-  } catch (const std::exception& e) {
-    r.at("urdf").fail(e.what());
-  }
-  const ArmKinematics kin(*s.robot.model);
-  const auto sized = [&](const std::vector<double>& q, const char* key) {
-    if (q.size() != static_cast<std::size_t>(kin.dof()))
-      r.at(key).fail("must list " + std::to_string(kin.dof()) + " angles (the arm's joints)");
-    const Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
-    if (!kin.within_limits(v)) r.at(key).fail("outside the joint limits of " + a.urdf.filename().string());
-    return v;
-  };
-  const Eigen::VectorXd home = a.home_rad.empty() ? Eigen::VectorXd(0.5 * (kin.lower() + kin.upper()))
-                                                  : sized(a.home_rad, "home_joints_deg");
-  const Eigen::Isometry3d base_T_world = a.world_T_base.inverse();
-  std::string why;
-  if (!a.desired_joints_rad.empty()) {
-    s.robot.desired_q = sized(a.desired_joints_rad, "desired_joints_deg");
-    s.world_T_desired = a.world_T_base * kin.base_T_camera(s.robot.desired_q);
-  } else if (const auto q = kin.inverse(base_T_world * s.world_T_desired, home, &why)) {
-    s.robot.desired_q = *q;
-  } else {
-    top.at("desired_pose").fail("the arm cannot place the camera there: " + why);
-  }
-  if (!a.initial_joints_rad.empty()) {
-    s.robot.initial_q = sized(a.initial_joints_rad, "initial_joints_deg");
-    s.initial_pose = a.world_T_base * kin.base_T_camera(s.robot.initial_q);
-  } else if (const auto q = kin.inverse(base_T_world * s.world_T_initial(), s.robot.desired_q, &why)) {
-    s.robot.initial_q = *q;
-  } else {
-    (top.has("initial_offset") ? top.at("initial_offset") : r).fail("the arm cannot place the camera there: " + why);
   }
 }
 
@@ -261,27 +221,18 @@ void read_latency(const Reader& top, Scenario& s) {
 
 }
 
-// the camera's workspace: given, or the desired and initial positions with a margin
+// the camera's workspace, when given (settle_workspace gives the default)
 void read_workspace(const Reader& top, Scenario& s) {
-  if (top.has("workspace")) {
-    const Reader w = top.at("workspace");
-    w.only_keys({"min_m", "max_m"});
-    s.workspace.min_m = vec3(w.at("min_m"));
-    s.workspace.max_m = vec3(w.at("max_m"));
-    if ((s.workspace.max_m - s.workspace.min_m).minCoeff() <= 0) w.fail("max_m must exceed min_m on every axis");
-  } else {
-    const Eigen::Vector3d a = s.world_T_desired.translation();
-    const Eigen::Vector3d b = s.world_T_initial().translation();
-    s.workspace.min_m = a.cwiseMin(b) - Eigen::Vector3d::Constant(kDefaultWorkspaceMarginM);
-    s.workspace.max_m = a.cwiseMax(b) + Eigen::Vector3d::Constant(kDefaultWorkspaceMarginM);
-  }
-  for (const auto& [name, pose] : {std::pair<const char*, Eigen::Isometry3d>{"desired_pose", s.world_T_desired},
-                                   {"initial_offset", s.world_T_initial()}})
-    if (!s.workspace.contains(pose.translation()))
-      (top.has(name) ? top.at(name) : top.at("robot")).fail(std::string(name) + ": the camera would be outside the workspace");
+  if (!top.has("workspace")) return;
+  const Reader w = top.at("workspace");
+  w.only_keys({"min_m", "max_m"});
+  s.workspace.min_m = vec3(w.at("min_m"));
+  s.workspace.max_m = vec3(w.at("max_m"));
+  if ((s.workspace.max_m - s.workspace.min_m).minCoeff() <= 0) w.fail("max_m must exceed min_m on every axis");
+  s.workspace_given = true;
 }
 
-Scenario read_scenario(const std::filesystem::path& file) {
+Scenario read_scenario_yaml(const std::filesystem::path& file) {
   const YAML::Node root = config::load_yaml_file(file, "scenario file");
   Scenario s;
   s.file = std::filesystem::absolute(file).lexically_normal();
@@ -302,10 +253,11 @@ Scenario read_scenario(const std::filesystem::path& file) {
   if (top.has("desired_pose") || s.robot.arm.desired_joints_rad.empty())
     s.world_T_desired = read_pose(top.at("desired_pose"), Eigen::Vector3d::UnitZ());
   read_initial_offset(top, s);
-  if (s.robot.arm_enabled) resolve_arm(top, s);
   if (top.has("errors")) read_errors(top.at("errors"), s.errors);
   read_latency(top, s);
   read_workspace(top, s);
+  s.has_desired_pose = top.has("desired_pose");
+  s.has_initial_offset = top.has("initial_offset");
   return s;
 }
 
@@ -320,7 +272,7 @@ Eigen::Isometry3d offset_pose(const Eigen::Isometry3d& world_T_desired, const st
 }
 
 DrawnErrors scenario_errors(const Scenario& s, const CalibrationErrors& errors, std::uint64_t seed) {
-  return draw_errors(errors, seed, s.robot.model ? s.robot.model->chain.size() : std::size_t{0});
+  return draw_errors(errors, seed, s.robot.chain_segments);
 }
 
 DrawnErrors scenario_errors(const Scenario& s) { return scenario_errors(s, s.errors, s.seed); }
@@ -341,12 +293,29 @@ Eigen::Isometry3d Scenario::world_T_initial() const {
   return offset_pose(world_T_desired, initial_translation_cm, initial_rotation_deg, offset_frame_rotation_deg);
 }
 
-Scenario load_scenario(const std::filesystem::path& file) {
+Scenario read_scenario(const std::filesystem::path& file) {
   try {
-    return read_scenario(file);
+    Scenario s = read_scenario_yaml(file);
+    if (!s.robot.arm_enabled) settle_workspace(s);  // an arm's poses are known once it is resolved
+    return s;
   } catch (const config::ConfigError& e) {
     throw ScenarioError(e.what());
   }
+}
+
+void settle_workspace(Scenario& s) {
+  if (!s.workspace_given) {
+    const Eigen::Vector3d a = s.world_T_desired.translation();
+    const Eigen::Vector3d b = s.world_T_initial().translation();
+    s.workspace.min_m = a.cwiseMin(b) - Eigen::Vector3d::Constant(kDefaultWorkspaceMarginM);
+    s.workspace.max_m = a.cwiseMax(b) + Eigen::Vector3d::Constant(kDefaultWorkspaceMarginM);
+  }
+  for (const auto& [name, given, pose] :
+       {std::tuple<const char*, bool, Eigen::Isometry3d>{"desired_pose", s.has_desired_pose, s.world_T_desired},
+        {"initial_offset", s.has_initial_offset, s.world_T_initial()}})
+    if (!s.workspace.contains(pose.translation()))
+      throw ScenarioError(s.file.string() + ": " + (given ? name : "robot") + ": " + name +
+                          ": the camera would be outside the workspace");
 }
 
 Eigen::Isometry3d resolve_pose(const Scenario& s, const std::string& spec) {

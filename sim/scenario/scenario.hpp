@@ -1,5 +1,7 @@
 // A scenario: the cell (objects, projector, camera), the task (desired and initial camera
-// poses), timing and the seed. Plain data, read from YAML by load_scenario.
+// poses), timing and the seed. Plain data, read from YAML by read_scenario: the spec as the
+// file gives it, with no URDF read and no IK run (sim/arm/arm_scenario.hpp's load_scenario
+// resolves the arm).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -11,11 +13,15 @@
 #include <string>
 #include <vector>
 
-#include "sim/arm/robot_model.hpp"
 #include "sim/scenario/cell_errors.hpp"
 #include "sim/geometry/workspace.hpp"
 
 namespace sim {
+
+struct RobotModel;  // sim/arm/robot_model.hpp: what a URDF describes
+
+// a joint-angle list's longest (an arm's chain has at most as many segments)
+inline constexpr std::size_t kMaxJointAngles = 32;
 
 // A malformed scenario. what() is one line: "<file>: <key>: <what is wrong>".
 class ScenarioError : public std::runtime_error {
@@ -96,9 +102,11 @@ struct RobotSpec {
   double max_linear_mps = 0.5;
   double max_angular_radps = 1.0;
   ArmSpec arm;
-  // resolved at load: the robot read from the URDF, and the joint angles of the desired
-  // and initial camera poses (by IK from home, or as given)
+  // resolved by load_scenario (sim/arm): the robot read from the URDF, its number of chain
+  // segments, and the joint angles of the desired and initial camera poses (by IK from home,
+  // or as given)
   std::shared_ptr<const RobotModel> model;
+  std::size_t chain_segments = 0;
   Eigen::VectorXd desired_q, initial_q;
 };
 
@@ -126,6 +134,8 @@ struct Scenario {
   // what the servo is told against the truth, and the loop's delays (all zero: none)
   CalibrationErrors errors;
   Latency latency;
+  // what the file said, for the checks that come once the arm is resolved
+  bool workspace_given = false, has_desired_pose = false, has_initial_offset = false;
 };
 
 // The scenario's calibration errors drawn with its seed (errors.seed, or the scenario's):
@@ -139,9 +149,15 @@ CameraSpec believed_camera(const CameraSpec& truth, const DrawnErrors& drawn);
 // Other errors drawn for this scenario's robot, with another seed (a campaign run's).
 DrawnErrors scenario_errors(const Scenario& scenario, const CalibrationErrors& errors, std::uint64_t seed);
 
-// Throws ScenarioError (one line naming the file and the key) on unknown keys, wrong types,
-// missing files, non-positive focal lengths or sizes, NaN or infinite numbers.
-Scenario load_scenario(const std::filesystem::path& file);
+// The scenario as the file gives it. Throws ScenarioError (one line naming the file and the
+// key) on unknown keys, wrong types, missing files, non-positive focal lengths or sizes, NaN
+// or infinite numbers. A scenario with an arm has its arm unresolved (no model, no joint
+// angles) and its workspace unsettled: sim::load_scenario (sim/arm/arm_scenario.hpp) does both.
+Scenario read_scenario(const std::filesystem::path& file);
+
+// The workspace's default (the desired and initial positions with a margin) when the file
+// gave none, and the check that both poses lie in it. Throws ScenarioError.
+void settle_workspace(Scenario& scenario);
 
 // The camera pose for a --pose argument: "desired", "initial" or "x y z rx ry rz" (cm,
 // degrees, an offset from the desired pose in the paper's convention). Throws

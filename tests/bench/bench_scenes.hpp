@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <string>
 
+#include "sim/arm/arm_scenario.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/scenario/scenario.hpp"
 

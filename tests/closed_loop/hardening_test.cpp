@@ -77,7 +77,7 @@ TEST(Hardening, CellsimSurvivesBadCommandsAndKeepsObeying) {
   rogue.send(SC::STEP, "", 3);
   // the teach frame, then after the teach timeout the commands behind it: RESET initial's
   // frames arrive (3 steps, each sent again while unanswered)
-  const sim::Scenario s = sim::load_scenario(kPlane);
+  const sim::Scenario s = sim::read_scenario(kPlane);
   EXPECT_TRUE(w.wait_for([&] { return w.poses >= 2; }, 30s)) << "no frames after the commands";
   EXPECT_TRUE(w.wait_for(
       [&] {
@@ -129,7 +129,7 @@ TEST(Hardening, RemoteLoadsOfHostileFilesAreRefusedAndTheStatusGoesOn) {
                               allowed + "/plane_copy.yaml", allowed + "/fifo.yaml"})
     rogue.send(SC::LOAD_SCENARIO, f);
   rogue.send(SC::RESET, "initial");  // behind the loads: obeyed once they are done
-  const sim::Scenario s = sim::load_scenario(kPlane);
+  const sim::Scenario s = sim::read_scenario(kPlane);
   EXPECT_TRUE(w.wait_for(
       [&] { return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_initial()) < 1e-5; }, 60s))
       << "RESET after the loads was not obeyed";
@@ -176,7 +176,7 @@ TEST(Hardening, ARefusedCommandDoesNotEndTheRun) {
       << "the run did not converge after a refused command; see " << dir;
   {
     // the status may be heard before the pose it was computed on
-    const sim::Scenario s = sim::load_scenario(kPlane);
+    const sim::Scenario s = sim::read_scenario(kPlane);
     EXPECT_TRUE(w.wait_for(
         [&] { return w.last_pose && sim::translation_error(w.pose_now_unlocked(), s.world_T_desired) < 1e-3; }, 60s));
   }
@@ -252,7 +252,7 @@ TEST(Hardening, RealtimeRunConvergesOnlyAtTheGoalWithAFullTrace) {
     std::lock_guard<std::mutex> l(w.m);
     EXPECT_GT(w.converged_at_iteration, 50) << "CONVERGED came at iteration " << w.converged_at_iteration;
   }
-  const sim::Scenario s = sim::load_scenario(kPlane);
+  const sim::Scenario s = sim::read_scenario(kPlane);
   EXPECT_LT(sim::translation_error(w.pose_now(), s.world_T_desired), 0.01);
   std::ifstream trace(dir + "/trace.csv");
   std::string line;

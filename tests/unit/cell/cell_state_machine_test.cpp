@@ -1,5 +1,7 @@
 // The simulator's state machine on a fake clock: every command in every state, the
 // lockstep and realtime stepping, the watchdog's timing, and the twist checks (issue 9).
+#include "sim/arm/arm_scenario.hpp"
+#include "sim/arm/robot_model.hpp"
 #include "sim/cell/cell_state_machine.hpp"
 
 #include <gtest/gtest.h>

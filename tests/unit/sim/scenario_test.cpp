@@ -1,3 +1,5 @@
+#include "sim/arm/arm_scenario.hpp"
+#include "sim/arm/robot_model.hpp"
 #include "sim/scenario/scenario.hpp"
 
 #include <gtest/gtest.h>
@@ -209,6 +211,36 @@ TEST(Scenario, ResetPosesOutsideTheWorkspaceAreRefused) {
   }
   EXPECT_TRUE(s.workspace.contains(s.world_T_desired.translation()));
   EXPECT_TRUE(s.workspace.contains(s.world_T_initial().translation()));
+}
+
+}  // namespace
+}  // namespace sim
+
+namespace sim {
+namespace {
+
+// Issue 20: a scenario is a spec. read_scenario reads no URDF and runs no IK (its library
+// links neither, checked at configure time); load_scenario resolves the arm and says which key
+// fails, with the same words as before the split.
+TEST(Scenario, TheSpecReadsNoUrdfAndTheArmIsResolvedByLoadScenario) {
+  const Scenario spec = read_scenario(kScenarios + "plane.yaml");
+  EXPECT_TRUE(spec.robot.arm_enabled);
+  EXPECT_EQ(spec.robot.model, nullptr);
+  EXPECT_EQ(spec.robot.desired_q.size(), 0);
+  const Scenario full = load_scenario(kScenarios + "plane.yaml");
+  ASSERT_NE(full.robot.model, nullptr);
+  EXPECT_EQ(full.robot.desired_q.size(), 6);
+  EXPECT_EQ(full.robot.chain_segments, full.robot.model->chain.size());
+  // the spec's poses are the file's; resolving the arm keeps them when no joint angles are given
+  EXPECT_TRUE(spec.world_T_desired.isApprox(full.world_T_desired, 0));
+  // a URDF that is not one: the spec still reads, the resolution names robot.urdf
+  const std::string broken = (std::filesystem::temp_directory_path() / "_test_broken.urdf").string();
+  std::ofstream(broken) << "<robot name='x'><link name='a'/>";
+  const std::string path = variant("broken_urdf", "urdf: ../../sim/robots/ur5e/ur5e.urdf", "urdf: " + broken);
+  EXPECT_NO_THROW(read_scenario(path));
+  const std::string e = error_of(path);
+  EXPECT_NE(e.find(": robot.urdf: "), std::string::npos) << e;
+  std::remove(broken.c_str());
 }
 
 }  // namespace

@@ -214,8 +214,8 @@ class ServoService {
     while (!in_.sim_statuses.empty()) {
       const SimStatus_& s = in_.sim_statuses.front();
       namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
-      // a LOADING status belongs to no frame
-      if (s.state() != SST::LOADING)
+      // LOADING, NOTICE and ENDED statuses belong to no frame
+      if (s.state() != SST::LOADING && s.state() != SST::NOTICE && s.state() != SST::ENDED)
         machine_->on_sim_status(
             {to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING, s.state() == SST::RUNNING});
       in_.sim_statuses.pop_front();

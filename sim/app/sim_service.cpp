@@ -1,5 +1,7 @@
 #include "sim/app/sim_service.hpp"
 
+#include "servo/config/strict_yaml.hpp"
+
 
 #include <algorithm>
 #include <atomic>
@@ -227,7 +229,13 @@ class SimService {
                            });
     }
     if (loading_.valid()) loading_.wait();  // a load is bounded by its files' limits; its objects must not outlive us
-    // the last pose and status must reach the readers that are matched, not die with the process
+    // the session's end said on rt/sim/status, and the last pose and status must reach the
+    // readers that are matched, not die with the process
+    {
+      auto ended = status_between_frames(cell_msgs::msg::dds_::SimStatus_Constants::ENDED);
+      if (ended.session_end().empty()) ended.session_end(g_stop ? "cellsim stopped by a signal" : "cellsim stopped");
+      sim_status_->write(ended);
+    }
     const auto last_word = std::chrono::milliseconds(500);
     pose_->flush(last_word);
     sim_status_->flush(last_word);
@@ -339,6 +347,12 @@ class SimService {
   // Does what the state machine asked; returns true when the session is over.
   bool carry_out(sim::CellOutput& out) {
     for (const auto& line : out.log) std::fprintf(stderr, "%s\n", line.c_str());
+    for (const auto& line : out.refusals) {
+      recent_refusals_.push_back(config::printable(line, 300));
+      while (recent_refusals_.size() > kRecentRefusals) recent_refusals_.pop_front();
+      auto notice = status_between_frames(cell_msgs::msg::dds_::SimStatus_Constants::NOTICE);
+      sim_status_->write(notice);
+    }
     if (out.load) start_load(*out.load);
     for (const auto& f : out.frames) publish_frame(f);
     for (const auto& r : out.trace) record(r);
@@ -384,14 +398,30 @@ class SimService {
 
   // While a load runs there is no frame: the status says so, ten times a second.
   void publish_loading_status() {
-    namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
+    auto st = status_between_frames(cell_msgs::msg::dds_::SimStatus_Constants::LOADING);
+    sim_status_->write(st);
+  }
+
+  // A status that belongs to no frame (LOADING, NOTICE, ENDED), stamped with the next frame's.
+  cell_msgs::msg::dds_::SimStatus_ status_between_frames(std::uint8_t state) const {
     cell_msgs::msg::dds_::SimStatus_ st;
     st.header().stamp(cell_dds::stamp_of(machine_->next_frame(), dt()));
     st.header().frame_id(cell_dds::kCameraFrame);
-    st.state(SST::LOADING);
+    st.state(state);
     st.applies_twist(false);
     st.frame(machine_->next_frame());
-    sim_status_->write(st);
+    with_counts(st);
+    return st;
+  }
+
+  // what every status carries: the session's counts, its latest refusal, why it ended
+  void with_counts(cell_msgs::msg::dds_::SimStatus_& st) const {
+    const sim::CellCounters& c = machine_->counters();
+    st.twists_applied(static_cast<std::uint64_t>(c.applied));
+    st.twists_rejected(static_cast<std::uint64_t>(c.rejected_nan + c.rejected_frame + c.rejected_stale + c.rejected_workspace));
+    st.commands_refused(static_cast<std::uint32_t>(c.commands_refused));
+    st.recent_refusals(std::vector<std::string>(recent_refusals_.begin(), recent_refusals_.end()));
+    st.session_end(machine_->session_end().reason);
   }
 
   double dt() const { return cell_->scenario.dt_s; }
@@ -490,6 +520,7 @@ class SimService {
     st.frame(f.index);
     st.robot_limits(f.robot_limits);
     st.robot_limit_names(sim::limit_names(f.robot_limits));
+    with_counts(st);
     sim_status_->write(st);  // before the image: the servo pairs them by stamp
 
     geometry_msgs::msg::dds_::PoseStamped_ pose;
@@ -570,6 +601,9 @@ class SimService {
   std::unique_ptr<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>> tf_;
   std::unique_ptr<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>> description_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>> control_out_;
+  // the latest refusals, as rt/sim/status says them (the IDL's bound)
+  static constexpr std::size_t kRecentRefusals = 8;
+  std::deque<std::string> recent_refusals_;
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>> control_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status_in_;

@@ -83,8 +83,7 @@ void CellStateMachine::loaded(const Scenario& scenario, std::unique_ptr<Robot> r
 
 void CellStateMachine::load_failed(const std::string& reason) {
   loading_ = false;
-  ++counters_.commands_refused;
-  log("cellsim: LOAD_SCENARIO refused: " + reason);
+  refused("LOAD_SCENARIO refused: " + reason);
 }
 
 bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
@@ -93,9 +92,8 @@ bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
   // else happens (the servo takes s* from it); what comes meanwhile waits, in a bounded queue
   if (teach_requested_ || (awaited_ && awaited_->frame.teach) || loading_ || !deferred_.empty()) {
     if (deferred_.size() >= kMaxQueuedCommands) {
-      ++counters_.commands_refused;
       ++counters_.dropped_inputs;
-      log(std::string("cellsim: ") + command_name(c.command) + " refused: " + std::to_string(kMaxQueuedCommands) +
+      refused(std::string(command_name(c.command)) + " refused: " + std::to_string(kMaxQueuedCommands) +
           " commands already wait for the teach frame or a load");
       return false;
     }
@@ -109,8 +107,7 @@ bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
 
 void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
   const auto refuse = [&](const std::string& why) {
-    ++counters_.commands_refused;
-    log(std::string("cellsim: ") + command_name(c.command) + " refused: " + why);
+    refused(std::string(command_name(c.command)) + " refused: " + why);
   };
   switch (c.command) {
     case static_cast<int>(cell_dds::SimCommand::kLoadScenario): {
@@ -264,6 +261,12 @@ void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
   // the servo stopped itself while the run was on (a safe stop that lasted, a runaway)
   if (p_.exit_on_stop && s.state == kServoStopped && running_ && !done_)
     end_session(SessionEnd::kServoStopped, shown(s.reason, 200));
+}
+
+void CellStateMachine::refused(std::string line) {
+  ++counters_.commands_refused;
+  log("cellsim: " + line);
+  out_.refusals.push_back(std::move(line));
 }
 
 void CellStateMachine::end_session(SessionEnd kind, std::string reason) {

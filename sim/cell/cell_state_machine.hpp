@@ -156,6 +156,9 @@ struct CellOutput {
   std::vector<FrameOrder> frames;
   std::vector<TraceRow> trace;
   std::vector<std::string> log;  // one line each, for stderr
+  // the commands refused, one line each ("RESET refused: ..."): also in `log`, and said on
+  // rt/sim/status (NOTICE) so that a client learns it from the data, not from our stderr
+  std::vector<std::string> refusals;
   std::optional<std::filesystem::path> load;  // load this scenario, then loaded() or load_failed()
   bool done = false;              // max_frames reached or an accepted convergence
 };
@@ -221,6 +224,7 @@ class CellStateMachine {
   void realtime(double now_s);
   void log(std::string line) { out_.log.push_back(std::move(line)); }
   void end_session(SessionEnd kind, std::string reason);
+  void refused(std::string line);
 
   Scenario scenario_;
   CellParams p_;

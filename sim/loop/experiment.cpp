@@ -197,7 +197,7 @@ class Experiment {
           stepped(x);
         }
       }
-      for (const auto& line : out.log) refused_reset(line);
+      for (const auto& line : out.refusals) refused_reset(line);
       if (!res_.stop_reason.empty()) return res_;
       if (out.done) break;
       // the cell ordered nothing: after the teach frame it waits for commands; more is a stall
@@ -282,7 +282,7 @@ class Experiment {
     ++k_;
   }
 
-  // the RESET to the initial pose waited behind the teach frame: its refusal is in the log
+  // the RESET to the initial pose waited behind the teach frame: its refusal comes later
   void refused_reset(const std::string& line) {
     const std::string key = "RESET refused: ";
     const std::size_t at = line.find(key);

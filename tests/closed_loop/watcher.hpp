@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -84,6 +85,17 @@ struct Watcher {
           if (s.state() == SS::CONVERGED) converged = true;
           if (s.state() == SS::LOST) lost = true;
         });
+    sim_status = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>>(
+        *participant, cell_dds::kSimStatusTopic, cell_dds::reader_qos(Stream::kFrame),
+        [this](cell_msgs::msg::dds_::SimStatus_&& s) {
+          std::lock_guard<std::mutex> l(m);
+          for (const auto& r : s.recent_refusals()) refusals.insert(r);
+          commands_refused = std::max<long>(commands_refused, s.commands_refused());
+          twists_applied = std::max<long>(twists_applied, static_cast<long>(s.twists_applied()));
+          twists_rejected = std::max<long>(twists_rejected, static_cast<long>(s.twists_rejected()));
+          if (s.state() == cell_msgs::msg::dds_::SimStatus_Constants::ENDED) session_end = s.session_end();
+          ++sim_statuses;
+        });
     twist = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
         *participant, cell_dds::kTwistTopic, cell_dds::reader_qos(Stream::kFrame),
         [this](geometry_msgs::msg::dds_::TwistStamped_&& t) {
@@ -144,11 +156,22 @@ struct Watcher {
   std::chrono::steady_clock::time_point last_pose_time;
   long poses = 0, twists = 0;
   bool converged = false, lost = false;
+  // what cellsim says on rt/sim/status: each refusal heard (recent_refusals), the largest counts,
+  // and why the session ended (ENDED)
+  std::set<std::string> refusals;
+  long commands_refused = 0, twists_applied = 0, twists_rejected = 0, sim_statuses = 0;
+  std::optional<std::string> session_end;
+  bool refused(const std::string& part) const {
+    for (const auto& r : refusals)
+      if (r.find(part) != std::string::npos) return true;
+    return false;
+  }
   long converged_at_iteration = -1;  // the iteration of the first CONVERGED heard
   cell_dds::ParticipantPtr participant;
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status;
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist;
+  std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status;
 };
 
 inline std::vector<std::string> servo_args(const std::string& z_hat, const std::vector<std::string>& extra = {},

@@ -36,4 +36,17 @@ struct DdsFlags {
   }
 };
 
+// The participant of a service or tool: the options DdsFlags filled, its name, and its SROS2
+// enclave laid out by node path (/NS/LEAF under --namespace NS, as bin/keystore --namespace does).
+template <class Options>
+ParticipantOptions participant_options(const Options& o, const std::string& name, const std::string& enclave_leaf) {
+  ParticipantOptions po;
+  po.domain_id = o.domain_id;
+  po.name = name;
+  po.discovery = o.discovery;
+  po.security = o.security;
+  po.enclave = o.ns.empty() ? enclave_leaf : o.ns + "/" + enclave_leaf;
+  return po;
+}
+
 }  // namespace cell_dds

@@ -431,7 +431,7 @@ int main(int argc, char** argv) {
   DecodeCommand decode;
   RunCommand run;
   ViewCommand view;
-  const std::vector<std::pair<CLI::App*, std::function<int()>>> commands = {
+  const config::Subcommands commands = {
       {decode.add(app), [&] { return decode.run(); }},
       {run.add(app), [&] { return run.run(); }},
       {view.add(app), [&] { return view.run(); }},
@@ -444,15 +444,5 @@ int main(int argc, char** argv) {
   // The decoder's per-frame OpenCV operations are too small to gain from OpenCV's thread
   // pool: measured 2.1 ms per VGA frame with it, 1.5 ms without (docs/performance.md).
   cv::setNumThreads(1);
-  try {
-    for (const auto& [sub, go] : commands)
-      if (*sub) return go();
-  } catch (const std::exception& e) {
-    std::string what = e.what();
-    for (char& ch : what)
-      if (ch == '\n' || ch == '\r') ch = ' ';
-    std::cerr << "servo: " << what << "\n";
-    return 1;
-  }
-  return 0;
+  return config::run_subcommand(commands, "servo");
 }

@@ -17,6 +17,7 @@
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"
 #include "dds/ros_graph.hpp"
+#include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
@@ -109,13 +110,7 @@ class ServoService {
       std::printf("servo: reference loaded from %s (%zu features)\n", o.reference.c_str(), pipeline->reference().size());
     }
     machine_ = std::make_unique<ServoStateMachine>(std::move(pipeline), ServoTiming{o.lost_ms / 1e3, o.autostart});
-    cell_dds::ParticipantOptions po;
-    po.domain_id = o.domain_id;
-    po.name = "servo";
-    po.discovery = o.discovery;
-    po.security = o.security;
-    po.enclave = o.ns.empty() ? std::string("servo") : o.ns + "/servo";  // as bin/keystore --namespace lays them out
-    participant_ = cell_dds::make_participant(po);
+    participant_ = cell_dds::make_participant(cell_dds::participant_options(o, "servo", "servo"));
     auto& p = *participant_;
     using cell_dds::Stream;
     twist_ = std::make_unique<cell_dds::Writer<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(

@@ -15,6 +15,7 @@
 
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"
+#include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
 #include "sensor_msgsPubSubTypes.h"
 #include "servo/node/servo_state_machine.hpp"
@@ -64,13 +65,7 @@ int run_viewer(const ViewOptions& o) {
   std::optional<sensor_msgs::msg::dds_::Image_> image;
   std::map<StampKey, cell_msgs::msg::dds_::DecodedSpots_> spots;  // by stamp, a few kept
   const auto topic = [&](const char* t) { return cell_dds::namespaced(o.ns, t); };
-  cell_dds::ParticipantOptions po;
-  po.domain_id = o.domain_id;
-  po.name = "servo_view";
-  po.discovery = o.discovery;
-  po.security = o.security;
-  po.enclave = o.ns.empty() ? std::string("viewer") : o.ns + "/viewer";
-  auto p = cell_dds::make_participant(po);
+  auto p = cell_dds::make_participant(cell_dds::participant_options(o, "servo_view", "viewer"));
   using cell_dds::Stream;
   cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(
       *p, topic(cell_dds::kImageTopic), cell_dds::reader_qos(Stream::kFrame), [&](sensor_msgs::msg::dds_::Image_&& i) {

@@ -5,6 +5,9 @@
 #pragma once
 
 #include <stdexcept>
+#include <vector>
+#include <utility>
+#include <functional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -37,9 +40,6 @@ inline CLI::Validator finite_in(double lo, double hi) {
       desc);
 }
 
-// Every floating-point option of `app` and of its subcommands, at any depth, gets the finite check
-// with the common bound (a tighter range given at the option still holds): no number escapes
-// the check because its option was added without one.
 // A flag's value checked after parsing (flags are untrusted input like any file: NaN and
 // absurd values are refused with the flag's name).
 inline void require_within(const char* flag, double v, double lo, double hi) {
@@ -48,6 +48,9 @@ inline void require_within(const char* flag, double v, double lo, double hi) {
                                 "], got " + std::to_string(v));
 }
 
+// Every floating-point option of `app` and of its subcommands, at any depth, gets the finite check
+// with the common bound (a tighter range given at the option still holds): no number escapes
+// the check because its option was added without one.
 inline void require_finite_numbers(CLI::App& app) {
   for (CLI::Option* o : app.get_options()) {
     const std::string t = o->get_type_name();
@@ -74,6 +77,25 @@ inline int parse_command_line(CLI::App& app, int argc, char** argv, const char* 
     return e.get_exit_code() != 0 ? e.get_exit_code() : 2;
   }
   return -1;  // parsed: go on
+}
+
+// A CLI's subcommands: each with what it runs once the command line is parsed.
+using Subcommands = std::vector<std::pair<CLI::App*, std::function<int()>>>;
+
+// Runs the subcommand the command line chose; an error it throws is one line,
+// "<program>: <what>", and exit code 1.
+inline int run_subcommand(const Subcommands& commands, const char* program) {
+  try {
+    for (const auto& [sub, run] : commands)
+      if (*sub) return run();
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    for (char& ch : what)
+      if (ch == '\n' || ch == '\r') ch = ' ';
+    std::fprintf(stderr, "%s: %s\n", program, what.c_str());
+    return 1;
+  }
+  return 0;
 }
 
 }  // namespace config

@@ -640,7 +640,7 @@ int main(int argc, char** argv) {
   StudyCommand study;
   ServeCommand serve;
   CalibrationCommand calibration;
-  const std::vector<std::pair<CLI::App*, std::function<int()>>> commands = {
+  const config::Subcommands commands = {
       {render.add(app), [&] { return render.run(); }},
       {sweep.add(app), [&] { return sweep.run(); }},
       {experiment.add(app), [&] { return experiment.run(); }},
@@ -657,12 +657,5 @@ int main(int argc, char** argv) {
                       "servo/pattern/data/marray_20x20_k3_w3_d3.txt, the distance-3 one)");
   config::require_finite_numbers(app);
   if (const int rc = config::parse_command_line(app, argc, argv, "cellsim"); rc >= 0) return rc;
-  try {
-    for (const auto& [sub, run] : commands)
-      if (*sub) return run();
-  } catch (const std::exception& e) {
-    std::cerr << "cellsim: " << e.what() << "\n";
-    return 1;
-  }
-  return 0;
+  return config::run_subcommand(commands, "cellsim");
 }

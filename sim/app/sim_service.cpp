@@ -20,6 +20,7 @@
 #include "cell_msgsPubSubTypes.h"
 #include "dds/endpoint.hpp"
 #include "dds/ros_graph.hpp"
+#include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
@@ -270,14 +271,7 @@ class SimService {
 
   // the participant, every reader and writer, and the node that names them
   void make_endpoints(const ServiceOptions& o) {
-    cell_dds::ParticipantOptions po;
-    po.domain_id = o.domain_id;
-    po.name = "cellsim";
-    po.discovery = o.discovery;
-    po.security = o.security;
-    // SROS2 lays enclaves out by node path: /NAME/cellsim under --namespace NAME (bin/keystore --namespace)
-    po.enclave = o.ns.empty() ? std::string("cellsim") : o.ns + "/cellsim";
-    participant_ = cell_dds::make_participant(po);
+    participant_ = cell_dds::make_participant(cell_dds::participant_options(o, "cellsim", "cellsim"));
     auto& p = *participant_;
     using cell_dds::Stream;
     image_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(

@@ -234,10 +234,11 @@ class SimService {
     // readers that are matched, not die with the process
     {
       auto ended = status_between_frames(cell_msgs::msg::dds_::SimStatus_Constants::ENDED);
-      if (ended.session_end().empty()) ended.session_end(g_stop ? "cellsim stopped by a signal" : "cellsim stopped");
+      ended.session_end(session_end_reason());
       sim_status_->write(ended);
     }
-    const auto last_word = std::chrono::milliseconds(500);
+    // (bounded: a reader that does not acknowledge in 2 s is not waited for)
+    const auto last_word = std::chrono::milliseconds(2000);
     pose_->flush(last_word);
     sim_status_->flush(last_word);
     joints_->flush(last_word);
@@ -394,6 +395,12 @@ class SimService {
   void publish_loading_status() {
     auto st = status_between_frames(cell_msgs::msg::dds_::SimStatus_Constants::LOADING);
     sim_status_->write(st);
+  }
+
+  // why the session ended, in the words of the summary line, rt/sim/status and the trace
+  std::string session_end_reason() const {
+    const std::string& r = machine_->session_end().reason;
+    return !r.empty() ? r : g_stop ? "cellsim stopped by a signal" : "cellsim stopped";
   }
 
   // A status that belongs to no frame (LOADING, NOTICE, ENDED), stamped with the next frame's.
@@ -568,9 +575,9 @@ class SimService {
                 c.late_answers, c.watchdog_stops, c.robot_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
                 1e3 * sim::translation_error(wTc, cell_->scenario.world_T_desired),
                 sim::rotation_error(wTc, cell_->scenario.world_T_desired) * 180.0 / 3.14159265358979323846);
-    if (!machine_->session_end().reason.empty())
-      std::printf("cellsim: session ended: %s\n", machine_->session_end().reason.c_str());
-    if (trace_.is_open()) trace_.flush();
+    const std::string end = session_end_reason();
+    std::printf("cellsim: session ended: %s\n", end.c_str());
+    if (trace_.is_open()) trace_ << "# session ended: " << end << '\n' << std::flush;
     std::fflush(stdout);
   }
 

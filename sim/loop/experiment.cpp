@@ -306,6 +306,8 @@ class Experiment {
       for (const auto& r : res_.trace) top = std::max(top, r.error_norm);
       res_.max_error_ratio = top / res_.trace.front().error_norm;
     }
+    // the trace says why the run ended, as the service's trace does
+    if (trace_.is_open()) trace_ << "# session ended: " << res_.stop_reason << '\n';
     const Eigen::Isometry3d wTc = loop_.cell().world_T_camera();
     res_.final_translation_error_m = sim::translation_error(wTc, scenario().world_T_desired);
     res_.final_rotation_error_deg = sim::rotation_error(wTc, scenario().world_T_desired) * kRadToDeg;

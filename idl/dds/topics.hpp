@@ -40,11 +40,14 @@ inline constexpr const char* kWorldFrame = "world";
 enum class Stream {
   kFrame,    // one sample per camera frame (image, pose, truth, twist, spots): reliable, only the
              // newest kept, so lockstep loses nothing and realtime never queues stale frames
-  kLatched,  // state a late joiner needs (camera info, servo status): reliable, transient local
+  kLatched,  // state a late joiner needs (camera info, servo status): reliable, transient local,
+             // a heartbeat every kLatchedHeartbeatNs
   kCommand,  // commands (sim control): reliable, a few kept, none dropped
   kClock,    // the clock: best effort, newest only
 };
 
+// how often a latched or command writer says what it holds (a late joiner repairs from it)
+inline constexpr std::uint32_t kLatchedHeartbeatNs = 100'000'000;
 eprosima::fastdds::dds::DataWriterQos writer_qos(Stream s);
 eprosima::fastdds::dds::DataReaderQos reader_qos(Stream s);
 

@@ -109,3 +109,47 @@ TEST(RosGraphLoop, EveryEndpointOfCellsimWithAutorunIsNamedOnRosDiscoveryInfo) {
 }
 
 }  // namespace
+
+namespace {
+
+// Issue 21, item 2: a client that joins a running cell gets the node names at once. It joins
+// once cellsim is up and announced (an earlier client has heard it), and waits, bounded, for
+// cellsim's node on ros_discovery_info; the delay is printed, not asserted (loaded machines).
+// What makes it prompt is the latched writers' heartbeat period (CellDds.LatchedWritersHeartbeat).
+TEST(RosGraphLoop, ALateJoinerGetsTheNodeNames) {
+  const int domain = unique_domain(34);
+  const std::string dir = tmp_dir("late_joiner");
+  Watcher first(domain);
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(first.wait_until_cellsim_heard()) << "see " << dir;
+  cell_dds::ParticipantOptions o;
+  o.domain_id = domain;
+  o.name = "late_joiner";
+  const auto joined = std::chrono::steady_clock::now();
+  auto late = cell_dds::make_participant(o);
+  std::mutex m;
+  std::optional<std::chrono::steady_clock::time_point> named;
+  cell_dds::Reader<rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_PubSubType> graph(
+      *late, cell_dds::kRosDiscoveryTopic, cell_dds::reader_qos(cell_dds::Stream::kLatched),
+      [&](rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_&& i) {
+        for (const auto& n : i.node_entities_info_seq())
+          if (n.node_name() == "cellsim") {
+            std::lock_guard<std::mutex> l(m);
+            if (!named) named = std::chrono::steady_clock::now();
+          }
+      });
+  const auto until = joined + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < until) {
+    {
+      std::lock_guard<std::mutex> l(m);
+      if (named) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::lock_guard<std::mutex> l(m);
+  ASSERT_TRUE(named) << "no node names on ros_discovery_info within 60 s of joining";
+  std::printf("late joiner: cellsim's node name after %.0f ms\n",
+              std::chrono::duration<double, std::milli>(*named - joined).count());
+}
+
+}  // namespace

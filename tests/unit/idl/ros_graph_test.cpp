@@ -84,3 +84,20 @@ TEST(RosGraph, TypeHashesInUserDataAndTheNodeOnRosDiscoveryInfo) {
 }
 
 }  // namespace
+
+namespace {
+
+// Issue 21, item 2: latched and command writers say what they hold every 100 ms, not Fast
+// DDS's default 3 s, so a late joiner that dropped their first send repairs at once
+// (closed_loop.cyclone_late_joiner measures it with a Cyclone DDS client).
+TEST(CellDds, LatchedWritersHeartbeatEvery100ms) {
+  for (const auto s : {cell_dds::Stream::kLatched, cell_dds::Stream::kCommand}) {
+    const auto q = cell_dds::writer_qos(s);
+    EXPECT_EQ(q.reliable_writer_qos().times.heartbeatPeriod.seconds, 0);
+    EXPECT_EQ(q.reliable_writer_qos().times.heartbeatPeriod.nanosec, 100'000'000u);
+  }
+  // the frame streams keep the default: every frame already carries its heartbeat
+  EXPECT_EQ(cell_dds::writer_qos(cell_dds::Stream::kFrame).reliable_writer_qos().times.heartbeatPeriod.seconds, 3);
+}
+
+}  // namespace

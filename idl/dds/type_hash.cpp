@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 
 namespace cell_dds {
@@ -172,6 +173,61 @@ class IdlParser {
 };
 
 void parse_idl_types(const std::string& text, TypeDescriptions& out) { IdlParser(text).parse(out); }
+
+void parse_msg_type(const std::string& package, const std::string& type, const std::string& text,
+                    TypeDescriptions& out) {
+  // .msg spells some basic types otherwise than IDL
+  static const std::map<std::string, std::string> msg_names{{"bool", "boolean"}, {"byte", "octet"},
+                                                             {"float32", "float"}, {"float64", "double"}};
+  std::vector<FieldDescription> fields;
+  std::istringstream lines(text);
+  int number = 0;
+  for (std::string line; std::getline(lines, line);) {
+    ++number;
+    if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+    std::istringstream words(line);
+    std::string spelled, name;
+    if (!(words >> spelled)) continue;
+    const auto fail = [&](const std::string& why) {
+      throw std::runtime_error(package + "/msg/" + type + ".msg:" + std::to_string(number) + ": " + why);
+    };
+    if (!(words >> name)) fail("a type without a field name");
+    if (name.find('=') != std::string::npos || (words >> std::ws, words.peek() == '=')) continue;  // a constant
+    FieldDescription f;
+    f.name = name;
+    int suffix = 0;
+    std::string base_type = spelled;
+    if (const auto bracket = spelled.find('['); bracket != std::string::npos) {
+      base_type = spelled.substr(0, bracket);
+      const std::string dims = spelled.substr(bracket);
+      if (dims == "[]") suffix = 144;
+      else if (dims.rfind("[<=", 0) == 0) suffix = 96;  // bounded: the bound is not in the hash
+      else {
+        suffix = 48;
+        f.capacity = std::stoi(dims.substr(1));
+      }
+    }
+    if (const auto le = base_type.find("<="); le != std::string::npos) {
+      f.string_capacity = std::stoi(base_type.substr(le + 2));
+      base_type = base_type.substr(0, le);
+    }
+    const auto it = msg_names.find(base_type);
+    int base = basic_type_id(it == msg_names.end() ? base_type : it->second);
+    if (base == 17 && f.string_capacity > 0) base = 21;
+    if (base == 18 && f.string_capacity > 0) base = 22;
+    if (base == 0) {
+      if (base_type == "char") fail("char is not supported");
+      const auto slash = base_type.find('/');
+      f.nested_type_name = slash == std::string::npos ? package + "/msg/" + base_type
+                                                      : base_type.substr(0, slash) + "/msg/" + base_type.substr(slash + 1);
+      base = 1;
+    }
+    f.type_id = base + suffix;
+    fields.push_back(f);
+  }
+  if (fields.empty()) fields.push_back({"structure_needs_at_least_one_member", 3, 0, 0, ""});
+  out[package + "/msg/" + type] = fields;
+}
 
 std::string hashable_json(const std::string& type_name, const TypeDescriptions& types) {
   const auto describe = [&](const std::string& name) {

@@ -23,6 +23,12 @@ using TypeDescriptions = std::map<std::string, std::vector<FieldDescription>>;  
 // type descriptions. Throws std::runtime_error naming the token it does not understand.
 void parse_idl_types(const std::string& idl_text, TypeDescriptions& out);
 
+// Parses a ROS 2 .msg file of `package`'s type `type` ("cell_msgs", "SimStatus") into its
+// description (constants and comments skipped; nested types as "pkg/msg/Type", a bare name
+// meaning this package's). Throws std::runtime_error naming the line it does not understand.
+void parse_msg_type(const std::string& package, const std::string& type, const std::string& msg_text,
+                    TypeDescriptions& out);
+
 // The descriptions of every type in idl/ (the files are compiled in).
 const TypeDescriptions& project_type_descriptions();
 

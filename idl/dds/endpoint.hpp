@@ -11,6 +11,7 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <algorithm>
+#include <cstdint>
 #include <functional>
 #include <stdexcept>
 #include <chrono>
@@ -58,7 +59,14 @@ class Writer {
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
 
-  bool write(Data& sample) { return writer_->write(&sample); }
+  // what is written, seen after each successful write (a recorder: record/recorder.hpp)
+  using Tap = std::function<void(const Data&)>;
+  void tap(Tap t) { tap_ = std::move(t); }
+  bool write(Data& sample) {
+    const bool ok = writer_->write(&sample);
+    if (ok && tap_) tap_(sample);
+    return ok;
+  }
   // Waits (bounded) until every matched reliable reader has acknowledged what was written: a
   // process that writes its last word and exits would otherwise take it down with its writer.
   bool flush(std::chrono::milliseconds limit) {
@@ -78,6 +86,7 @@ class Writer {
  private:
   eprosima::fastdds::dds::DomainParticipant& participant_;
   std::string name_;
+  Tap tap_;
   eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
   eprosima::fastdds::dds::DataWriter* writer_ = nullptr;
 };
@@ -88,9 +97,12 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
  public:
   using Data = typename PubSubType::type;
   using Callback = std::function<void(Data&&)>;
+  // what is received, with its writer's source timestamp (ns since the epoch), before the
+  // callback takes it (a recorder)
+  using Tap = std::function<void(const Data&, std::uint64_t source_ns)>;
   Reader(eprosima::fastdds::dds::DomainParticipant& p, const std::string& topic,
-         const eprosima::fastdds::dds::DataReaderQos& qos, Callback on_sample)
-      : participant_(p), on_sample_(std::move(on_sample)) {
+         const eprosima::fastdds::dds::DataReaderQos& qos, Callback on_sample, Tap tap = {})
+      : participant_(p), name_(topic), on_sample_(std::move(on_sample)), tap_(std::move(tap)) {
     subscriber_ = p.create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
     if (!subscriber_) throw std::runtime_error("cannot create a DDS subscriber for " + topic);
     eprosima::fastdds::dds::DataReaderQos q = qos;
@@ -110,6 +122,7 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
   Reader& operator=(const Reader&) = delete;
 
   eprosima::fastrtps::rtps::GUID_t guid() const { return reader_->guid(); }
+  const std::string& topic() const { return name_; }
   int matched() const {
     eprosima::fastdds::dds::SubscriptionMatchedStatus s;
     reader_->get_subscription_matched_status(s);
@@ -120,12 +133,17 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
   void on_data_available(eprosima::fastdds::dds::DataReader* reader) override {
     Data sample;
     eprosima::fastdds::dds::SampleInfo info;
-    while (reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK)
-      if (info.valid_data) on_sample_(std::move(sample));
+    while (reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK) {
+      if (!info.valid_data) continue;
+      if (tap_) tap_(sample, static_cast<std::uint64_t>(std::max<std::int64_t>(0, info.source_timestamp.to_ns())));
+      on_sample_(std::move(sample));
+    }
   }
 
   eprosima::fastdds::dds::DomainParticipant& participant_;
+  std::string name_;
   Callback on_sample_;
+  Tap tap_;
   eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
   eprosima::fastdds::dds::DataReader* reader_ = nullptr;
 };

@@ -19,11 +19,13 @@
 
 #include "dds/cli_flags.hpp"
 #include "servo/config/cli_numbers.hpp"
+#include "servo/config/plot_script.hpp"
 #include "servo/config/strict_yaml.hpp"
 #include "servo/config/regular_file.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
+#include "servo/app/servo_replay.hpp"
 #include "servo/app/servo_service.hpp"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/app/servo_view.hpp"
@@ -345,27 +347,21 @@ struct DecodeCommand {
   }
 };
 
-struct RunCommand {
-  servo::ServiceOptions svc;
-  std::string pattern_file, config_file, model, reference, projector_file, robust;
+// The flags that set the servo's configuration, shared by `run` and `replay` (a replay with
+// other flags shows what that configuration would have commanded).
+struct ServoConfigFlags {
+  std::string config_file, model, projector_file, robust;
   double z_hat = 0, gain = 0, divergence_ratio = -1;
   int points = -1;
   bool no_epipolar = false;
-  cell_dds::DdsFlags dds;
-  CLI::App* add(CLI::App& app) {
-    auto* c = app.add_subcommand("run", "run the controller as a DDS service");
-    c->add_option("--pattern", pattern_file, "pattern file")->required();
+  void add(CLI::App* c) {
     c->add_option("--config", config_file, "servo configuration (YAML)");
     c->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
     c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
     c->add_option("--gain", gain, "constant gain")->check(config::finite_in(1e-9, 1e3));
-    dds.add_to(*c);
-    c->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
-    c->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
     c->add_option("--projector", projector_file,
                   "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
                   "desired, current and mean models, and decoding with the epipolar check");
-    c->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
     c->add_option("--robust", robust,
                   "tukey | huber | none: M-estimator weights on the points (v = -lambda (W L)^+ W (s - s*); config "
                   "key robust)");
@@ -378,29 +374,94 @@ struct RunCommand {
         ->check(CLI::Range(0, 4096));
     c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
+  }
+  void apply_to(servo::ServoConfig& config) const {
+    if (!config_file.empty()) servo::load_servo_config(config_file, config);
+    if (!model.empty()) config.law.model = control::parse_interaction_model(model);
+    if (z_hat != 0) {
+      config::require_within("--z-hat", z_hat, 1e-3, 100);
+      config.law.z_hat_m = z_hat;
+    }
+    if (gain != 0) {
+      config::require_within("--gain", gain, 1e-6, 100);
+      config.law.gain = {gain, gain, 0};
+    }
+    if (!projector_file.empty()) config.projector = servo::load_projector_calibration(projector_file);
+    config.decoder.epipolar.enabled = !no_epipolar;
+    if (points >= 0) config.points = points;
+    if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
+    if (!robust.empty()) config.law.robust = control::parse_robust_estimator(robust);
+  }
+};
+
+struct RunCommand {
+  servo::ServiceOptions svc;
+  std::string pattern_file, reference;
+  ServoConfigFlags law;
+  cell_dds::DdsFlags dds;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("run", "run the controller as a DDS service");
+    c->add_option("--pattern", pattern_file, "pattern file")->required();
+    law.add(c);
+    dds.add_to(*c);
+    c->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
+    c->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
+    c->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
     return c;
   }
   int run() {
     svc.pattern = pattern_file;
     config::require_within("--lost-ms", svc.lost_ms, 1, 60000);
-    if (!config_file.empty()) servo::load_servo_config(config_file, svc.config);
-    if (!model.empty()) svc.config.law.model = control::parse_interaction_model(model);
-    if (z_hat != 0) {
-      config::require_within("--z-hat", z_hat, 1e-3, 100);
-      svc.config.law.z_hat_m = z_hat;
-    }
-    if (gain != 0) {
-      config::require_within("--gain", gain, 1e-6, 100);
-      svc.config.law.gain = {gain, gain, 0};
-    }
+    law.apply_to(svc.config);
     dds.apply_to(svc);
     svc.reference = reference;
-    if (!projector_file.empty()) svc.config.projector = servo::load_projector_calibration(projector_file);
-    svc.config.decoder.epipolar.enabled = !no_epipolar;
-    if (points >= 0) svc.config.points = points;
-    if (divergence_ratio >= 0) svc.config.divergence_ratio = divergence_ratio;
-    if (!robust.empty()) svc.config.law.robust = control::parse_robust_estimator(robust);
     return servo::run_servo_service(svc);
+  }
+};
+
+struct ReplayCommand {
+  servo::ReplayOptions replay;
+  ServoConfigFlags law;
+  bool no_plot = false, expect_identical = false;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("replay",
+                                 "feed a recorded run (cellsim serve --record) through the servo and compare the "
+                                 "twists it would send with the recorded ones");
+    c->add_option("recording", replay.recording, "MCAP file")->required();
+    c->add_option("--pattern", replay.pattern, "pattern file (the one the recorded servo decoded)")->required();
+    law.add(c);
+    c->add_option("--reference", replay.reference,
+                  "s* to start from (the recorded run's --reference, when it did not teach); default: taught from "
+                  "the recording's teach frame");
+    c->add_option("--lost-ms", replay.lost_ms, "as servo run --lost-ms")->capture_default_str();
+    c->add_flag("--autostart", replay.autostart, "as servo run --autostart");
+    c->add_option("-o,--output", replay.output, "folder for replay.csv and replay.png");
+    c->add_flag("--no-plot", no_plot, "do not draw replay.png");
+    c->add_flag("--expect-identical", expect_identical,
+                "exit 1 unless every recorded twist is reproduced bit for bit (for CI)");
+    return c;
+  }
+  int run() {
+    config::require_within("--lost-ms", replay.lost_ms, 1, 60000);
+    law.apply_to(replay.config);
+    replay.plot = !no_plot;
+    const servo::ReplayResult r = servo::run_replay(replay);
+    std::printf("servo replay: %s: %ld images, %ld recorded twists compared", replay.recording.c_str(), r.images,
+                r.compared);
+    if (r.differing == 0)
+      std::printf(": every one identical bit for bit");
+    else
+      std::printf(": %ld differ, max |difference| %.6g (m/s, rad/s), the first at t = %.3f s", r.differing,
+                  r.max_difference, r.first_differing_s.value_or(0));
+    std::printf("; %ld recorded twists not answered, %ld replayed twists not recorded\n", r.recorded_only,
+                r.replayed_only);
+    if (!replay.output.empty()) {
+      std::printf("servo replay: trace %s\n", (replay.output / "replay.csv").c_str());
+      if (replay.plot) config::run_plot_script("servo replay", "plot_replay.py", replay.output, replay.recording.filename().string());
+    }
+    std::fflush(stdout);
+    const bool identical = r.differing == 0 && r.recorded_only == 0 && r.compared > 0;
+    return expect_identical && !identical ? 1 : 0;
   }
 };
 
@@ -430,10 +491,12 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   DecodeCommand decode;
   RunCommand run;
+  ReplayCommand replay;
   ViewCommand view;
   const config::Subcommands commands = {
       {decode.add(app), [&] { return decode.run(); }},
       {run.add(app), [&] { return run.run(); }},
+      {replay.add(app), [&] { return replay.run(); }},
       {view.add(app), [&] { return view.run(); }},
   };
   // a backstop for the formats whose header read_rgb does not read: OpenCV refuses to

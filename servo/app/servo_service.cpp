@@ -22,6 +22,7 @@
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
 #include "servo/config/strict_yaml.hpp"
+#include "servo/app/servo_messages.hpp"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/pattern/pattern_file.hpp"
 
@@ -48,6 +49,8 @@ void save_reference(const std::filesystem::path& file, const std::vector<control
   std::ofstream(file) << j.dump(1) << "\n";
 }
 
+}  // namespace
+
 std::vector<control::Feature> load_reference(const std::filesystem::path& file) {
   const std::string text = config::read_regular_file(file, 16u << 20, "reference file");
   std::vector<control::Feature> out;
@@ -71,6 +74,8 @@ std::vector<control::Feature> load_reference(const std::filesystem::path& file) 
   return out;
 }
 
+namespace {
+
 // What the DDS listener threads hand to the service loop; every queue bounded.
 struct Inbox {
   static constexpr std::size_t kMaxImages = 2, kMaxCommands = 64, kMaxFrameInfo = 16;
@@ -90,14 +95,6 @@ struct Inbox {
     cv.notify_all();
   }
 };
-
-Stamp to_stamp(const builtin_interfaces::msg::dds_::Time_& t) { return {t.sec(), t.nanosec()}; }
-builtin_interfaces::msg::dds_::Time_ to_time(const Stamp& s) {
-  builtin_interfaces::msg::dds_::Time_ t;
-  t.sec(s.sec);
-  t.nanosec(s.nanosec);
-  return t;
-}
 
 class ServoService {
  public:
@@ -187,9 +184,7 @@ class ServoService {
       }
       take_frame_info();
       lock.unlock();
-      ImageView view{stamp, img.encoding(), img.width(), img.height(), img.step(), img.is_bigendian(),
-                     img.data().data(), img.data().size()};
-      const ServoReply r = machine_->on_image(view, now());
+      const ServoReply r = machine_->on_image(image_view(img), now());
       if (r.taught && !o_.reference.empty()) save_reference(o_.reference, machine_->pipeline().reference());
       if (r.answer) publish(r, true);
       lock.lock();
@@ -206,77 +201,24 @@ class ServoService {
  private:
   // called with the lock held
   void take_frame_info() {
-    while (!in_.sim_statuses.empty()) {
-      const SimStatus_& s = in_.sim_statuses.front();
-      namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
-      // LOADING, NOTICE and ENDED statuses belong to no frame
-      if (s.state() != SST::LOADING && s.state() != SST::NOTICE && s.state() != SST::ENDED)
-        machine_->on_sim_status(
-            {to_stamp(s.header().stamp()), s.applies_twist(), s.state() == SST::TEACHING, s.state() == SST::RUNNING});
-      in_.sim_statuses.pop_front();
-    }
-    while (!in_.poses.empty()) {
-      const PoseStamped_& p = in_.poses.front();
-      const auto& q = p.pose().orientation();
-      const Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());
-      if (std::isfinite(quat.norm()) && std::abs(quat.norm() - 1.0) < 1e-3) {
-        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        T.translation() = Eigen::Vector3d(p.pose().position().x(), p.pose().position().y(), p.pose().position().z());
-        T.linear() = quat.normalized().toRotationMatrix();
-        machine_->on_pose(to_stamp(p.header().stamp()), T);
-      }
-      in_.poses.pop_front();
-    }
-  }
-
-  static CameraInfoMsg to_info(const CameraInfo_& c) {
-    CameraInfoMsg m;
-    m.width = c.width();
-    m.height = c.height();
-    m.k.assign(c.k().begin(), c.k().end());
-    m.d = c.d();
-    return m;
+    for (const auto& s : in_.sim_statuses)
+      if (const auto f = frame_status(s)) machine_->on_sim_status(*f);
+    in_.sim_statuses.clear();
+    for (const auto& p : in_.poses)
+      if (const auto T = camera_pose(p)) machine_->on_pose(to_stamp(p.header().stamp()), *T);
+    in_.poses.clear();
   }
 
   // Publishes a reply: status before the twist (the sim reads both for the frame).
   void publish(const ServoReply& r, bool with_spots) {
-    if (with_spots && r.spots) publish_spots(r);
-    cell_msgs::msg::dds_::ServoStatus_ s;
-    s.header().stamp(to_time(r.stamp));
-    s.header().frame_id(cell_dds::kCameraFrame);
-    s.state(static_cast<uint8_t>(r.state));
-    s.iteration(r.iteration);
-    s.error_norm(r.error_norm);
-    s.decoded(r.decoded);
-    s.matched(r.matched);
-    s.reason(r.reason);
-    status_->write(s);
-    geometry_msgs::msg::dds_::TwistStamped_ t;
-    t.header().stamp(to_time(r.stamp));
-    t.header().frame_id(cell_dds::kCameraFrame);
-    t.twist().linear().x(r.twist[0]);
-    t.twist().linear().y(r.twist[1]);
-    t.twist().linear().z(r.twist[2]);
-    t.twist().angular().x(r.twist[3]);
-    t.twist().angular().y(r.twist[4]);
-    t.twist().angular().z(r.twist[5]);
-    twist_->write(t);
-  }
-
-  void publish_spots(const ServoReply& r) {
-    cell_msgs::msg::dds_::DecodedSpots_ m;
-    m.header().stamp(to_time(r.stamp));
-    m.header().frame_id(cell_dds::kCameraFrame);
-    m.detected(static_cast<uint32_t>(r.detected));
-    for (const auto& s : *r.spots) {
-      cell_msgs::msg::dds_::Spot_ x;
-      x.row(static_cast<int16_t>(s.row));
-      x.col(static_cast<int16_t>(s.col));
-      x.u(s.u);
-      x.v(s.v);
-      m.spots().push_back(x);
+    if (with_spots && r.spots) {
+      auto m = spots_message(r);
+      spots_->write(m);
     }
-    spots_->write(m);
+    auto s = status_message(r);
+    status_->write(s);
+    auto t = twist_message(r);
+    twist_->write(t);
   }
 
   std::string topic(const char* t) const { return cell_dds::namespaced(o_.ns, t); }

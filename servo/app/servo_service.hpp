@@ -27,6 +27,10 @@ struct ServiceOptions {
 
 int run_servo_service(const ServiceOptions& options);
 
+// s* as `servo run --reference` writes it after teaching (JSON list of features). Throws
+// std::runtime_error naming the file.
+std::vector<control::Feature> load_reference(const std::filesystem::path& file);
+
 // The decoder separates the projector's three primaries; a pattern of more colours would
 // decode to nothing, so it is refused at load.
 inline constexpr int kDecodableColours = 3;

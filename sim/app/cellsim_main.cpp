@@ -563,6 +563,7 @@ struct StudyCommand {
 
 struct ServeCommand {
   std::string scenario, mode = "lockstep", trace;
+  bool no_images = false;
   cellsim::ServiceOptions svc;
   cell_dds::DdsFlags dds;
   CLI::App* add(CLI::App& app) {
@@ -583,6 +584,10 @@ struct ServeCommand {
     c->add_option("--trace", trace, "folder for trace.csv");
     c->add_option("--scenarios", svc.scenarios_dir,
                   "the folder LOAD_SCENARIO may read scenarios from, links resolved (default: the served scenario's)");
+    c->add_option("--record", svc.record,
+                  "record every message on the wire into this MCAP file (ROS 2 profile: ros2 bag info, Foxglove, "
+                  "servo replay)");
+    c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording (long runs)");
     return c;
   }
   int run() {
@@ -594,6 +599,8 @@ struct ServeCommand {
     svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
     dds.apply_to(svc);
     svc.trace_dir = trace;
+    svc.record_images = !no_images;
+    if (no_images && svc.record.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
     return cellsim::run_sim_service(svc);
   }
 };

@@ -22,6 +22,7 @@
 #include "dds/ros_graph.hpp"
 #include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
+#include "record/recorder.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
@@ -163,6 +164,7 @@ class SimService {
     announce_conditions(cell_->scenario, o.mode);
     machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cell_params(o), sim::make_robot(*cell_));
     allowed_dir_ = allowed_scenarios_dir(o);
+    open_recording(o);
     make_endpoints(o);
     publish_camera_info();
     publish_description();
@@ -293,21 +295,39 @@ class SimService {
         p, topic(cell_dds::kTfTopic), cell_dds::writer_qos(Stream::kFrame));
     description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
         p, topic(cell_dds::kRobotDescriptionTopic), cell_dds::writer_qos(Stream::kLatched));
-    twist_in_ = std::make_unique<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>>(
+    using cell_record::recording;
+    using TwistType = geometry_msgs::msg::dds_::TwistStamped_PubSubType;
+    using ControlType = cell_msgs::msg::dds_::SimControl_PubSubType;
+    using StatusType = cell_msgs::msg::dds_::ServoStatus_PubSubType;
+    twist_in_ = std::make_unique<cell_dds::Reader<TwistType>>(
         p, topic(cell_dds::kTwistTopic), cell_dds::reader_qos(Stream::kFrame),
-        [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); });
-    control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
+        [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); },
+        recording<TwistType>(recorder_.get(), topic(cell_dds::kTwistTopic), Stream::kFrame));
+    // every command that reaches the cell, the autorun's own included, is recorded here once
+    control_in_ = std::make_unique<cell_dds::Reader<ControlType>>(
         p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
-        [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); });
-    status_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>>(
-        p, topic(cell_dds::kStatusTopic), cell_dds::reader_qos(Stream::kLatched), [this](ServoStatus_&& s) {
+        [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); },
+        recording<ControlType>(recorder_.get(), topic(cell_dds::kControlTopic), Stream::kCommand));
+    status_in_ = std::make_unique<cell_dds::Reader<StatusType>>(
+        p, topic(cell_dds::kStatusTopic), cell_dds::reader_qos(Stream::kLatched),
+        [this](ServoStatus_&& s) {
           {
             std::lock_guard<std::mutex> l(inbox_.m);
             inbox_.servo_seen = true;
             if (s.reason().rfind("taught", 0) == 0) inbox_.taught_seen = true;
           }
           inbox_.push(inbox_.statuses, std::move(s), Inbox::kMaxStatuses);
-        });
+        },
+        recording<StatusType>(recorder_.get(), topic(cell_dds::kStatusTopic), Stream::kLatched));
+    if (recorder_) {
+      // the servo's decoded spots: read only to be recorded
+      using SpotsType = cell_msgs::msg::dds_::DecodedSpots_PubSubType;
+      spots_in_ = std::make_unique<cell_dds::Reader<SpotsType>>(
+          p, topic(cell_dds::kSpotsTopic), cell_dds::reader_qos(Stream::kFrame),
+          [](cell_msgs::msg::dds_::DecodedSpots_&&) {},
+          recording<SpotsType>(recorder_.get(), topic(cell_dds::kSpotsTopic), Stream::kFrame));
+    }
+    record_writes();
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
           p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
@@ -317,10 +337,39 @@ class SimService {
                                                           sim_status_->guid(), truth_->guid(), clock_->guid(),
                                                           joints_->guid(),  tf_->guid(),     description_->guid()};
     if (control_out_) writers.push_back(control_out_->guid());
-    node_ = std::make_unique<cell_dds::NodeAnnouncement>(
-        p, "cellsim",
-        std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_in_->guid(), control_in_->guid(), status_in_->guid()},
-        writers, o.ns.empty() ? std::string("/") : "/" + o.ns);
+    std::vector<eprosima::fastrtps::rtps::GUID_t> readers{twist_in_->guid(), control_in_->guid(), status_in_->guid()};
+    if (spots_in_) readers.push_back(spots_in_->guid());
+    node_ = std::make_unique<cell_dds::NodeAnnouncement>(p, "cellsim", readers, writers,
+                                                         o.ns.empty() ? std::string("/") : "/" + o.ns);
+  }
+
+  // --record: the recording is open before the first latched message goes out
+  void open_recording(const ServiceOptions& o) {
+    if (o.record.empty()) return;
+    cell_record::RecordOptions r;
+    r.file = o.record;
+    r.images = o.record_images;
+    recorder_ = std::make_unique<cell_record::Recorder>(
+        r, mcap::KeyValues{{"scenario", cell_->scenario.name},
+                           {"scenario_file", o.scenario.string()},
+                           {"seed", std::to_string(cell_->scenario.seed)},
+                           {"timing", o.mode == TimingMode::kLockstep ? "lockstep" : "realtime"},
+                           {"images", o.record_images ? "recorded" : "left out (--record-no-images)"}});
+  }
+
+  // what cellsim writes, each as it goes out (the autorun's commands are recorded as received)
+  void record_writes() {
+    using cell_dds::Stream;
+    auto* r = recorder_.get();
+    cell_record::record_writes(r, *image_, Stream::kFrame);
+    cell_record::record_writes(r, *info_, Stream::kLatched);
+    cell_record::record_writes(r, *pose_, Stream::kFrame);
+    cell_record::record_writes(r, *sim_status_, Stream::kFrame);
+    cell_record::record_writes(r, *truth_, Stream::kFrame);
+    cell_record::record_writes(r, *clock_, Stream::kClock);
+    cell_record::record_writes(r, *joints_, Stream::kFrame);
+    cell_record::record_writes(r, *tf_, Stream::kFrame);
+    cell_record::record_writes(r, *description_, Stream::kLatched);
   }
 
   void open_trace(const ServiceOptions& o) {
@@ -578,6 +627,14 @@ class SimService {
     const std::string end = session_end_reason();
     std::printf("cellsim: session ended: %s\n", end.c_str());
     if (trace_.is_open()) trace_ << "# session ended: " << end << '\n' << std::flush;
+    if (recorder_) {
+      // the recording's path, size and what it holds per topic (what an MCAP reader must find)
+      const mcap::WriteSummary w = recorder_->close();
+      std::printf("cellsim: recorded %s\n", recorder_->describe(w).c_str());
+      std::string counts;
+      for (const auto& [t, n] : w.topic_messages) counts += (counts.empty() ? "" : ", ") + t + " " + std::to_string(n);
+      std::printf("cellsim: recorded messages: %s\n", counts.c_str());
+    }
     std::fflush(stdout);
   }
 
@@ -591,6 +648,8 @@ class SimService {
   sim::RenderScratch scratch_;
   Inbox inbox_;
   std::ofstream trace_;
+  // before the participant: destroyed after every endpoint that records into it
+  std::unique_ptr<cell_record::Recorder> recorder_;
   cell_dds::ParticipantPtr participant_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>> image_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>> info_;
@@ -608,6 +667,7 @@ class SimService {
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>> twist_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>> control_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status_in_;
+  std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType>> spots_in_;
   std::unique_ptr<cell_dds::NodeAnnouncement> node_;
 };
 

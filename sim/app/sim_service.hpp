@@ -28,6 +28,9 @@ struct ServiceOptions {
   // LOAD_SCENARIO (a remote peer's command) reads scenario files only from under this folder,
   // links resolved; empty: the folder of `scenario` (--scenarios DIR)
   std::filesystem::path scenarios_dir;
+  // --record FILE.mcap: every message on the wire, as a ROS 2 bag (record/recorder.hpp)
+  std::filesystem::path record;
+  bool record_images = true;  // false: --record-no-images
 };
 
 // Runs until SIGINT/SIGTERM, max_frames or convergence (with exit_on_converged). Returns the

@@ -1,5 +1,7 @@
 #include "sim/loop/experiment.hpp"
 
+#include "servo/config/plot_script.hpp"
+
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -330,23 +332,7 @@ class Experiment {
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) { return Experiment(cell, o).run(); }
 
 bool run_plot_script(const std::string& script_name, const std::filesystem::path& dir, const std::string& title) {
-  const std::filesystem::path script = std::filesystem::path(CELL_SOURCE_DIR) / "bin" / script_name;
-  // an argument vector, never a shell: the title comes from a scenario's name: and the folder
-  // from the command line, and either may hold quotes (issue 18, item 19)
-  std::vector<std::string> args = {"/usr/bin/python3", script.string(), dir.string(), "--title", title};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  int status = 0;
-  const int err = posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ);
-  const bool ok = err == 0 && waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0;
-  if (!ok) {
-    std::fprintf(stderr, "cellsim: plotting failed (%s %s); the tables are in %s\n", args[0].c_str(), script.c_str(),
-                 dir.c_str());
-    return false;
-  }
-  return true;
+  return config::run_plot_script("cellsim", script_name, dir, title);
 }
 
 bool plot_experiment(const std::filesystem::path& dir, const std::string& title) {

@@ -1,0 +1,205 @@
+#include "record/recorder.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <cstdio>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+namespace cell_record {
+
+// idl/ros2/cell_msgs/msg/*.msg, compiled in (idl/CMakeLists.txt), by "cell_msgs/msg/Type"
+const std::map<std::string, std::string>& shipped_msg_files();
+
+namespace {
+
+std::string msg_spelling(const cell_dds::FieldDescription& f) {
+  static const std::map<int, std::string> basic{{2, "int8"},    {3, "uint8"},    {4, "int16"},  {5, "uint16"},
+                                                {6, "int32"},   {7, "uint32"},   {8, "int64"},  {9, "uint64"},
+                                                {10, "float32"}, {11, "float64"}, {15, "bool"}, {16, "byte"},
+                                                {17, "string"}, {18, "wstring"}, {21, "string"}, {22, "wstring"}};
+  const int base = f.type_id % 48;
+  const int kind = f.type_id - base;  // 0 single, 48 array, 96 bounded sequence, 144 sequence
+  std::string t;
+  if (base == 1) {
+    // "pkg/msg/Type" is spelled "pkg/Type" in a .msg file
+    const std::string& n = f.nested_type_name;
+    const auto first = n.find('/'), last = n.rfind('/');
+    t = n.substr(0, first) + "/" + n.substr(last + 1);
+  } else {
+    const auto it = basic.find(base);
+    if (it == basic.end()) throw std::runtime_error("field " + f.name + ": type id " + std::to_string(f.type_id) + " has no .msg spelling");
+    t = it->second;
+    if (base == 21 || base == 22) t += "<=" + std::to_string(f.string_capacity);
+  }
+  if (kind == 48) t += "[" + std::to_string(f.capacity) + "]";
+  if (kind == 96) t += "[<=" + std::to_string(f.capacity) + "]";
+  if (kind == 144) t += "[]";
+  return t;
+}
+
+// the types `ros_type` uses, each once, in the order a depth-first walk meets them
+void dependencies(const std::string& ros_type, std::vector<std::string>& order, std::set<std::string>& seen) {
+  const auto& types = cell_dds::project_type_descriptions();
+  const auto it = types.find(ros_type);
+  if (it == types.end()) throw std::runtime_error(ros_type + ": not one of the project's types");
+  for (const auto& f : it->second) {
+    if (f.nested_type_name.empty() || seen.count(f.nested_type_name)) continue;
+    seen.insert(f.nested_type_name);
+    order.push_back(f.nested_type_name);
+    dependencies(f.nested_type_name, order, seen);
+  }
+}
+
+}  // namespace
+
+std::string msg_definition(const std::string& ros_type) {
+  if (const auto it = shipped_msg_files().find(ros_type); it != shipped_msg_files().end()) return it->second;
+  const auto& types = cell_dds::project_type_descriptions();
+  const auto it = types.find(ros_type);
+  if (it == types.end()) throw std::runtime_error(ros_type + ": not one of the project's types");
+  std::string text;
+  for (const auto& f : it->second) text += msg_spelling(f) + " " + f.name + "\n";
+  return text;
+}
+
+std::string ros2msg_schema(const std::string& ros_type) {
+  std::vector<std::string> order;
+  std::set<std::string> seen{ros_type};
+  dependencies(ros_type, order, seen);
+  std::string text = msg_definition(ros_type);
+  for (const auto& dep : order) {
+    if (!text.empty() && text.back() != '\n') text += '\n';
+    // "MSG: pkg/Type", as the .msg files spell a field's type and as rosbag2 and Foxglove read it
+    const std::string spelled = dep.substr(0, dep.find('/')) + dep.substr(dep.rfind('/'));
+    text += std::string(80, '=') + "\nMSG: " + spelled + "\n" + msg_definition(dep);
+  }
+  return text;
+}
+
+std::string offered_qos_yaml(cell_dds::Stream stream) {
+  using namespace eprosima::fastdds::dds;
+  const DataWriterQos q = cell_dds::writer_qos(stream);
+  // ROS 2's "infinite" duration, as rosbag2 writes it
+  const std::string infinite = "\n    sec: 9223372036\n    nsec: 854775807";
+  std::ostringstream y;
+  y << "- history: " << (q.history().kind == KEEP_ALL_HISTORY_QOS ? "keep_all" : "keep_last")
+    << "\n  depth: " << q.history().depth
+    << "\n  reliability: " << (q.reliability().kind == RELIABLE_RELIABILITY_QOS ? "reliable" : "best_effort")
+    << "\n  durability: " << (q.durability().kind == TRANSIENT_LOCAL_DURABILITY_QOS ? "transient_local" : "volatile")
+    << "\n  deadline:" << infinite << "\n  lifespan:" << infinite << "\n  liveliness: automatic"
+    << "\n  liveliness_lease_duration:" << infinite << "\n  avoid_ros_namespace_conventions: false";
+  return y.str();
+}
+
+std::string ros_topic_name(const std::string& dds_topic) {
+  return dds_topic.rfind("rt/", 0) == 0 ? dds_topic.substr(2) : dds_topic;
+}
+
+std::uint64_t wall_ns() {
+  return static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
+}
+
+Recorder::Recorder(RecordOptions options, const mcap::KeyValues& metadata) : options_(std::move(options)) {
+  mcap::WriterOptions w;
+  w.profile = "ros2";
+  w.library = "cellsim (coded-light visual servoing cell)";
+  writer_ = std::make_unique<mcap::Writer>(options_.file, w);
+  writer_->add_metadata("cellsim", metadata);
+  thread_ = std::thread([this] { drain(); });
+}
+
+Recorder::~Recorder() {
+  try {
+    close();
+  } catch (...) {
+    // a destructor must not throw; close() says what failed when it is called
+  }
+}
+
+bool Recorder::wanted(const std::string& dds_topic) const {
+  return options_.images || dds_topic.find("camera/image_raw") == std::string::npos;
+}
+
+void Recorder::enqueue(Pending&& p) {
+  std::unique_lock<std::mutex> l(m_);
+  room_.wait(l, [&] { return stopping_ || queued_bytes_ + p.bytes->length <= kMaxQueuedBytes || queue_.empty(); });
+  if (stopping_) return;
+  p.log_ns = wall_ns();  // under the lock: log times rise in the order the queue is written
+  queued_bytes_ += p.bytes->length;
+  queue_.push_back(std::move(p));
+  queued_.notify_one();
+}
+
+void Recorder::drain() {
+  // the loop comes first: the writer runs when a core is idle (in lockstep one always is,
+  // while the other process renders or decodes), and catches up at close()
+  sched_param idle{};
+  pthread_setschedparam(pthread_self(), SCHED_IDLE, &idle);
+  std::unique_lock<std::mutex> l(m_);
+  while (true) {
+    queued_.wait(l, [&] { return stopping_ || !queue_.empty(); });
+    if (queue_.empty()) return;  // stopping, and all written
+    Pending p = std::move(queue_.front());
+    queue_.pop_front();
+    l.unlock();
+    try {
+      write(p);
+    } catch (const std::exception& e) {
+      // a full disk: the run goes on, the recording stops, said once
+      std::fprintf(stderr, "cellsim: %s; recording stopped\n", e.what());
+      full_ = true;
+    }
+    l.lock();
+    queued_bytes_ -= p.bytes->length;
+    room_.notify_all();
+  }
+}
+
+void Recorder::write(const Pending& p) {
+  if (full_) return;
+  if (writer_->bytes_written() + p.bytes->length > options_.max_bytes) {
+    full_ = true;
+    std::fprintf(stderr, "cellsim: %s: recording stopped at %llu MB (the limit); the run goes on\n",
+                 options_.file.c_str(), static_cast<unsigned long long>(options_.max_bytes >> 20));
+    return;
+  }
+  auto ch = channels_.find(p.dds_topic);
+  if (ch == channels_.end()) {
+    auto sc = schemas_.find(p.ros_type);
+    if (sc == schemas_.end())
+      sc = schemas_.emplace(p.ros_type, writer_->add_schema(p.ros_type, "ros2msg", ros2msg_schema(p.ros_type))).first;
+    const mcap::KeyValues meta{{"offered_qos_profiles", offered_qos_yaml(p.stream)},
+                               {"topic_type_hash", cell_dds::type_hash(p.ros_type, cell_dds::project_type_descriptions())}};
+    ch = channels_.emplace(p.dds_topic, writer_->add_channel(sc->second, ros_topic_name(p.dds_topic), "cdr", meta)).first;
+  }
+  writer_->write_message(ch->second, sequences_[ch->second]++, p.log_ns, p.publish_ns,
+                         p.bytes->data, p.bytes->length);
+}
+
+mcap::WriteSummary Recorder::close() {
+  {
+    std::lock_guard<std::mutex> l(m_);
+    if (closed_) return summary_;
+    closed_ = true;
+    stopping_ = true;  // what is queued is still written
+  }
+  queued_.notify_all();
+  room_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  summary_ = writer_->close();
+  return summary_;
+}
+
+std::string Recorder::describe(const mcap::WriteSummary& s) const {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, " (%.1f MB, %llu messages on %zu topics%s)", static_cast<double>(s.bytes) / 1e6,
+                static_cast<unsigned long long>(s.messages), s.topic_messages.size(),
+                full_ ? "; stopped at the size limit" : "");
+  return options_.file.string() + buf;
+}
+
+}  // namespace cell_record

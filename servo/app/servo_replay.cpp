@@ -1,0 +1,187 @@
+#include "servo/app/servo_replay.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cell_msgsPubSubTypes.h"
+#include "dds/topics.hpp"
+#include "geometry_msgsPubSubTypes.h"
+#include "mcap/mcap_reader.hpp"
+#include "record/recorder.hpp"
+#include "sensor_msgsPubSubTypes.h"
+#include "servo/app/servo_messages.hpp"
+#include "servo/app/servo_service.hpp"
+
+namespace servo {
+namespace {
+
+// One twist, recorded or replayed, with the servo's words on it.
+struct TwistAt {
+  Stamp stamp;
+  std::uint64_t log_ns = 0;  // recorded: when the recorder received it
+  control::Vector6d twist = control::Vector6d::Zero();
+  int state = 0;
+  double error_norm = 0;
+  std::uint32_t decoded = 0;
+};
+
+double seconds(const Stamp& s) { return s.sec + s.nanosec * 1e-9; }
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// the cell's topic in a recording, under any namespace ("/cell2/camera/image_raw")
+bool is_topic(const std::string& recorded, const char* dds_topic) {
+  const std::string t = cell_record::ros_topic_name(dds_topic);
+  return recorded.size() >= t.size() && recorded.compare(recorded.size() - t.size(), t.size(), t) == 0 &&
+         (recorded.size() == t.size() || recorded[recorded.size() - t.size()] == '/');
+}
+
+template <typename PubSubType>
+typename PubSubType::type decode(const mcap::Channel& c, const mcap::MessageView& m, const std::string& file) {
+  PubSubType type;
+  eprosima::fastrtps::rtps::SerializedPayload_t p(static_cast<std::uint32_t>(m.size));
+  if (m.size > 0) std::memcpy(p.data, m.data, m.size);
+  p.length = static_cast<std::uint32_t>(m.size);
+  typename PubSubType::type out;
+  bool ok = false;
+  try {
+    ok = type.deserialize(&p, &out);
+  } catch (const std::exception&) {
+    ok = false;
+  }
+  if (!ok)
+    throw std::runtime_error(file + ": message " + std::to_string(m.sequence) + " on " + c.topic + " does not decode as " +
+                             type.getName());
+  return out;
+}
+
+class Replay {
+ public:
+  explicit Replay(const ReplayOptions& o) : o_(o) {
+    const pattern::MArray marray = load_decodable_pattern(o.pattern);
+    if (o.config.projector) check_projector_against_pattern(*o.config.projector, marray, o.pattern);
+    auto pipeline = std::make_unique<ServoPipeline>(pattern::WindowTable(marray, {3, 3}), o.config);
+    if (!o.reference.empty()) pipeline->set_reference(load_reference(o.reference));
+    machine_ = std::make_unique<ServoStateMachine>(std::move(pipeline), ServoTiming{o.lost_ms / 1e3, o.autostart});
+    const ServoReply ready = machine_->ready();
+    ready_ = TwistAt{ready.stamp, 0, ready.twist, static_cast<int>(ready.state), 0, 0};
+  }
+
+  void on_message(const mcap::Channel& c, const mcap::MessageView& m) {
+    if (!t0_) t0_ = m.log_time_ns;
+    const double now = static_cast<double>(m.log_time_ns - std::min(*t0_, m.log_time_ns)) * 1e-9;
+    if (auto lost = machine_->tick(now)) replayed(*lost);
+    const std::string& file = o_.recording.string();
+    if (is_topic(c.topic, cell_dds::kImageTopic)) {
+      const auto img = decode<sensor_msgs::msg::dds_::Image_PubSubType>(c, m, file);
+      if (images_++ == 0) first_image_ns_ = m.log_time_ns;
+      const ServoReply r = machine_->on_image(image_view(img), now);
+      if (r.answer) replayed(r);
+    } else if (is_topic(c.topic, cell_dds::kCameraInfoTopic)) {
+      const std::string why = machine_->on_camera_info(to_info(decode<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(c, m, file)));
+      if (!why.empty()) std::fprintf(stderr, "servo replay: %s: %s: %s\n", file.c_str(), c.topic.c_str(), why.c_str());
+    } else if (is_topic(c.topic, cell_dds::kSimStatusTopic)) {
+      if (const auto f = frame_status(decode<cell_msgs::msg::dds_::SimStatus_PubSubType>(c, m, file))) machine_->on_sim_status(*f);
+    } else if (is_topic(c.topic, cell_dds::kCameraPoseTopic)) {
+      const auto p = decode<geometry_msgs::msg::dds_::PoseStamped_PubSubType>(c, m, file);
+      if (const auto T = camera_pose(p)) machine_->on_pose(to_stamp(p.header().stamp()), *T);
+    } else if (is_topic(c.topic, cell_dds::kControlTopic)) {
+      machine_->on_command(decode<cell_msgs::msg::dds_::SimControl_PubSubType>(c, m, file).command());
+    } else if (is_topic(c.topic, cell_dds::kTwistTopic)) {
+      const auto t = decode<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(c, m, file);
+      TwistAt r;
+      r.stamp = to_stamp(t.header().stamp());
+      r.log_ns = m.log_time_ns;
+      const auto& l = t.twist().linear();
+      const auto& a = t.twist().angular();
+      r.twist << l.x(), l.y(), l.z(), a.x(), a.y(), a.z();
+      recorded_.push_back(r);
+    }
+  }
+
+  ReplayResult compare_and_write() {
+    ReplayResult res;
+    res.images = images_;
+    // replayed twists by stamp, in order (a republished frame is answered again)
+    std::map<std::pair<std::int32_t, std::uint32_t>, std::deque<TwistAt>> by_stamp;
+    // the servo's "ready" twist is in the recording when the recorder heard it before any
+    // frame was answered (cellsim started first)
+    if (!recorded_.empty() && (images_ == 0 || recorded_.front().log_ns < first_image_ns_))
+      by_stamp[{ready_.stamp.sec, ready_.stamp.nanosec}].push_back(ready_);
+    for (const auto& r : replayed_) by_stamp[{r.stamp.sec, r.stamp.nanosec}].push_back(r);
+    std::ofstream csv;
+    if (!o_.output.empty()) {
+      std::filesystem::create_directories(o_.output);
+      csv.open(o_.output / "replay.csv");
+      if (!csv) throw std::runtime_error((o_.output / "replay.csv").string() + ": cannot write");
+      csv << "# servo replay of " << o_.recording.string() << ": each recorded twist and the one the replayed servo "
+          << "sends for the same stamp\n"
+          << "t,rec_vx,rec_vy,rec_vz,rec_wx,rec_wy,rec_wz,vx,vy,vz,wx,wy,wz,state,error_norm,decoded,max_abs_diff,"
+             "identical\n"
+          << std::setprecision(17);
+    }
+    for (const auto& rec : recorded_) {
+      auto it = by_stamp.find({rec.stamp.sec, rec.stamp.nanosec});
+      if (it == by_stamp.end() || it->second.empty()) {
+        ++res.recorded_only;
+        continue;
+      }
+      const TwistAt rep = it->second.front();
+      it->second.pop_front();
+      ++res.compared;
+      bool identical = true;
+      double diff = 0;
+      for (int k = 0; k < 6; ++k) {
+        identical = identical && same_bits(rec.twist[k], rep.twist[k]);
+        diff = std::max(diff, std::abs(rec.twist[k] - rep.twist[k]));
+      }
+      if (!identical) {
+        ++res.differing;
+        if (!res.first_differing_s) res.first_differing_s = seconds(rec.stamp);
+      }
+      res.max_difference = std::max(res.max_difference, diff);
+      if (csv.is_open()) {
+        csv << seconds(rec.stamp);
+        for (int k = 0; k < 6; ++k) csv << ',' << rec.twist[k];
+        for (int k = 0; k < 6; ++k) csv << ',' << rep.twist[k];
+        csv << ',' << rep.state << ',' << rep.error_norm << ',' << rep.decoded << ',' << diff << ',' << (identical ? 1 : 0)
+            << '\n';
+      }
+    }
+    for (const auto& [stamp, left] : by_stamp) res.replayed_only += static_cast<long>(left.size());
+    return res;
+  }
+
+ private:
+  void replayed(const ServoReply& r) {
+    replayed_.push_back({r.stamp, 0, r.twist, static_cast<int>(r.state), r.error_norm, r.decoded});
+  }
+
+  const ReplayOptions& o_;
+  std::unique_ptr<ServoStateMachine> machine_;
+  std::optional<std::uint64_t> t0_;
+  long images_ = 0;
+  std::uint64_t first_image_ns_ = 0;
+  TwistAt ready_;
+  std::vector<TwistAt> recorded_, replayed_;
+};
+
+}  // namespace
+
+ReplayResult run_replay(const ReplayOptions& options) {
+  Replay replay(options);
+  const mcap::ReadSummary s = mcap::read_mcap_file(
+      options.recording, [&](const mcap::Channel& c, const mcap::MessageView& m) { replay.on_message(c, m); });
+  if (s.profile != "ros2")
+    std::fprintf(stderr, "servo replay: %s: profile '%s', not ros2; read as the cell's topics anyway\n",
+                 options.recording.c_str(), s.profile.c_str());
+  return replay.compare_and_write();
+}
+
+}  // namespace servo

@@ -1,0 +1,42 @@
+// `servo replay FILE.mcap`: a recorded run (cellsim serve --record) fed through the servo's
+// state machine, message by message in the recording's order: camera_info, the sim status
+// and camera pose of each frame, the commands, the images, with the recording's log times
+// as the clock. The twists it would have sent are compared with the recorded ones, stamp by
+// stamp: an unchanged servo reproduces them bit for bit; another model, law or decoder
+// shows what it would have commanded on exactly those frames.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+
+#include "servo/pipeline/servo_pipeline.hpp"
+
+namespace servo {
+
+struct ReplayOptions {
+  std::filesystem::path recording;
+  std::filesystem::path pattern;
+  ServoConfig config;
+  std::filesystem::path reference;  // s* to start from (the run's --reference); empty: taught from the recording
+  double lost_ms = 500;
+  bool autostart = false;
+  std::filesystem::path output;  // replay.csv (and replay.png); empty: nothing written
+  bool plot = true;
+};
+
+struct ReplayResult {
+  long images = 0;              // recorded images fed to the servo
+  long compared = 0;            // recorded twists with a replayed twist of the same stamp
+  long differing = 0;           // of those, how many differ in any bit
+  double max_difference = 0;    // largest |replayed - recorded| over all components (m/s, rad/s)
+  std::optional<double> first_differing_s;  // the stamp of the first that differs (s)
+  long recorded_only = 0;       // recorded twists the replay did not answer
+  long replayed_only = 0;       // replayed twists the recording does not hold (its writer was not matched yet)
+};
+
+// Throws std::runtime_error (one line naming the file) for a recording that cannot be read
+// or a message that does not decode as its topic's type.
+ReplayResult run_replay(const ReplayOptions& options);
+
+}  // namespace servo

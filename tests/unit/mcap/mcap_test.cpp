@@ -1,0 +1,201 @@
+// The MCAP writer and reader (idl/mcap): what is written reads back record for record, and
+// every malformed file the issue names (truncated, wrong magic, a length past the end, a
+// 4 GB claimed length, an unknown schema or channel) is one error naming the file and offset.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "mcap/mcap_reader.hpp"
+#include "mcap/mcap_writer.hpp"
+
+namespace {
+
+std::filesystem::path temp_file(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("mcap_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  return dir / name;
+}
+
+std::string slurp(const std::filesystem::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Two channels, `n` messages alternating between them, in chunks of `chunk_bytes`.
+mcap::WriteSummary write_sample(const std::filesystem::path& f, int n, std::size_t chunk_bytes) {
+  mcap::WriterOptions o;
+  o.chunk_bytes = chunk_bytes;
+  mcap::Writer w(f, o);
+  const auto s = w.add_schema("std_msgs/msg/String", "ros2msg", "string data\n");
+  const auto a = w.add_channel(s, "/a", "cdr", {{"offered_qos_profiles", "- history: keep_last"}});
+  const auto b = w.add_channel(s, "/b", "cdr", {});
+  w.add_metadata("cellsim", {{"scenario", "plane"}});
+  for (int i = 0; i < n; ++i) {
+    const std::string payload(static_cast<std::size_t>(10 + i), static_cast<char>('a' + i % 26));
+    w.write_message(i % 2 ? b : a, static_cast<std::uint32_t>(i), 1000 + i, 900 + i,
+                    reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size());
+  }
+  return w.close();
+}
+
+TEST(Mcap, WhatIsWrittenReadsBackMessageForMessage) {
+  const auto f = temp_file("roundtrip.mcap");
+  const mcap::WriteSummary w = write_sample(f, 50, 200);  // small chunks: many of them
+  EXPECT_EQ(w.messages, 50u);
+  EXPECT_GT(w.chunks, 5u);
+  EXPECT_EQ(w.topic_messages.at("/a"), 25u);
+  EXPECT_EQ(w.bytes, std::filesystem::file_size(f));
+  int i = 0;
+  const mcap::ReadSummary r = mcap::read_mcap_file(f, [&](const mcap::Channel& c, const mcap::MessageView& m) {
+    EXPECT_EQ(c.topic, i % 2 ? "/b" : "/a");
+    EXPECT_EQ(m.sequence, static_cast<std::uint32_t>(i));
+    EXPECT_EQ(m.log_time_ns, 1000u + i);
+    EXPECT_EQ(m.publish_time_ns, 900u + i);
+    ASSERT_EQ(m.size, static_cast<std::size_t>(10 + i));
+    EXPECT_EQ(m.data[0], static_cast<std::uint8_t>('a' + i % 26));
+    ++i;
+  });
+  EXPECT_EQ(i, 50);
+  EXPECT_EQ(r.profile, "ros2");
+  EXPECT_EQ(r.messages, 50u);
+  EXPECT_EQ(r.chunks, w.chunks);
+  EXPECT_TRUE(r.has_summary);
+  EXPECT_EQ(r.stated_messages, 50u);
+  EXPECT_EQ(r.channels.at(1).metadata.at("offered_qos_profiles"), "- history: keep_last");
+  EXPECT_EQ(r.schemas.at(1).data, "string data\n");
+  EXPECT_EQ(r.metadata.at("cellsim").at("scenario"), "plane");
+}
+
+TEST(Mcap, TheFileHasTheSpecsFrameAndSummaryOffsetsThatPointAtTheirGroups) {
+  const auto f = temp_file("frame.mcap");
+  write_sample(f, 7, 1u << 20);
+  const std::string b = slurp(f);
+  ASSERT_GT(b.size(), 16u + 29u);
+  EXPECT_EQ(b.substr(0, 8), std::string(mcap::kMagic, 8));
+  EXPECT_EQ(b.substr(b.size() - 8), std::string(mcap::kMagic, 8));
+  // the footer: summary start, summary offset start, summary CRC
+  const std::size_t footer = b.size() - 8 - 29;
+  EXPECT_EQ(static_cast<unsigned char>(b[footer]), mcap::kFooter);
+  auto u64 = [&](std::size_t at) {
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(b[at + i])) << (8 * i);
+    return v;
+  };
+  const std::uint64_t summary_start = u64(footer + 9), offsets_start = u64(footer + 17);
+  ASSERT_LT(summary_start, offsets_start);
+  EXPECT_EQ(static_cast<unsigned char>(b[summary_start]), mcap::kSchema);  // grouped by opcode, schemas first
+  // each summary offset names a group that starts with a record of its opcode
+  for (std::uint64_t at = offsets_start; at < footer; at += 9 + 17) {
+    ASSERT_EQ(static_cast<unsigned char>(b[at]), mcap::kSummaryOffset);
+    const auto op = static_cast<unsigned char>(b[at + 9]);
+    EXPECT_EQ(static_cast<unsigned char>(b[u64(at + 10)]), op);
+  }
+}
+
+// One line naming the file and an offset, as the issue asks of every malformed recording.
+void expect_format_error(const std::string& bytes, const std::string& words) {
+  try {
+    mcap::read_mcap(bytes, "bad.mcap", nullptr);
+    ADD_FAILURE() << "no error for a file that should have '" << words << "'";
+  } catch (const mcap::FormatError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("bad.mcap: offset ", 0), 0u) << what;
+    EXPECT_NE(what.find(words), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+}
+
+TEST(Mcap, AMalformedFileIsOneLineNamingTheFileAndTheOffset) {
+  const auto f = temp_file("good.mcap");
+  write_sample(f, 9, 256);
+  const std::string good = slurp(f);
+  expect_format_error(good.substr(0, good.size() / 2), "");  // truncated, wherever the cut falls
+  expect_format_error(good.substr(0, 17), "");
+  expect_format_error("", "wrong magic");
+  std::string magic = good;
+  magic[1] = 'X';
+  expect_format_error(magic, "wrong magic");
+  // the header's length claims 4 GB, then past the file's end
+  std::string huge = good;
+  for (int i = 0; i < 8; ++i) huge[9 + i] = i == 4 ? '\x01' : '\0';
+  expect_format_error(huge, "more than the limit");
+  std::string past = good;
+  past[9] = '\x7f';
+  past[10] = '\x7f';
+  expect_format_error(past, "past the file's end");
+  std::string trailing = good + "x";
+  expect_format_error(trailing, "");
+}
+
+// every byte cut, and every byte flipped, of a small file: an error or a clean read, no crash
+TEST(Mcap, EveryTruncationAndEveryFlippedByteIsAnErrorOrAReadNeverACrash) {
+  const auto f = temp_file("small.mcap");
+  write_sample(f, 4, 64);
+  const std::string good = slurp(f);
+  int errors = 0;
+  for (std::size_t n = 0; n < good.size(); ++n) {
+    try {
+      mcap::read_mcap(good.substr(0, n), "cut.mcap", nullptr);
+    } catch (const mcap::FormatError&) {
+      ++errors;
+    }
+  }
+  EXPECT_EQ(errors, static_cast<int>(good.size()));  // no prefix of a file is a file
+  for (std::size_t i = 0; i < good.size(); ++i) {
+    std::string bad = good;
+    bad[i] = static_cast<char>(bad[i] ^ 0xA5);
+    try {
+      mcap::read_mcap(bad, "flip.mcap", [](const mcap::Channel&, const mcap::MessageView&) {});
+    } catch (const mcap::FormatError&) {
+    }
+  }
+}
+
+TEST(Mcap, AMessageOnAnUndefinedChannelAndAChannelOfAnUndefinedSchemaAreRefused) {
+  std::string file(mcap::kMagic, 8);
+  std::string header;
+  mcap::put_string(header, "ros2");
+  mcap::put_string(header, "test");
+  file += mcap::record(mcap::kHeader, header);
+  std::string channel;
+  mcap::put_u16(channel, 1);
+  mcap::put_u16(channel, 7);  // schema 7: never defined
+  mcap::put_string(channel, "/x");
+  mcap::put_string(channel, "cdr");
+  mcap::put_u32(channel, 0);
+  expect_format_error(file + mcap::record(mcap::kChannel, channel), "never defined");
+  std::string message;
+  mcap::put_u16(message, 3);
+  mcap::put_u32(message, 0);
+  mcap::put_u64(message, 1);
+  mcap::put_u64(message, 1);
+  expect_format_error(file + mcap::record(mcap::kMessage, message), "channel 3, never defined");
+}
+
+TEST(Mcap, AChunkWhoseCrcDoesNotMatchIsRefused) {
+  const auto f = temp_file("crc.mcap");
+  write_sample(f, 3, 1u << 20);
+  std::string b = slurp(f);
+  // the one chunk's first message payload byte ('a'), flipped
+  const std::size_t at = b.find(std::string(10, 'a'));
+  ASSERT_NE(at, std::string::npos);
+  b[at] = 'z';
+  expect_format_error(b, "chunk CRC mismatch");
+}
+
+TEST(Mcap, AFifoIsRefusedNotWaitedOn) {
+  const auto fifo = temp_file("fifo.mcap");
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_THROW(mcap::read_mcap_file(fifo, nullptr), std::runtime_error);
+  EXPECT_THROW(mcap::Writer(fifo, {}), std::runtime_error);
+}
+
+}  // namespace

@@ -1,7 +1,8 @@
 #include "record/recorder.hpp"
 
-#include <pthread.h>
-#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <set>
@@ -128,17 +129,17 @@ void Recorder::enqueue(Pending&& p) {
   std::unique_lock<std::mutex> l(m_);
   room_.wait(l, [&] { return stopping_ || queued_bytes_ + p.bytes->length <= kMaxQueuedBytes || queue_.empty(); });
   if (stopping_) return;
-  p.log_ns = wall_ns();  // under the lock: log times rise in the order the queue is written
+  if (!p.log_ns) p.log_ns = wall_ns();  // under the lock: log times rise in the order the queue is written
   queued_bytes_ += p.bytes->length;
   queue_.push_back(std::move(p));
   queued_.notify_one();
 }
 
 void Recorder::drain() {
-  // the loop comes first: the writer runs when a core is idle (in lockstep one always is,
-  // while the other process renders or decodes), and catches up at close()
-  sched_param idle{};
-  pthread_setschedparam(pthread_self(), SCHED_IDLE, &idle);
+  // the loop comes first: the writer yields to it (nice 10), and in lockstep a core is idle
+  // while the other process renders or decodes. Not SCHED_IDLE: on a loaded machine that
+  // starved the writer and held the loop at a full queue (an experiment took 48 s for 4)
+  setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
   std::unique_lock<std::mutex> l(m_);
   while (true) {
     queued_.wait(l, [&] { return stopping_ || !queue_.empty(); });
@@ -176,7 +177,7 @@ void Recorder::write(const Pending& p) {
                                {"topic_type_hash", cell_dds::type_hash(p.ros_type, cell_dds::project_type_descriptions())}};
     ch = channels_.emplace(p.dds_topic, writer_->add_channel(sc->second, ros_topic_name(p.dds_topic), "cdr", meta)).first;
   }
-  writer_->write_message(ch->second, sequences_[ch->second]++, p.log_ns, p.publish_ns,
+  writer_->write_message(ch->second, sequences_[ch->second]++, *p.log_ns, p.publish_ns,
                          p.bytes->data, p.bytes->length);
 }
 

@@ -17,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include "dds/endpoint.hpp"
@@ -61,15 +62,17 @@ class Recorder {
   // of the bytes. Thread-safe: the DDS listeners record what they receive while the service
   // loop records what it sends. Waits only when kMaxQueuedBytes are still unwritten
   // (a lockstep plane run with images is 300 MB; the writer catches up in the idle time).
+  // `log_ns`: the log time (an in-process run gives its simulated time); by default the
+  // wall clock when the message is queued, as rosbag2 logs what it receives.
   template <typename PubSubType>
   void record(const std::string& dds_topic, cell_dds::Stream stream, const typename PubSubType::type& sample,
-              std::uint64_t publish_ns) {
+              std::uint64_t publish_ns, std::optional<std::uint64_t> log_ns = std::nullopt) {
     if (!wanted(dds_topic)) return;
     PubSubType type;
     auto& s = const_cast<typename PubSubType::type&>(sample);  // Fast DDS 2's serialize takes void*
     auto payload = std::make_unique<eprosima::fastrtps::rtps::SerializedPayload_t>(type.getSerializedSizeProvider(&s)());
     if (!type.serialize(&s, payload.get())) return;
-    enqueue({dds_topic, cell_dds::ros_type_name(type.getName()), stream, std::move(payload), 0, publish_ns});
+    enqueue({dds_topic, cell_dds::ros_type_name(type.getName()), stream, std::move(payload), log_ns, publish_ns});
   }
 
   // Writes what is queued, the summary and the footer; what was recorded, per topic. Idempotent.
@@ -84,7 +87,8 @@ class Recorder {
     std::string dds_topic, ros_type;
     cell_dds::Stream stream;
     std::unique_ptr<eprosima::fastrtps::rtps::SerializedPayload_t> bytes;  // the CDR, as serialised
-    std::uint64_t log_ns, publish_ns;
+    std::optional<std::uint64_t> log_ns;
+    std::uint64_t publish_ns;
   };
   bool wanted(const std::string& dds_topic) const;
   void enqueue(Pending&& p);

@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "sim/app/experiment_recording.hpp"
 #include "dds/cli_flags.hpp"
 #include "servo/config/cli_numbers.hpp"
 #include "servo/config/projector_calibration.hpp"
@@ -298,7 +299,7 @@ struct CampaignFlags {
 
 int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const ConditionFlags& conditions,
                        const std::string& source, int max_iterations, const std::string& initial,
-                       const std::string& out_dir, bool plot) {
+                       const std::string& out_dir, bool plot, const cell_record::RecordOptions& record) {
   const auto cell = sim::build_cell(load_scenario_for_run(scenario_file));
   cellsim::ExperimentOptions o;
   o.errors = conditions.errors_for(cell->scenario);
@@ -311,6 +312,19 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
   o.max_iterations = max_iterations;
   if (!initial.empty()) o.initial = sim::resolve_pose(cell->scenario, initial);
   o.out_dir = out_dir;
+  std::unique_ptr<cellsim::ExperimentRecording> recording;
+  if (!record.file.empty()) {
+    recording = std::make_unique<cellsim::ExperimentRecording>(
+        *cell, record,
+        mcap::KeyValues{{"scenario", cell->scenario.name},
+                        {"scenario_file", scenario_file},
+                        {"seed", std::to_string(cell->scenario.seed)},
+                        {"timing", "in-process (cellsim experiment): log and publish times are simulated time"},
+                        {"model", law.model},
+                        {"features", source},
+                        {"images", record.images ? "recorded" : "left out (--record-no-images)"}});
+    o.tap = recording.get();
+  }
   const auto r = cellsim::run_experiment(*cell, o);
   std::printf("%s, model %s (z-hat %.3f m), %s features%s\n", cell->scenario.name.c_str(), law.model.c_str(),
               o.servo.law.z_hat_m, cellsim::to_string(o.source).c_str(),
@@ -326,6 +340,7 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
     std::printf("  trace: %s/trace.csv, features: %s/features.jsonl, plots: %s/velocities.png %s/error_norm.png\n",
                 out_dir.c_str(), out_dir.c_str(), out_dir.c_str(), out_dir.c_str());
   }
+  if (recording) std::printf("  recorded %s\n", recording->close().c_str());
   return r.converged ? 0 : 4;
 }
 
@@ -404,6 +419,8 @@ struct DecodeSweepCommand {
 
 struct ExperimentCommand {
   std::string scenario, source = "decoded", initial, dir;
+  cell_record::RecordOptions record;
+  bool no_images = false;
   LawFlags law;
   ConditionFlags conditions;
   int max_iterations = 400;
@@ -419,10 +436,15 @@ struct ExperimentCommand {
     c->add_option("-o,--output", dir, "folder for trace.csv, features.jsonl and the plots");
     c->add_flag("--no-plot", no_plot, "do not draw the plots");
     conditions.add(c);
+    c->add_option("--record", record.file,
+                  "record the run as cellsim serve --record would, into this MCAP file (simulated time)");
+    c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording");
     return c;
   }
-  int run() const {
-    return run_experiment_cli(scenario, law, conditions, source, max_iterations, initial, dir, !no_plot);
+  int run() {
+    record.images = !no_images;
+    if (no_images && record.file.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
+    return run_experiment_cli(scenario, law, conditions, source, max_iterations, initial, dir, !no_plot, record);
   }
 };
 

@@ -31,24 +31,11 @@
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
 #include "sim/arm/robot_model.hpp"
+#include "sim/app/cell_messages.hpp"
 #include "sim/cell/cell_state_machine.hpp"
 
 namespace cellsim {
 namespace {
-
-// A pose into the two shapes ROS gives it: (translation, rotation) of a transform, (position,
-// orientation) of a pose; both hold x y z and x y z w.
-template <typename Point, typename Quaternion>
-void fill_pose(Point& p, Quaternion& r, const Eigen::Isometry3d& t) {
-  const Eigen::Quaterniond q(t.rotation());
-  p.x(t.translation().x());
-  p.y(t.translation().y());
-  p.z(t.translation().z());
-  r.x(q.x());
-  r.y(q.y());
-  r.z(q.z());
-  r.w(q.w());
-}
 
 using Clock = std::chrono::steady_clock;
 using geometry_msgs::msg::dds_::TwistStamped_;
@@ -196,9 +183,7 @@ class SimService {
             std::lock_guard<std::mutex> l(inbox_.m);
             inbox_.taught_seen = false;
           }
-          SimControl_ m;
-          m.command(static_cast<uint8_t>(c.command));
-          m.argument(c.argument);
+          SimControl_ m = wire::control(c);
           control_out_->write(m);
         }
         autorun_done = step.finished;
@@ -454,148 +439,46 @@ class SimService {
 
   // A status that belongs to no frame (LOADING, NOTICE, ENDED), stamped with the next frame's.
   cell_msgs::msg::dds_::SimStatus_ status_between_frames(std::uint8_t state) const {
-    cell_msgs::msg::dds_::SimStatus_ st;
-    st.header().stamp(cell_dds::stamp_of(machine_->next_frame(), dt()));
-    st.header().frame_id(cell_dds::kCameraFrame);
-    st.state(state);
-    st.applies_twist(false);
-    st.frame(machine_->next_frame());
-    with_counts(st);
-    return st;
-  }
-
-  // what every status carries: the session's counts, its latest refusal, why it ended
-  void with_counts(cell_msgs::msg::dds_::SimStatus_& st) const {
-    const sim::CellCounters& c = machine_->counters();
-    st.twists_applied(static_cast<std::uint64_t>(c.applied));
-    st.twists_rejected(static_cast<std::uint64_t>(c.rejected_nan + c.rejected_frame + c.rejected_stale + c.rejected_workspace));
-    st.commands_refused(static_cast<std::uint32_t>(c.commands_refused));
-    st.recent_refusals(std::vector<std::string>(recent_refusals_.begin(), recent_refusals_.end()));
-    st.session_end(machine_->session_end().reason);
+    return wire::status_between_frames(state, *machine_, recent_refusals_);
   }
 
   double dt() const { return cell_->scenario.dt_s; }
 
   void publish_camera_info() {
-    // the intrinsics as calibration gave them: off by the scenario's errors, if it has any
-    const sim::CameraSpec believed = sim::believed_camera(cell_->scenario.camera, sim::scenario_errors(cell_->scenario));
-    const sim::Intrinsics& k = believed.intrinsics;
-    const auto& size = cell_->scenario.camera.intrinsics;
-    sensor_msgs::msg::dds_::CameraInfo_ ci;
-    ci.header().stamp(cell_dds::stamp_of(machine_->next_frame(), dt()));
-    ci.header().frame_id(cell_dds::kCameraFrame);
-    ci.height(static_cast<uint32_t>(size.height));
-    ci.width(static_cast<uint32_t>(size.width));
-    ci.distortion_model("plumb_bob");
-    const auto& d = believed.distortion;
-    ci.d(std::vector<double>(d.begin(), d.end()));
-    ci.k({k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1});
-    ci.r({1, 0, 0, 0, 1, 0, 0, 0, 1});
-    ci.p({k.fx, 0, k.cx, 0, 0, k.fy, k.cy, 0, 0, 0, 1, 0});
+    auto ci = wire::camera_info(cell_->scenario, cell_dds::stamp_of(machine_->next_frame(), dt()));
     info_->write(ci);
   }
 
   // The URDF, for ROS 2 tools (rviz's RobotModel); latched: late joiners get it.
   void publish_description() {
-    std_msgs::msg::dds_::String_ d;
-    if (cell_->scenario.robot.model) d.data(cell_->scenario.robot.model->urdf);
+    auto d = wire::description(cell_->scenario);
     description_->write(d);
   }
 
-  static geometry_msgs::msg::dds_::TransformStamped_ transform(const builtin_interfaces::msg::dds_::Time_& stamp,
-                                                                 const std::string& parent, const std::string& child,
-                                                                 const Eigen::Isometry3d& t) {
-    geometry_msgs::msg::dds_::TransformStamped_ m;
-    m.header().stamp(stamp);
-    m.header().frame_id(parent);
-    m.child_frame_id(child);
-    fill_pose(m.transform().translation(), m.transform().rotation(), t);
-    return m;
-  }
-
-  // rt/joint_states and rt/tf (world -> base -> each link -> camera optical frame)
-  void publish_robot(const builtin_interfaces::msg::dds_::Time_& stamp, const sim::FrameOrder& f) {
-    tf2_msgs::msg::dds_::TFMessage_ tf;
-    const auto& model = cell_->scenario.robot.model;
-    if (!model || f.world_T_links.size() != model->chain.size() + 1) {
-      tf.transforms().push_back(transform(stamp, cell_dds::kWorldFrame, cell_dds::kCameraFrame, f.reported_world_T_camera));
-      tf_->write(tf);
-      return;
-    }
-    tf.transforms().push_back(transform(stamp, cell_dds::kWorldFrame, model->root_link, f.world_T_links[0]));
-    for (std::size_t i = 0; i < model->chain.size(); ++i)
-      tf.transforms().push_back(transform(stamp, i == 0 ? model->root_link : model->chain[i - 1].link, model->chain[i].link,
-                                          f.world_T_links[i].inverse() * f.world_T_links[i + 1]));
-    tf_->write(tf);
-    sensor_msgs::msg::dds_::JointState_ js;
-    js.header().stamp(stamp);
-    js.name(f.joint_names);
-    js.position(std::vector<double>(f.joint_positions.data(), f.joint_positions.data() + f.joint_positions.size()));
-    js.velocity(std::vector<double>(f.joint_velocities.data(), f.joint_velocities.data() + f.joint_velocities.size()));
-    joints_->write(js);
-  }
-
-  void publish_truth(const builtin_interfaces::msg::dds_::Time_& stamp, const sim::FrameOrder& f) {
-    const Eigen::Isometry3d& wTc = f.scene_world_T_camera;  // the truth of the image
-    cell_msgs::msg::dds_::SpotTruthArray_ truth;
-    truth.header().stamp(stamp);
-    truth.header().frame_id(cell_dds::kCameraFrame);
-    for (const auto& t : sim::compute_truth(*cell_, wTc, &f.scene_world_T_links)) {
-      cell_msgs::msg::dds_::SpotTruth_ s;
-      s.row(static_cast<int16_t>(t.row));
-      s.col(static_cast<int16_t>(t.col));
-      s.visible(t.visible);
-      s.u(t.uv.x());
-      s.v(t.uv.y());
-      s.depth_m(t.depth_m);
-      truth.spots().push_back(s);
-    }
-    truth_->write(truth);
-  }
-
-  // Frame k: sim status, camera pose (truth), spot truth, image, clock, all with one stamp.
+  // Frame k: sim status, camera pose (truth), robot, spot truth, image, clock, all with one
+  // stamp; the status and the pose before the image (the servo pairs them by stamp).
   void publish_frame(const sim::FrameOrder& f) {
     const auto stamp = cell_dds::stamp_of(f.index, dt());
     // the scene the image shows (a frame ago or more, with an acquisition delay)
-    const Eigen::Isometry3d& wTc = f.scene_world_T_camera;
-    const cv::Mat rgb = sim::render_image(*cell_, wTc, sim::frame_seed(cell_->scenario.seed, f.index), &scratch_,
-                                          nullptr, &f.scene_world_T_links);
-
-    namespace SST = cell_msgs::msg::dds_::SimStatus_Constants;
-    cell_msgs::msg::dds_::SimStatus_ st;
-    st.header().stamp(stamp);
-    st.header().frame_id(cell_dds::kCameraFrame);
-    st.state(f.teach ? SST::TEACHING : !f.applies_twist ? SST::IDLE : machine_->running() ? SST::RUNNING : SST::STEPPING);
-    st.applies_twist(f.applies_twist);
-    st.frame(f.index);
-    st.robot_limits(f.robot_limits);
-    st.robot_limit_names(sim::limit_names(f.robot_limits));
-    with_counts(st);
-    sim_status_->write(st);  // before the image: the servo pairs them by stamp
-
-    geometry_msgs::msg::dds_::PoseStamped_ pose;
-    pose.header().stamp(stamp);
-    pose.header().frame_id(cell_dds::kWorldFrame);
-    // what the robot reports, not the truth (they differ when the scenario has errors:)
-    fill_pose(pose.pose().position(), pose.pose().orientation(), f.reported_world_T_camera);
-    pose_->write(pose);  // before the image: the servo may need it to triangulate
-
-    publish_robot(stamp, f);
-    if (truth_->matched() > 0) publish_truth(stamp, f);  // 400 visibility rays: only when someone listens
-
-    sensor_msgs::msg::dds_::Image_ img;
-    img.header().stamp(stamp);
-    img.header().frame_id(cell_dds::kCameraFrame);
-    img.height(static_cast<uint32_t>(rgb.rows));
-    img.width(static_cast<uint32_t>(rgb.cols));
-    img.encoding("rgb8");
-    img.is_bigendian(0);
-    img.step(static_cast<uint32_t>(rgb.cols * 3));
-    img.data().assign(rgb.data, rgb.data + rgb.total() * 3);
+    const cv::Mat rgb = sim::render_image(*cell_, f.scene_world_T_camera, sim::frame_seed(cell_->scenario.seed, f.index),
+                                          &scratch_, nullptr, &f.scene_world_T_links);
+    auto st = wire::frame_status(f, *machine_, stamp, recent_refusals_);
+    sim_status_->write(st);
+    auto pose = wire::camera_pose(f, stamp);
+    pose_->write(pose);
+    auto tf = wire::transforms(cell_->scenario, f, stamp);
+    tf_->write(tf);
+    if (wire::has_joints(cell_->scenario, f)) {
+      auto js = wire::joint_state(f, stamp);
+      joints_->write(js);
+    }
+    if (truth_->matched() > 0) {  // 400 visibility rays: only when someone listens
+      auto truth = wire::spot_truth(*cell_, f, stamp);
+      truth_->write(truth);
+    }
+    auto img = wire::image(rgb, stamp);
     image_->write(img);
-
-    rosgraph_msgs::msg::dds_::Clock_ clk;
-    clk.clock(stamp);
+    auto clk = wire::clock(stamp);
     clock_->write(clk);
   }
 

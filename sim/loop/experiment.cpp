@@ -186,6 +186,7 @@ class Experiment {
 
   ExperimentResult run() {
     open_trace();
+    loop_.set_tap(o_.tap);
     loop_.command({static_cast<int>(cell_dds::SimCommand::kTeach), "", 0, std::nullopt});
     int idle_rounds = 0;
     for (;;) {

@@ -29,6 +29,8 @@ struct ExperimentOptions {
   // outlier injection (issue 19): at every frame the ids of this fraction of the spots are
   // swapped among them, a cycle, so each of them is matched wrongly; seeded by the run's seed
   double outlier_fraction = 0;
+  // everything the loop passes, as the wire would carry it (cellsim experiment --record)
+  LoopTap* tap = nullptr;
 };
 
 struct IterationRecord {

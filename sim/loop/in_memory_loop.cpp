@@ -49,11 +49,18 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       cell_(setup.scenario, lockstep_params(setup.max_steps), std::move(setup.robot)),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
-  const std::string why = servo_.on_camera_info(camera_info_of(setup.servo.camera, setup.scenario.camera));
+  camera_info_ = camera_info_of(setup.servo.camera, setup.scenario.camera);
+  const std::string why = servo_.on_camera_info(camera_info_);
   if (!why.empty()) throw std::invalid_argument(setup.scenario.file.string() + ": " + why);
 }
 
+void InMemoryLoop::set_tap(LoopTap* tap) {
+  tap_ = tap;
+  if (tap_) tap_->on_start(camera_info_, cell_);
+}
+
 bool InMemoryLoop::command(const sim::CommandMsg& c) {
+  if (tap_) tap_->on_command(c, now_s_);
   servo_.on_command(c.command);
   return cell_.on_command(c, now_s_);
 }
@@ -64,6 +71,11 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
   const sim::FrameOrder& f = x.frame;
   const sim::FrameStamp fs = sim::frame_stamp(f.index, cell_.dt());
   const servo::Stamp stamp{static_cast<std::int32_t>(fs.sec), fs.nanosec};
+  cv::Mat rgb;
+  if (source_ == FeatureSource::kDecoded)
+    rgb = sim::render_image(world_, f.scene_world_T_camera, sim::frame_seed(noise_seed_, f.index), &scratch_, nullptr,
+                            &f.scene_world_T_links);
+  if (tap_) tap_->on_frame(f, cell_, rgb.empty() ? nullptr : &rgb, now_s_);
   // the order the service publishes in: sim status and pose before the image
   servo_.on_sim_status({stamp, f.applies_twist, f.teach, cell_.running() && f.applies_twist});
   const Eigen::Isometry3d reported = as_on_the_wire(f.reported_world_T_camera);
@@ -74,8 +86,6 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
       if (t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
     x.reply = servo_.on_spots(stamp, spots, 0, now_s_);
   } else {
-    const cv::Mat rgb = sim::render_image(world_, f.scene_world_T_camera, sim::frame_seed(noise_seed_, f.index),
-                                          &scratch_, nullptr, &f.scene_world_T_links);
     if (outlier_fraction_ > 0 && !f.teach) {
       // decoded as the servo would, then some ids swapped before it steps on them
       int detected = 0;
@@ -97,6 +107,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
   }
   // the servo's answer: status before twist, as the service publishes them
   const servo::ServoReply& r = x.reply;
+  if (r.answer && tap_) tap_->on_reply(r, now_s_);
   if (r.answer) {
     cell_.on_servo_status({fs.sec, fs.nanosec, static_cast<std::uint8_t>(r.state), r.error_norm, r.decoded, r.matched,
                            r.reason},

@@ -44,9 +44,27 @@ struct LoopExchange {
   std::vector<std::pair<int, int>> wrong;   // the ids the swapped spots carried
 };
 
+// What crosses the wire in the two-process run, for a recorder (cellsim experiment --record):
+// called in the order the services publish, with the loop's simulated time.
+class LoopTap {
+ public:
+  virtual ~LoopTap() = default;
+  // the camera_info the servo was given (latched, before anything else)
+  virtual void on_start(const servo::CameraInfoMsg& info, const sim::CellStateMachine& cell) = 0;
+  virtual void on_command(const sim::CommandMsg& c, double now_s) = 0;
+  // a frame as cellsim publishes it: status, pose, robot, image (null for the ideal source), clock
+  virtual void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb,
+                        double now_s) = 0;
+  // the servo's answer to it (status, twist, spots), when it answered
+  virtual void on_reply(const servo::ServoReply& r, double now_s) = 0;
+};
+
 class InMemoryLoop {
  public:
   InMemoryLoop(const sim::Cell& cell, LoopSetup setup);
+
+  // Every message from now on goes to `tap` too (none when null); it is told the camera_info.
+  void set_tap(LoopTap* tap);
 
   // A command on rt/sim/control: both state machines hear it. False when the cell refused it.
   bool command(const sim::CommandMsg& c);
@@ -68,6 +86,8 @@ class InMemoryLoop {
   sim::CellStateMachine cell_;
   servo::ServoStateMachine servo_;
   sim::RenderScratch scratch_;
+  servo::CameraInfoMsg camera_info_;
+  LoopTap* tap_ = nullptr;
   double now_s_ = 0;
 };
 

@@ -4,7 +4,7 @@
 // a crash, a sanitizer report or a hang is a defect. ctest runs each target for a bounded
 // number of inputs; bin/fuzz runs them for long under AddressSanitizer and UBSan.
 //
-//   fuzz_targets --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign --iterations N [--seconds S] [--seed K]
+//   fuzz_targets --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign|mcap --iterations N [--seconds S] [--seed K]
 #include <cmath>
 #include <chrono>
 #include <cstdio>
@@ -15,6 +15,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "mcap/mcap_reader.hpp"
 #include "cell_msgsPubSubTypes.h"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
@@ -483,6 +484,65 @@ struct CdrTarget : Target {
 
 }  // namespace
 
+// A recording (issue 21): framing, chunks, CRCs, schemas and channels, and each message
+// decoded as its topic's type, as servo replay decodes it.
+struct McapTarget : Target {
+  std::string seed;
+  McapTarget() {
+    const auto file = std::filesystem::temp_directory_path() / ("fuzz_mcap_" + std::to_string(getpid()) + ".mcap");
+    {
+      mcap::WriterOptions o;
+      o.chunk_bytes = 96;  // several chunks in a small file
+      mcap::Writer w(file, o);
+      const auto si = w.add_schema("sensor_msgs/msg/Image", "ros2msg", "std_msgs/Header header\nuint32 height\n");
+      const auto st = w.add_schema("geometry_msgs/msg/TwistStamped", "ros2msg", "std_msgs/Header header\n");
+      const auto ci = w.add_channel(si, "/camera/image_raw", "cdr", {{"offered_qos_profiles", "- history: keep_last"}});
+      const auto ct = w.add_channel(st, "/servo/cmd_twist", "cdr", {});
+      w.add_metadata("cellsim", {{"scenario", "plane"}});
+      sensor_msgs::msg::dds_::Image_ img;
+      img.encoding("rgb8");
+      img.width(2);
+      img.height(1);
+      img.step(6);
+      img.data().assign(6, 9);
+      geometry_msgs::msg::dds_::TwistStamped_ tw;
+      tw.twist().linear().x(0.01);
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const std::string a = CdrTarget::serialized<sensor_msgs::msg::dds_::Image_PubSubType>(img);
+        const std::string b = CdrTarget::serialized<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(tw);
+        w.write_message(ci, k, 10 + k, 9 + k, reinterpret_cast<const std::uint8_t*>(a.data()), a.size());
+        w.write_message(ct, k, 11 + k, 10 + k, reinterpret_cast<const std::uint8_t*>(b.data()), b.size());
+      }
+    }
+    seed = read(file.string());
+    std::filesystem::remove(file);
+    // the same file with its chunk CRCs off (0), so that mutations get past them into the records
+    unchecked = seed;
+    for (std::size_t at = 8; at + 9 <= unchecked.size();) {
+      std::uint64_t len = 0;
+      for (int i = 0; i < 8; ++i) len |= static_cast<std::uint64_t>(static_cast<unsigned char>(unchecked[at + 1 + i])) << (8 * i);
+      if (static_cast<unsigned char>(unchecked[at]) == mcap::kChunk) unchecked.replace(at + 9 + 24, 4, 4, '\0');
+      at += 9 + len;
+    }
+  }
+  std::string unchecked;
+  void one(std::mt19937_64& rng) override {
+    try {
+      mcap::read_mcap(mutated(rng() % 2 ? seed : unchecked, rng), "fuzz.mcap", [](const mcap::Channel& c, const mcap::MessageView& m) {
+        const std::string bytes(reinterpret_cast<const char*>(m.data), m.size);
+        if (c.topic == "/camera/image_raw") {
+          sensor_msgs::msg::dds_::Image_ img;
+          CdrTarget::decode<sensor_msgs::msg::dds_::Image_PubSubType>(bytes, img);
+        } else {
+          geometry_msgs::msg::dds_::TwistStamped_ t;
+          CdrTarget::decode<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(bytes, t);
+        }
+      });
+    } catch (const mcap::FormatError&) {
+    }
+  }
+};
+
 int main(int argc, char** argv) {
   std::string target;
   long iterations = 1000;
@@ -509,8 +569,9 @@ int main(int argc, char** argv) {
   else if (target == "cell") t = std::make_unique<CellTarget>();
   else if (target == "cdr") t = std::make_unique<CdrTarget>();
   else if (target == "campaign") t = std::make_unique<CampaignTarget>();
+  else if (target == "mcap") t = std::make_unique<McapTarget>();
   else {
-    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign\n");
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign|mcap\n");
     return 2;
   }
   std::mt19937_64 rng(seed);

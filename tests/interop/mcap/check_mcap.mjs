@@ -92,7 +92,6 @@ for await (const m of indexed.readMessages({ validateCrcs: true })) {
   const channel = indexed.channelsById.get(m.channelId);
   if (m.logTime < lastLogTime) fail(`messages out of log-time order at ${channel.topic}`);
   lastLogTime = m.logTime;
-  if (m.publishTime === 0n) fail(`${channel.topic}: a message without a publish time`);
   const reader = readers.get(channel.schemaId);
   try {
     reader.readMessage(m.data);

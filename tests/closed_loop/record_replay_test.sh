@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Record, inspect, replay (issue 21): a recorded bin/demo run (lockstep, plane, with images)
+# is read back by an independent reader, Foxglove's @mcap/core (tests/interop/mcap): every
+# channel there, every message count what cellsim's summary reported, every schema ROS 2
+# .msg text that decodes every message. `servo replay` of it reproduces the recorded twists
+# bit for bit (bin/demo --record checks it), and a replay with another configuration writes
+# a differing trace. A broken recording is one line naming the file and offset.
+#   record_replay_test.sh SOURCE_DIR BUILD_DIR
+set -u
+src="$1"; build="$2"; bin="$build/bin"
+source "$src/tests/cli/lib.sh"
+source "$src/tests/closed_loop/services.sh"
+isolated_cell_domain
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+command -v node >/dev/null || fail "no node (bin/setup installs Node.js)"
+[ -d "$build/mcap-check/node_modules/@mcap/core" ] || fail "no @mcap/core in $build/mcap-check (bin/setup installs it)"
+
+CELL_OUT="$tmp" SETUP_NO_BUILD=1 BUILD_DIR="$build" timeout 280 "$src/bin/demo" plane --record >"$tmp/demo.log" 2>&1 ||
+  fail "bin/demo plane --record: $(tail -5 "$tmp/demo.log")"
+run="$tmp/demo/plane"
+mcap="$run/run.mcap"
+[ -s "$mcap" ] || fail "no recording at $mcap"
+grep -q "^cellsim: recorded .*/run.mcap ([0-9.]* MB, [0-9]* messages on [0-9]* topics)" "$tmp/demo.log" ||
+  fail "cellsim's summary does not give the recording's path and size: $(grep recorded "$tmp/demo.log")"
+
+# the counts cellsim reported, as JSON for the independent reader
+counts=$(sed -n 's/^cellsim: recorded messages: //p' "$tmp/demo.log")
+[ -n "$counts" ] || fail "no 'recorded messages' line in cellsim's summary"
+json="{$(sed -E 's|(/[^ ,]+) ([0-9]+)|"\1": \2|g' <<<"$counts")}"
+for topic in /camera/image_raw /camera/camera_info /clock /joint_states /tf /robot_description /sim/status \
+             /sim/camera_pose /sim/control /servo/cmd_twist /servo/status /servo/spots; do
+  grep -q "\"$topic\": [1-9]" <<<"$json" || fail "the recording has no messages on $topic: $json"
+done
+report=$(node "$src/tests/interop/mcap/check_mcap.mjs" "$build/mcap-check" "$mcap" "$json" 2>&1) ||
+  fail "@mcap/core: $report"
+echo "mcap: @mcap/core read $(grep -o '"messages":[0-9]*' <<<"$report"), $(grep -o '"chunks":[0-9]*' <<<"$report") of $mcap, every count as cellsim reported"
+
+# bin/demo --record replayed it with the recorded configuration
+grep -q "servo replay: .*every one identical bit for bit; 0 recorded twists not answered" "$tmp/demo.log" ||
+  fail "the replay did not reproduce the recorded twists: $(grep 'servo replay' "$tmp/demo.log")"
+[ -s "$run/replay/replay.csv" ] && [ -s "$run/replay/replay.png" ] || fail "no replay.csv and replay.png"
+grep 'servo replay: .*compared' "$tmp/demo.log"
+
+# another configuration commands otherwise, on the same frames
+pattern="$src/servo/pattern/data/marray_20x20_k3_w3.txt"
+out=$("$bin/servo" replay "$mcap" --pattern "$pattern" --z-hat 0.6 --robust huber -o "$tmp/other" --no-plot) ||
+  fail "servo replay --z-hat 0.6: $out"
+grep -q "compared: [0-9]* differ, max |difference| [0-9.e-]*" <<<"$out" || fail "a replay with --z-hat 0.6 differs in nothing: $out"
+cmp -s "$run/replay/replay.csv" "$tmp/other/replay.csv" && fail "the two replays wrote the same trace"
+awk -F, '!/^#/ && NR > 2 && $NF == 0 {n++} END {exit !(n > 0)}' "$tmp/other/replay.csv" || fail "no row of the --z-hat 0.6 replay differs"
+echo "replay: $out" | head -1
+out=$("$bin/servo" replay "$mcap" --pattern "$pattern" --z-hat 0.6 --no-plot --expect-identical 2>&1) &&
+  fail "--expect-identical passed a replay that differs"
+
+# the in-process experiment records the same topics in simulated time, and replays bit for bit
+exp=$("$bin/cellsim" experiment "$src/sim/scenarios/plane.yaml" --z-hat 0.9 --no-plot -o "$tmp/exp" \
+      --record "$tmp/exp.mcap" 2>&1) || fail "cellsim experiment --record: $exp"
+counts=$(sed -n 's/^ *recorded messages: //p' <<<"$exp")
+json="{$(sed -E 's|(/[^ ,]+) ([0-9]+)|"\1": \2|g' <<<"$counts")}"
+report=$(node "$src/tests/interop/mcap/check_mcap.mjs" "$build/mcap-check" "$tmp/exp.mcap" "$json" 2>&1) ||
+  fail "@mcap/core on the experiment's recording: $report"
+out=$("$bin/servo" replay "$tmp/exp.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical) ||
+  fail "the experiment's recording does not replay bit for bit: $out"
+echo "experiment: $out"
+exp=$("$bin/cellsim" experiment "$src/sim/scenarios/plane.yaml" --z-hat 0.9 --no-plot --max-iterations 20 \
+      --record "$tmp/noimg.mcap" --record-no-images 2>&1)
+grep -q "recorded messages: .*/camera/image_raw" <<<"$exp" && fail "--record-no-images recorded images: $exp"
+report=$(node "$src/tests/interop/mcap/check_mcap.mjs" "$build/mcap-check" "$tmp/noimg.mcap" 2>&1) ||
+  fail "@mcap/core on a recording without images: $report"
+grep -q '"/camera/image_raw"' <<<"$report" && fail "images in a --record-no-images recording: $report"
+echo "experiment: --record-no-images leaves the images out ($(stat -c %s "$tmp/noimg.mcap") bytes for 20 iterations)"
+
+# a broken recording: one line naming the file and the offset, no crash, no hang
+size=$(stat -c %s "$mcap")
+head -c $((size / 2)) "$mcap" >"$tmp/truncated.mcap"
+one_line_error "a truncated recording" "truncated.mcap: offset [0-9]*: " \
+  timeout 60 "$bin/servo" replay "$tmp/truncated.mcap" --pattern "$pattern" --no-plot
+printf 'NOTMCAP!' | cat - <(tail -c +9 "$mcap" | head -c 100000) >"$tmp/magic.mcap"
+one_line_error "a wrong magic" "magic.mcap: offset 0: wrong magic" \
+  timeout 60 "$bin/servo" replay "$tmp/magic.mcap" --pattern "$pattern" --no-plot
+mkfifo "$tmp/fifo.mcap"
+one_line_error "a FIFO" "fifo.mcap" timeout 60 "$bin/servo" replay "$tmp/fifo.mcap" --pattern "$pattern" --no-plot
+echo "replay: a truncated recording, a wrong magic and a FIFO are one line each"

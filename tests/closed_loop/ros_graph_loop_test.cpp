@@ -1,5 +1,6 @@
-// Issue 21, item 2, against the real process: every reader and writer `cellsim serve` makes,
-// the one `--autorun` adds on rt/sim/control included, is named on ros_discovery_info, so
+// Issue 21, item 2, against the real processes: every reader and writer `cellsim serve` makes,
+// the one `--autorun` adds on rt/sim/control and the one `--record` adds included, and every
+// one of `servo run`, is named on ros_discovery_info, so
 // `ros2 topic info -v` shows none of them as _NODE_NAME_UNKNOWN_. The endpoints are what
 // discovery reports of cellsim's participant; the announcement is what a ROS 2 client reads.
 #include <gtest/gtest.h>
@@ -39,7 +40,11 @@ std::set<std::string> gids_of(const std::vector<rmw_dds_common::msg::dds_::Gid_>
   return s;
 }
 
-TEST(RosGraphLoop, EveryEndpointOfCellsimWithAutorunIsNamedOnRosDiscoveryInfo) {
+// Starts `args` (a service whose node is `node_name`) and checks that every reader and writer
+// discovery reports of its participant is named in its node's announcement; at least
+// `min_writers` and `min_readers` must be found.
+void expect_every_endpoint_named(const std::string& node_name, const std::vector<std::string>& args,
+                                 std::size_t min_writers, std::size_t min_readers, const std::string& must_write = "") {
   const int domain = unique_domain(33);
   const std::string dir = tmp_dir("ros_graph");
   cell_dds::ParticipantOptions o;
@@ -49,20 +54,18 @@ TEST(RosGraphLoop, EveryEndpointOfCellsimWithAutorunIsNamedOnRosDiscoveryInfo) {
   auto client = cell_dds::make_participant(o);
   client->set_listener(&found, eprosima::fastdds::dds::StatusMask::none());
   std::mutex m;
-  std::map<std::string, rmw_dds_common::msg::dds_::NodeEntitiesInfo_> cellsim_nodes;  // by participant gid
+  std::map<std::string, rmw_dds_common::msg::dds_::NodeEntitiesInfo_> nodes;  // by participant gid
   cell_dds::Reader<rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_PubSubType> graph(
       *client, cell_dds::kRosDiscoveryTopic, cell_dds::reader_qos(cell_dds::Stream::kLatched),
       [&](rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_&& i) {
         std::lock_guard<std::mutex> l(m);
         for (const auto& n : i.node_entities_info_seq())
-          if (n.node_name() == "cellsim")
-            cellsim_nodes[std::string(i.gid().data().begin(), i.gid().data().end())] = n;
+          if (n.node_name() == node_name) nodes[std::string(i.gid().data().begin(), i.gid().data().end())] = n;
       });
-  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun"}, domain, dir + "/sim.log");
+  Process service(args, domain, dir + "/service.log");
 
-  // cellsim's participant: the one whose announcement names the node "cellsim"; its endpoints
-  // are those discovery reports with its GUID prefix (the graph's own writer aside)
-  const auto cellsim_endpoints = [&](std::map<GUID_t, std::string>& w, std::map<GUID_t, std::string>& r) {
+  // the service's endpoints: those discovery reports outside the client (the graph's own writer aside)
+  const auto endpoints = [&](std::map<GUID_t, std::string>& w, std::map<GUID_t, std::string>& r) {
     std::lock_guard<std::mutex> l(m), l2(found.m);
     w.clear();
     r.clear();
@@ -72,40 +75,61 @@ TEST(RosGraphLoop, EveryEndpointOfCellsimWithAutorunIsNamedOnRosDiscoveryInfo) {
       if (guid.guidPrefix != client->guid().guidPrefix && topic != cell_dds::kRosDiscoveryTopic) r[guid] = topic;
   };
   std::map<GUID_t, std::string> writers, readers;
-  // cellsim makes 10 writers with --autorun (image, camera_info, pose, sim status, truth,
-  // clock, joints, tf, robot_description, control) and 3 readers (twist, control, servo status)
   const bool all = [&] {
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     while (std::chrono::steady_clock::now() < until) {
-      cellsim_endpoints(writers, readers);
+      endpoints(writers, readers);
       bool announced = false;
       {
         std::lock_guard<std::mutex> l(m);
-        announced = !cellsim_nodes.empty();
+        announced = !nodes.empty();
       }
-      if (announced && writers.size() >= 10 && readers.size() >= 3) return true;
+      if (announced && writers.size() >= min_writers && readers.size() >= min_readers) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     return false;
   }();
   ASSERT_TRUE(all) << writers.size() << " writers, " << readers.size() << " readers discovered; see " << dir;
-  bool control_writer = false;
-  for (const auto& [guid, topic] : writers) control_writer |= topic == cell_dds::kControlTopic;
-  EXPECT_TRUE(control_writer) << "no writer on rt/sim/control with --autorun";
-
+  if (!must_write.empty()) {
+    bool found_writer = false;
+    for (const auto& [guid, topic] : writers) found_writer |= topic == must_write;
+    EXPECT_TRUE(found_writer) << "no writer on " << must_write;
+  }
   std::lock_guard<std::mutex> l(m);
-  ASSERT_EQ(cellsim_nodes.size(), 1u);
-  const auto& node = cellsim_nodes.begin()->second;
+  ASSERT_EQ(nodes.size(), 1u);
+  const auto& node = nodes.begin()->second;
   const std::set<std::string> named_writers = gids_of(node.writer_gid_seq()), named_readers = gids_of(node.reader_gid_seq());
   const auto key = [](const GUID_t& g) {
     const auto gid = cell_dds::NodeAnnouncement::gid_of(g).data();
     return std::string(gid.begin(), gid.end());
   };
   for (const auto& [guid, topic] : writers)
-    EXPECT_EQ(named_writers.count(key(guid)), 1u) << "cellsim's writer on " << topic << " is not named";
+    EXPECT_EQ(named_writers.count(key(guid)), 1u) << node_name << "'s writer on " << topic << " is not named";
   for (const auto& [guid, topic] : readers)
-    EXPECT_EQ(named_readers.count(key(guid)), 1u) << "cellsim's reader on " << topic << " is not named";
+    EXPECT_EQ(named_readers.count(key(guid)), 1u) << node_name << "'s reader on " << topic << " is not named";
   client->set_listener(nullptr);
+}
+
+TEST(RosGraphLoop, EveryEndpointOfCellsimWithAutorunIsNamedOnRosDiscoveryInfo) {
+  // 10 writers with --autorun (image, camera_info, pose, sim status, truth, clock, joints, tf,
+  // robot_description, control) and 3 readers (twist, control, servo status)
+  expect_every_endpoint_named("cellsim", {kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--autorun"},
+                              10, 3, cell_dds::kControlTopic);
+}
+
+TEST(RosGraphLoop, EveryEndpointOfARecordingCellsimIsNamedOnRosDiscoveryInfo) {
+  // --record adds a reader of the servo's decoded spots
+  expect_every_endpoint_named("cellsim",
+                              {kBin + "cellsim", "serve", kSrc + "/sim/scenarios/plane.yaml", "--record",
+                               tmp_dir("ros_graph_record") + "/run.mcap", "--record-no-images"},
+                              9, 4, "");
+}
+
+TEST(RosGraphLoop, EveryEndpointOfTheServoIsNamedOnRosDiscoveryInfo) {
+  // 3 writers (twist, spots, status) and 5 readers (image, camera_info, pose, sim status, control)
+  expect_every_endpoint_named(
+      "servo", {kBin + "servo", "run", "--pattern", kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt"}, 3, 5,
+      cell_dds::kTwistTopic);
 }
 
 }  // namespace

@@ -587,4 +587,12 @@ bool plot_campaign(const std::filesystem::path& dir, const std::string& title) {
   return run_plot_script("plot_campaign.py", dir, title);
 }
 
+std::array<double, 6> draw_initial_offset(const sim::Cell& cell, std::uint64_t seed, double scale) {
+  CampaignOptions o;
+  o.runs = 1;
+  o.seed = seed;
+  o.scale = scale;
+  return draw_initial_poses(cell, o).offsets[0];
+}
+
 }  // namespace cellsim

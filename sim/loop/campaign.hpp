@@ -3,6 +3,7 @@
 // summary table (convergence rate, median iterations, final errors).
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -66,5 +67,10 @@ std::vector<ModelStats> campaign_stats(const std::filesystem::path& dir);
 // Runs bin/plot_campaign.py on a campaign folder (campaign.png: per model, the converged share,
 // the iterations, the final errors); false, with the reason on stderr, when it cannot.
 bool plot_campaign(const std::filesystem::path& dir, const std::string& title);
+
+// One initial offset (x y z cm, rx ry rz deg) drawn as a campaign of that seed draws its first:
+// each component in +-scale max(2, |the scenario's|), drawn again until the camera sees 80 %
+// of the spots it sees at the desired pose and the arm reaches it.
+std::array<double, 6> draw_initial_offset(const sim::Cell& cell, std::uint64_t seed, double scale = 1.0);
 
 }  // namespace cellsim

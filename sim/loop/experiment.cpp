@@ -332,6 +332,10 @@ class Experiment {
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) { return Experiment(cell, o).run(); }
 
+LoopSetup experiment_loop_setup(const sim::Cell& cell, const ExperimentOptions& o, std::uint64_t seed) {
+  return loop_setup(cell, o, seed);
+}
+
 bool run_plot_script(const std::string& script_name, const std::filesystem::path& dir, const std::string& title) {
   return config::run_plot_script("cellsim", script_name, dir, title);
 }

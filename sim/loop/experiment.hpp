@@ -76,6 +76,9 @@ servo::ServoConfig servo_config_for(const sim::Cell& cell);
 control::ProjectorModel believed_projector(const control::ProjectorModel& truth, const sim::DrawnErrors& errors);
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& options);
+// The loop an experiment runs on: the scenario with the options' errors and delays, the
+// robot and the servo's belief drawn from `seed`.
+LoopSetup experiment_loop_setup(const sim::Cell& cell, const ExperimentOptions& options, std::uint64_t seed);
 
 FeatureSource parse_feature_source(const std::string& name);
 std::string to_string(FeatureSource s);

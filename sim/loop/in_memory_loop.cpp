@@ -76,6 +76,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
     rgb = sim::render_image(world_, f.scene_world_T_camera, sim::frame_seed(noise_seed_, f.index), &scratch_, nullptr,
                             &f.scene_world_T_links);
   if (tap_) tap_->on_frame(f, cell_, rgb.empty() ? nullptr : &rgb, now_s_);
+  x.image = rgb;  // shared, not copied
   // the order the service publishes in: sim status and pose before the image
   servo_.on_sim_status({stamp, f.applies_twist, f.teach, cell_.running() && f.applies_twist});
   const Eigen::Isometry3d reported = as_on_the_wire(f.reported_world_T_camera);
@@ -105,24 +106,41 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
       x.reply = servo_.on_image(view, now_s_);
     }
   }
-  // the servo's answer: status before twist, as the service publishes them
-  const servo::ServoReply& r = x.reply;
-  if (r.answer && tap_) tap_->on_reply(r, now_s_);
-  if (r.answer) {
-    cell_.on_servo_status({fs.sec, fs.nanosec, static_cast<std::uint8_t>(r.state), r.error_norm, r.decoded, r.matched,
-                           r.reason},
-                          now_s_);
-    cell_.on_twist({fs.sec, fs.nanosec, "camera_optical", r.twist}, now_s_);
-  }
   return x;
 }
 
-sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
+void InMemoryLoop::answer(const LoopExchange& x, const control::Vector6d& twist) {
+  // the servo's answer: status before twist, as the service publishes them
+  const servo::ServoReply& r = x.reply;
+  if (!r.answer) return;
+  const sim::FrameStamp fs = sim::frame_stamp(x.frame.index, cell_.dt());
+  if (tap_) {
+    servo::ServoReply sent = r;
+    sent.twist = twist;
+    tap_->on_reply(sent, now_s_);
+  }
+  cell_.on_servo_status({fs.sec, fs.nanosec, static_cast<std::uint8_t>(r.state), r.error_norm, r.decoded, r.matched,
+                         r.reason},
+                        now_s_);
+  cell_.on_twist({fs.sec, fs.nanosec, "camera_optical", twist}, now_s_);
+}
+
+sim::CellOutput InMemoryLoop::observe(std::vector<LoopExchange>& exchanges) {
   now_s_ += cell_.dt();
   sim::CellOutput out = cell_.poll(now_s_);
   // the frames are moved on into the exchanges (their link poses and joints are the large
   // part of an order); out.frames keeps their count, not their content
   for (auto& f : out.frames) exchanges.push_back(exchange(std::move(f)));
+  return out;
+}
+
+sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
+  now_s_ += cell_.dt();
+  sim::CellOutput out = cell_.poll(now_s_);
+  for (auto& f : out.frames) {
+    exchanges.push_back(exchange(std::move(f)));
+    answer(exchanges.back(), exchanges.back().reply.twist);  // each frame answered before the next is seen
+  }
   return out;
 }
 

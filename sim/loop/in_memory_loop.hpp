@@ -40,6 +40,7 @@ struct LoopSetup {
 struct LoopExchange {
   sim::FrameOrder frame;
   servo::ServoReply reply;
+  cv::Mat image;                            // the frame's rendered image (decoded source)
   int swapped = 0;                          // ids the injection swapped in this frame
   std::vector<std::pair<int, int>> wrong;   // the ids the swapped spots carried
 };
@@ -73,11 +74,17 @@ class InMemoryLoop {
   // frames moved into them.
   sim::CellOutput round(std::vector<LoopExchange>& exchanges);
 
+  // The same round in two halves, for a controller outside the loop (cellsim::ServoEnv): the
+  // frames are rendered and the servo's replies computed, but nothing is delivered back...
+  sim::CellOutput observe(std::vector<LoopExchange>& exchanges);
+  // ...until the caller answers a frame with its own twist (the servo's status goes with it).
+  void answer(const LoopExchange& x, const control::Vector6d& twist);
+
   const sim::CellStateMachine& cell() const { return cell_; }
   const servo::ServoStateMachine& servo() const { return servo_; }
 
  private:
-  LoopExchange exchange(sim::FrameOrder order);
+  LoopExchange exchange(sim::FrameOrder order);  // rendered and answered by the servo
 
   const sim::Cell& world_;
   std::uint64_t noise_seed_;

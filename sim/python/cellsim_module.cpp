@@ -1,0 +1,354 @@
+// The Python API (issue 22, item 3): the project's own objects behind pybind11, nothing
+// re-implemented in Python. docs/python.md says how to use it.
+//   import cellsim
+//   s = cellsim.Scenario("sim/scenarios/plane.yaml")
+//   image, truth = s.render("initial")            # H x W x 3 uint8, dict of arrays
+//   spots = s.decoder().decode(image)              # dict of arrays: row, col, u, v
+//   env = cellsim.ServoEnv(s, max_steps=300)       # the Gymnasium API's shape
+// Bad input (a wrong dtype or shape, a NaN twist, a bad file) raises ValueError or
+// RuntimeError with a one-line message; nothing crashes.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <string>
+
+#include "servo/node/servo_state_machine.hpp"
+#include "sim/arm/arm_scenario.hpp"
+#include "sim/loop/experiment.hpp"
+#include "sim/loop/servo_env.hpp"
+#include "sim/render/renderer.hpp"
+
+namespace py = pybind11;
+
+namespace {
+
+using U8Array = py::array_t<std::uint8_t, py::array::c_style>;
+
+py::array_t<double> matrix4(const Eigen::Isometry3d& T) {
+  py::array_t<double> a({4, 4});
+  auto m = a.mutable_unchecked<2>();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m(r, c) = T.matrix()(r, c);
+  return a;
+}
+
+Eigen::Isometry3d pose_of(const py::array_t<double>& a, const std::string& what) {
+  if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
+    throw py::value_error(what + ": a pose is a 4 x 4 array (world_T_camera), got shape " + std::to_string(a.ndim()) + "-D");
+  auto m = a.unchecked<2>();
+  Eigen::Matrix4d M;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) {
+      if (!std::isfinite(m(r, c))) throw py::value_error(what + ": the pose holds a non-finite value");
+      M(r, c) = m(r, c);
+    }
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || std::abs(R.determinant() - 1) > 1e-6)
+    throw py::value_error(what + ": the pose's rotation is not a rotation matrix");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = M.topRightCorner<3, 1>();
+  return T;
+}
+
+U8Array image_array(const cv::Mat& rgb) {
+  U8Array a({rgb.rows, rgb.cols, 3});
+  std::memcpy(a.mutable_data(), rgb.data, rgb.total() * 3);
+  return a;
+}
+
+// An H x W x 3 uint8 array as the decoder takes it (the servo's own checks on sizes apply).
+cv::Mat image_of(const py::array& a) {
+  if (!py::isinstance<U8Array>(a) || a.dtype().kind() != 'u' || a.itemsize() != 1)
+    throw py::value_error("image: dtype must be uint8, got " + std::string(py::str(a.dtype())));
+  if (a.ndim() != 3 || a.shape(2) != 3)
+    throw py::value_error("image: shape must be (height, width, 3), RGB");
+  if (a.shape(0) < 1 || a.shape(1) < 1 || a.shape(0) > servo::kMaxImageSide || a.shape(1) > servo::kMaxImageSide)
+    throw py::value_error("image: each side must be in [1, " + std::to_string(servo::kMaxImageSide) + "] pixels");
+  const U8Array c = U8Array::ensure(a);  // C-contiguous
+  return cv::Mat(static_cast<int>(c.shape(0)), static_cast<int>(c.shape(1)), CV_8UC3, const_cast<std::uint8_t*>(c.data()))
+      .clone();
+}
+
+// A loaded scenario and its compiled cell (meshes, Bullet world, projector).
+struct Scenario {
+  explicit Scenario(const std::string& file) : cell(sim::build_cell(sim::load_scenario(file))) {}
+  std::shared_ptr<const sim::Cell> cell;
+
+  Eigen::Isometry3d pose(const py::object& p) const {
+    if (py::isinstance<py::str>(p)) return sim::resolve_pose(cell->scenario, p.cast<std::string>());
+    return pose_of(p.cast<py::array_t<double>>(), "pose");
+  }
+};
+
+// The servo's configuration for a scenario, as `cellsim experiment` makes it.
+servo::ServoConfig servo_config(const Scenario& s, const std::string& model, double z_hat, double gain,
+                                const std::string& robust) {
+  servo::ServoConfig cfg = cellsim::servo_config_for(*s.cell);
+  cfg.law.model = control::parse_interaction_model(model);
+  if (z_hat > 0) {
+    cfg.law.z_hat_m = z_hat;
+  } else {
+    double sum = 0;
+    int n = 0;
+    for (const auto& t : sim::compute_truth(*s.cell, s.cell->scenario.world_T_desired))
+      if (t.visible) sum += t.depth_m, ++n;
+    cfg.law.z_hat_m = n ? sum / n : 1.0;
+  }
+  if (!(gain > 0 && gain < 100)) throw py::value_error("gain must be in (0, 100)");
+  cfg.law.gain = {gain, gain, 0};
+  cfg.law.robust = control::parse_robust_estimator(robust);
+  cfg.decoder.epipolar.enabled = false;
+  return cfg;
+}
+
+py::dict truth_dict(const std::vector<sim::SpotTruth>& truth) {
+  const auto n = static_cast<py::ssize_t>(truth.size());
+  py::array_t<int> row(n), col(n);
+  py::array_t<bool> visible(n);
+  py::array_t<double> u(n), v(n), depth(n);
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const auto& t = truth[static_cast<std::size_t>(i)];
+    row.mutable_at(i) = t.row;
+    col.mutable_at(i) = t.col;
+    visible.mutable_at(i) = t.visible;
+    u.mutable_at(i) = t.uv.x();
+    v.mutable_at(i) = t.uv.y();
+    depth.mutable_at(i) = t.depth_m;
+  }
+  py::dict d;
+  d["row"] = row;
+  d["col"] = col;
+  d["visible"] = visible;
+  d["u"] = u;
+  d["v"] = v;
+  d["depth_m"] = depth;
+  return d;
+}
+
+py::tuple render(const Scenario& s, const py::object& pose_spec, std::uint64_t frame) {
+  const Eigen::Isometry3d wTc = s.pose(pose_spec);
+  const std::unique_ptr<sim::Robot> robot = sim::make_robot(*s.cell);
+  robot->reset(wTc);  // the arm's links drawn, as `cellsim render` draws them
+  const sim::LinkPoses links = robot->world_T_links();
+  const cv::Mat rgb =
+      sim::render_image(*s.cell, wTc, sim::frame_seed(s.cell->scenario.seed, frame), nullptr, nullptr, &links);
+  return py::make_tuple(image_array(rgb), truth_dict(sim::compute_truth(*s.cell, wTc, &links)));
+}
+
+py::dict spots_dict(const std::vector<servo::ImageSpot>& spots, int detected) {
+  const auto n = static_cast<py::ssize_t>(spots.size());
+  py::array_t<int> row(n), col(n);
+  py::array_t<double> u(n), v(n);
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const auto& s = spots[static_cast<std::size_t>(i)];
+    row.mutable_at(i) = s.row;
+    col.mutable_at(i) = s.col;
+    u.mutable_at(i) = s.u;
+    v.mutable_at(i) = s.v;
+  }
+  py::dict d;
+  d["row"] = row;
+  d["col"] = col;
+  d["u"] = u;
+  d["v"] = v;
+  d["detected"] = detected;
+  return d;
+}
+
+// The servo's pipeline: decoding, teaching, one iteration of the control law.
+struct Servo {
+  Servo(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust)
+      : scenario(s),
+        pipeline(pattern::WindowTable(s.cell->projector->pattern(), {3, 3}), servo_config(s, model, z_hat, gain, robust)) {}
+  Scenario scenario;
+  servo::ServoPipeline pipeline;
+
+  py::dict decode(const py::array& image) const {
+    int detected = 0;
+    const auto spots = pipeline.locate(image_of(image), std::nullopt, &detected);
+    return spots_dict(spots, detected);
+  }
+  int teach(const py::array& image) { return pipeline.teach(pipeline.locate(image_of(image), std::nullopt), std::nullopt); }
+  py::dict step(const py::array& image) const {
+    if (!pipeline.taught()) throw py::value_error("step(): teach() the servo first");
+    int detected = 0;
+    const servo::StepResult r = pipeline.step(pipeline.locate(image_of(image), std::nullopt, &detected), std::nullopt);
+    py::dict d;
+    py::array_t<double> twist(6);
+    for (int i = 0; i < 6; ++i) twist.mutable_at(i) = r.control.twist[i];
+    d["twist"] = twist;
+    d["error_norm"] = r.control.error_norm;
+    d["detected"] = r.detected;
+    d["decoded"] = r.decoded;
+    d["matched"] = static_cast<int>(r.matched.size());
+    d["status"] = r.control.reason.empty() ? std::string("servoing") : r.control.reason;
+    return d;
+  }
+};
+
+py::dict experiment(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
+                    int max_iterations, const std::string& features) {
+  if (max_iterations < 1 || max_iterations > 100000) throw py::value_error("max_iterations must be in [1, 100000]");
+  cellsim::ExperimentOptions o;
+  o.servo = servo_config(s, model, z_hat, gain, robust);
+  o.source = cellsim::parse_feature_source(features);
+  o.max_iterations = max_iterations;
+  cellsim::ExperimentResult r;
+  {
+    py::gil_scoped_release release;  // a long run: other Python threads go on
+    r = cellsim::run_experiment(*s.cell, o);
+  }
+  const auto n = static_cast<py::ssize_t>(r.trace.size());
+  py::array_t<double> t(n), twist({n, py::ssize_t{6}}), e(n), te(n), re(n);
+  py::array_t<int> decoded(n), matched(n);
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const auto& it = r.trace[static_cast<std::size_t>(i)];
+    t.mutable_at(i) = it.t_s;
+    for (int k = 0; k < 6; ++k) twist.mutable_at(i, k) = it.twist[k];
+    e.mutable_at(i) = it.error_norm;
+    te.mutable_at(i) = it.translation_error_m;
+    re.mutable_at(i) = it.rotation_error_deg;
+    decoded.mutable_at(i) = it.decoded;
+    matched.mutable_at(i) = it.matched;
+  }
+  py::dict d;
+  d["converged"] = r.converged;
+  d["stop_reason"] = r.stop_reason;
+  d["iterations"] = r.iterations;
+  d["decoded_desired"] = r.decoded_desired;
+  d["decoded_initial"] = r.decoded_initial;
+  d["final_translation_error_m"] = r.final_translation_error_m;
+  d["final_rotation_error_deg"] = r.final_rotation_error_deg;
+  d["t"] = t;
+  d["twist"] = twist;
+  d["error_norm"] = e;
+  d["translation_error_m"] = te;
+  d["rotation_error_deg"] = re;
+  d["decoded"] = decoded;
+  d["matched"] = matched;
+  return d;
+}
+
+// The environment, in the Gymnasium API's shape (without depending on Gymnasium).
+struct Env {
+  Env(const Scenario& s, const std::string& observation, int max_steps, const std::string& model, double z_hat,
+      double gain, const std::string& robust)
+      : scenario(s), images(observation == "image") {
+    if (observation != "features" && observation != "image")
+      throw py::value_error("observation must be 'features' or 'image', got '" + observation + "'");
+    cellsim::EnvOptions o;
+    o.servo = servo_config(s, model, z_hat, gain, robust);
+    o.max_steps = max_steps;
+    o.images = images;
+    env = std::make_unique<cellsim::ServoEnv>(*s.cell, o);
+  }
+  Scenario scenario;
+  bool images;
+  std::unique_ptr<cellsim::ServoEnv> env;
+
+  py::object obs(const cellsim::EnvObservation& o) const {
+    if (images) return o.image.empty() ? py::object(py::none()) : py::object(image_array(o.image));
+    py::array_t<double> f({static_cast<py::ssize_t>(o.matched.size()), py::ssize_t{4}});
+    for (std::size_t i = 0; i < o.matched.size(); ++i) {
+      const auto& m = o.matched[i];
+      const auto r = static_cast<py::ssize_t>(i);
+      f.mutable_at(r, 0) = m.x;
+      f.mutable_at(r, 1) = m.y;
+      f.mutable_at(r, 2) = m.x_star;
+      f.mutable_at(r, 3) = m.y_star;
+    }
+    return f;
+  }
+  py::dict info(const cellsim::EnvStep& s) const {
+    const auto& o = s.observation;
+    py::array_t<int> ids({static_cast<py::ssize_t>(o.matched.size()), py::ssize_t{2}});
+    for (std::size_t i = 0; i < o.matched.size(); ++i) {
+      ids.mutable_at(static_cast<py::ssize_t>(i), 0) = o.matched[i].row;
+      ids.mutable_at(static_cast<py::ssize_t>(i), 1) = o.matched[i].col;
+    }
+    py::dict d;
+    d["error_norm"] = o.error_norm;
+    d["detected"] = o.detected;
+    d["decoded"] = o.decoded;
+    d["ids"] = ids;
+    d["servo_state"] = o.servo_state;
+    d["camera_pose"] = matrix4(o.world_T_camera);
+    d["translation_error_m"] = o.translation_error_m;
+    d["rotation_error_deg"] = o.rotation_error_deg;
+    d["time_s"] = o.time_s;
+    d["steps"] = env->steps();
+    d["reason"] = s.reason;
+    return d;
+  }
+  py::tuple reset(const std::optional<std::uint64_t>& seed, const std::optional<py::dict>& options) {
+    std::optional<Eigen::Isometry3d> initial;
+    if (options && options->contains("initial_pose")) initial = scenario.pose((*options)["initial_pose"]);
+    const cellsim::EnvStep s = env->reset(seed, initial);
+    return py::make_tuple(obs(s.observation), info(s));
+  }
+  py::tuple step(const py::object& action) {
+    const auto a = py::array_t<double, py::array::forcecast>::ensure(action);
+    if (!a || a.ndim() != 1 || a.shape(0) != 6)
+      throw py::value_error("twist: 6 numbers (vx vy vz wx wy wz, m/s and rad/s, camera frame)");
+    control::Vector6d t;
+    for (int i = 0; i < 6; ++i) t[i] = a.at(i);
+    const cellsim::EnvStep s = env->step(t);
+    return py::make_tuple(obs(s.observation), s.reward, s.terminated, s.truncated, info(s));
+  }
+};
+
+}  // namespace
+
+PYBIND11_MODULE(cellsim, m) {
+  m.doc() = "The coded-light visual-servoing cell: scenarios, rendering, decoding, the servo, experiments, "
+            "and an environment in the Gymnasium API's shape (docs/python.md)";
+  // the project's one-line errors, as Python exceptions
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const std::invalid_argument& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const std::logic_error& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+    }
+  });
+  py::class_<Scenario>(m, "Scenario", "a scenario file, loaded and compiled (meshes, Bullet world, projector)")
+      .def(py::init<const std::string&>(), py::arg("file"))
+      .def_property_readonly("name", [](const Scenario& s) { return s.cell->scenario.name; })
+      .def_property_readonly("dt", [](const Scenario& s) { return s.cell->scenario.dt_s; })
+      .def_property_readonly("seed", [](const Scenario& s) { return s.cell->scenario.seed; })
+      .def_property_readonly("width", [](const Scenario& s) { return s.cell->scenario.camera.intrinsics.width; })
+      .def_property_readonly("height", [](const Scenario& s) { return s.cell->scenario.camera.intrinsics.height; })
+      .def_property_readonly("desired_pose", [](const Scenario& s) { return matrix4(s.cell->scenario.world_T_desired); })
+      .def_property_readonly("initial_pose", [](const Scenario& s) { return matrix4(s.cell->scenario.world_T_initial()); })
+      .def("render", &render, py::arg("pose") = "desired", py::arg("frame") = 0,
+           "(image H x W x 3 uint8, truth dict of arrays) at a pose: 'desired', 'initial', \"x y z rx ry rz\" (cm, "
+           "deg) or a 4 x 4 world_T_camera; frame k's noise, as `cellsim render --frame k`")
+      .def("decoder", [](const Scenario& s) { return std::make_unique<Servo>(s, "desired-constant-depth", 0, 0.5, "none"); },
+           "a servo of the scenario's pattern and camera, for decode()");
+  py::class_<Servo>(m, "Servo", "the servo's pipeline: decode, teach, one control-law iteration")
+      .def(py::init<const Scenario&, const std::string&, double, double, const std::string&>(), py::arg("scenario"),
+           py::arg("model") = "desired-constant-depth", py::arg("z_hat") = 0.0, py::arg("gain") = 0.5,
+           py::arg("robust") = "none")
+      .def("decode", &Servo::decode, py::arg("image"), "spots of an H x W x 3 uint8 RGB image: dict of row, col, u, v")
+      .def("teach", &Servo::teach, py::arg("image"), "the features of this image become s*; returns how many")
+      .def("step", &Servo::step, py::arg("image"), "one iteration: dict of twist (6), error_norm, decoded, matched");
+  m.def("experiment", &experiment, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
+        py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
+        py::arg("features") = "decoded",
+        "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns");
+  py::class_<Env>(m, "ServoEnv",
+                  "the cell as an environment (Gymnasium's API shape): reset(seed, options) -> (obs, info); "
+                  "step(twist) -> (obs, reward, terminated, truncated, info); reward = -|e|")
+      .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&>(),
+           py::arg("scenario"), py::arg("observation") = "features", py::arg("max_steps") = 300,
+           py::arg("model") = "desired-constant-depth", py::arg("z_hat") = 0.0, py::arg("gain") = 0.5,
+           py::arg("robust") = "none")
+      .def("reset", &Env::reset, py::arg("seed") = py::none(), py::arg("options") = py::none())
+      .def("step", &Env::step, py::arg("twist"));
+}

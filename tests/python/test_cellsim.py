@@ -1,0 +1,155 @@
+"""The Python API (issue 22, item 3), with Debian's pytest from bin/test: the module is the
+project's own objects (sim/python/cellsim_module.cpp), built into build/python."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import cellsim
+
+SRC = os.environ["CELL_SOURCE_DIR"]
+BIN = os.environ["CELL_BIN_DIR"]
+PLANE = os.path.join(SRC, "sim", "scenarios", "plane.yaml")
+sys.path.insert(0, os.path.join(SRC, "sim", "python"))
+import example_controller  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def plane():
+    return cellsim.Scenario(PLANE)
+
+
+def test_rendering_from_python_equals_cellsim_render_bit_for_bit(plane, tmp_path):
+    for pose, frame in (("initial", 0), ("desired", 7)):
+        image, truth = plane.render(pose, frame=frame)
+        assert image.dtype == np.uint8 and image.shape == (plane.height, plane.width, 3)
+        png = tmp_path / f"{pose}.png"
+        sidecar = tmp_path / f"{pose}.json"
+        subprocess.run([os.path.join(BIN, "cellsim"), "render", PLANE, "--pose", pose, "--frame", str(frame),
+                        "-o", str(png), "--truth", str(sidecar)], check=True, capture_output=True)
+        import matplotlib.image
+        written = (matplotlib.image.imread(str(png))[..., :3] * 255).round().astype(np.uint8)
+        assert np.array_equal(written, image), f"{pose}: the rendered images differ"
+        spots = json.loads(sidecar.read_text())["spots"]
+        assert int(truth["visible"].sum()) == sum(s["visible"] for s in spots)
+
+
+def test_decoding_an_image_array_gives_the_spots_with_their_ids(plane):
+    image, truth = plane.render("desired")
+    spots = plane.decoder().decode(image)
+    assert len(spots["row"]) > 100
+    visible = {(int(r), int(c)): (u, v) for r, c, u, v, vis in
+               zip(truth["row"], truth["col"], truth["u"], truth["v"], truth["visible"]) if vis}
+    for r, c, u, v in zip(spots["row"], spots["col"], spots["u"], spots["v"]):
+        tu, tv = visible[(int(r), int(c))]  # every id is a visible spot's, near where it truly is
+        assert abs(u - tu) < 3 and abs(v - tv) < 3
+
+
+def test_one_servo_iteration_from_python(plane):
+    servo = cellsim.Servo(plane, z_hat=0.9)
+    assert servo.teach(plane.render("desired")[0]) > 100
+    r = servo.step(plane.render("initial")[0])
+    assert r["twist"].shape == (6,) and np.all(np.isfinite(r["twist"])) and r["error_norm"] > 0
+    assert servo.step(plane.render("desired")[0])["error_norm"] < 1e-3
+
+
+def test_an_experiment_returns_the_trace_as_arrays(plane):
+    r = cellsim.experiment(plane, z_hat=0.9, max_iterations=400)
+    assert r["converged"] and r["iterations"] == len(r["t"]) and r["twist"].shape == (len(r["t"]), 6)
+    assert r["final_translation_error_m"] < 1e-3
+    assert r["error_norm"][-1] < r["error_norm"][0]
+
+
+def test_the_envs_300_step_plane_run_with_a_proportional_controller_converges(plane):
+    env = cellsim.ServoEnv(plane, max_steps=300)
+    obs, info = env.reset()
+    assert obs.ndim == 2 and obs.shape[1] == 4 and obs.shape[0] > 100
+    assert info["steps"] == 0 and info["servo_state"] == "servoing"
+    control = example_controller.proportional_controller(gain=1.0, depth=0.9)
+    rewards = []
+    for _ in range(300):
+        obs, reward, terminated, truncated, info = env.step(control(obs))
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    assert terminated and not truncated, info["reason"]
+    assert info["reason"].startswith("converged"), info["reason"]
+    assert info["translation_error_m"] < 1e-3 and info["rotation_error_deg"] < 0.1
+    assert rewards[-1] > rewards[0] and all(r <= 0 for r in rewards)
+    with pytest.raises(RuntimeError, match="after the episode ended"):
+        env.step(np.zeros(6))
+
+
+def test_a_zero_controller_is_truncated_at_max_steps(plane):
+    env = cellsim.ServoEnv(plane, max_steps=5)
+    env.reset(seed=3)
+    for _ in range(5):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(6))
+    assert truncated and not terminated and info["reason"] == "max_steps (5)"
+
+
+def test_the_image_observation_and_seeded_resets(plane):
+    env = cellsim.ServoEnv(plane, observation="image", max_steps=10)
+    a, info_a = env.reset(seed=11)
+    b, info_b = env.reset(seed=11)
+    c, info_c = env.reset(seed=12)
+    assert a.dtype == np.uint8 and a.shape == (plane.height, plane.width, 3)
+    assert np.array_equal(a, b) and np.array_equal(info_a["camera_pose"], info_b["camera_pose"])
+    assert not np.array_equal(info_a["camera_pose"], info_c["camera_pose"]) and not np.array_equal(a, c)
+
+
+def one_line(excinfo):
+    text = str(excinfo.value)
+    assert text and "\n" not in text, text
+    return text
+
+
+def test_bad_inputs_raise_a_one_line_python_exception(plane):
+    servo = plane.decoder()
+    with pytest.raises(ValueError) as e:
+        servo.decode(np.zeros((480, 640, 3), dtype=np.float32))
+    assert "uint8" in one_line(e)
+    with pytest.raises(ValueError) as e:
+        servo.decode(np.zeros((480, 640), dtype=np.uint8))
+    assert "shape" in one_line(e)
+    with pytest.raises(ValueError) as e:
+        servo.decode(np.zeros((5000, 10, 3), dtype=np.uint8))
+    one_line(e)
+    env = cellsim.ServoEnv(plane, max_steps=10)
+    with pytest.raises(RuntimeError) as e:
+        env.step(np.zeros(6))
+    assert "reset" in one_line(e)
+    env.reset()
+    with pytest.raises(ValueError) as e:
+        env.step(np.array([0, 0, np.nan, 0, 0, 0]))
+    assert "finite" in one_line(e)
+    with pytest.raises(ValueError) as e:
+        env.step(np.zeros(5))
+    assert "6 numbers" in one_line(e)
+    env.step(np.zeros(6))  # the episode goes on after a refused twist
+    with pytest.raises(ValueError) as e:
+        plane.render(np.eye(3))
+    one_line(e)
+    with pytest.raises(ValueError) as e:
+        plane.render(np.full((4, 4), np.inf))
+    one_line(e)
+    with pytest.raises(RuntimeError) as e:
+        cellsim.Scenario("/proc/self/status")
+    one_line(e)
+    with pytest.raises(ValueError) as e:
+        cellsim.ServoEnv(plane, observation="pixels")
+    one_line(e)
+    with pytest.raises(ValueError) as e:
+        cellsim.experiment(plane, model="teleport")
+    one_line(e)
+
+
+def test_the_example_controller_runs_as_a_user_runs_it():
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(cellsim.__file__))
+    r = subprocess.run(["/usr/bin/python3", os.path.join(SRC, "sim", "python", "example_controller.py"), PLANE],
+                       env=env, capture_output=True, text=True, timeout=280)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.startswith("converged"), r.stdout

@@ -64,11 +64,8 @@ typename PubSubType::type decode(const mcap::Channel& c, const mcap::MessageView
 class Replay {
  public:
   explicit Replay(const ReplayOptions& o) : o_(o) {
-    const pattern::MArray marray = load_decodable_pattern(o.pattern);
-    if (o.config.projector) check_projector_against_pattern(*o.config.projector, marray, o.pattern);
-    auto pipeline = std::make_unique<ServoPipeline>(pattern::WindowTable(marray, {3, 3}), o.config);
-    if (!o.reference.empty()) pipeline->set_reference(load_reference(o.reference));
-    machine_ = std::make_unique<ServoStateMachine>(std::move(pipeline), ServoTiming{o.lost_ms / 1e3, o.autostart});
+    machine_ = std::make_unique<ServoStateMachine>(make_pipeline(o.pattern, o.config, o.reference),
+                                                   ServoTiming{o.lost_ms / 1e3, o.autostart});
     const ServoReply ready = machine_->ready();
     ready_ = TwistAt{ready.stamp, 0, ready.twist, static_cast<int>(ready.state), 0, 0};
   }

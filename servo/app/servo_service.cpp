@@ -99,13 +99,10 @@ struct Inbox {
 class ServoService {
  public:
   explicit ServoService(const ServiceOptions& o) : o_(o) {
-    const pattern::MArray marray = load_decodable_pattern(o.pattern);
-    if (o.config.projector) check_projector_against_pattern(*o.config.projector, marray, o.pattern);
-    auto pipeline = std::make_unique<ServoPipeline>(pattern::WindowTable(marray, {3, 3}), o.config);
-    if (!o.reference.empty() && std::filesystem::exists(o.reference)) {
-      pipeline->set_reference(load_reference(o.reference));
+    std::error_code ec;
+    auto pipeline = make_pipeline(o.pattern, o.config, std::filesystem::exists(o.reference, ec) ? o.reference : "");
+    if (pipeline->taught())
       std::printf("servo: reference loaded from %s (%zu features)\n", o.reference.c_str(), pipeline->reference().size());
-    }
     machine_ = std::make_unique<ServoStateMachine>(std::move(pipeline), ServoTiming{o.lost_ms / 1e3, o.autostart});
     participant_ = cell_dds::make_participant(cell_dds::participant_options(o, "servo", "servo"));
     auto& p = *participant_;
@@ -238,6 +235,15 @@ class ServoService {
 };
 
 }  // namespace
+
+std::unique_ptr<ServoPipeline> make_pipeline(const std::filesystem::path& pattern_file, const ServoConfig& config,
+                                             const std::filesystem::path& reference) {
+  const pattern::MArray marray = load_decodable_pattern(pattern_file);
+  if (config.projector) check_projector_against_pattern(*config.projector, marray, pattern_file);
+  auto pipeline = std::make_unique<ServoPipeline>(pattern::WindowTable(marray, {3, 3}), config);
+  if (!reference.empty()) pipeline->set_reference(load_reference(reference));
+  return pipeline;
+}
 
 pattern::MArray load_decodable_pattern(const std::filesystem::path& file) {
   const pattern::MArray marray = pattern::load_pattern(file, {3, 3});

@@ -5,6 +5,7 @@
 #include "dds/participant.hpp"
 
 #include <filesystem>
+#include <memory>
 #include <string>
 
 #include "servo/pattern/marray.hpp"
@@ -26,6 +27,11 @@ struct ServiceOptions {
 };
 
 int run_servo_service(const ServiceOptions& options);
+
+// The pipeline for `pattern` (checked against the projector's calibration, when there is
+// one), with s* from `reference` when that file is given and exists.
+std::unique_ptr<ServoPipeline> make_pipeline(const std::filesystem::path& pattern, const ServoConfig& config,
+                                             const std::filesystem::path& reference);
 
 // s* as `servo run --reference` writes it after teaching (JSON list of features). Throws
 // std::runtime_error naming the file.

@@ -195,6 +195,12 @@ mcap::WriteSummary Recorder::close() {
   return summary_;
 }
 
+std::string Recorder::topic_counts(const mcap::WriteSummary& s) {
+  std::string counts;
+  for (const auto& [t, n] : s.topic_messages) counts += (counts.empty() ? "" : ", ") + t + " " + std::to_string(n);
+  return counts;
+}
+
 std::string Recorder::describe(const mcap::WriteSummary& s) const {
   char buf[160];
   std::snprintf(buf, sizeof buf, " (%.1f MB, %llu messages on %zu topics%s)", static_cast<double>(s.bytes) / 1e6,

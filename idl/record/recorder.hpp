@@ -81,6 +81,8 @@ class Recorder {
   const std::filesystem::path& file() const { return options_.file; }
   // "FILE (N.N MB, M messages; recording stopped at the size limit)" for the summary line
   std::string describe(const mcap::WriteSummary& s) const;
+  // "/camera/image_raw 324, /clock 324, ...": what an MCAP reader must find, per topic
+  static std::string topic_counts(const mcap::WriteSummary& s);
 
  private:
   struct Pending {
@@ -126,6 +128,17 @@ typename cell_dds::Reader<PubSubType>::Tap recording(Recorder* r, const std::str
   return [r, topic, stream](const typename PubSubType::type& m, std::uint64_t source_ns) {
     r->record<PubSubType>(topic, stream, m, source_ns != 0 ? source_ns : wall_ns());
   };
+}
+
+// A reader of `topic` with the topic map's QoS for `stream` whose samples are also recorded
+// (when `r` is not null), at the QoS its writer offers.
+template <typename PubSubType>
+std::unique_ptr<cell_dds::Reader<PubSubType>> recorded_reader(eprosima::fastdds::dds::DomainParticipant& p,
+                                                              const std::string& topic, cell_dds::Stream stream,
+                                                              typename cell_dds::Reader<PubSubType>::Callback on_sample,
+                                                              Recorder* r) {
+  return std::make_unique<cell_dds::Reader<PubSubType>>(p, topic, cell_dds::reader_qos(stream), std::move(on_sample),
+                                                        recording<PubSubType>(r, topic, stream));
 }
 
 }  // namespace cell_record

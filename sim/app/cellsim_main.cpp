@@ -236,15 +236,7 @@ struct ConditionFlags {
   }
 };
 
-// Z-hat by default: the depth, at the desired pose, of the point the camera looks at.
-double desired_depth(const sim::Cell& cell) {
-  const auto truth = sim::compute_truth(cell, cell.scenario.world_T_desired);
-  double sum = 0;
-  int n = 0;
-  for (const auto& t : truth)
-    if (t.visible) sum += t.depth_m, ++n;
-  return n ? sum / n : 1.0;
-}
+using cellsim::desired_depth;
 
 // What `campaign` and `study` share: the draw of initial poses, the models, the law, the
 // errors and delays.

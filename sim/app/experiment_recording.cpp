@@ -77,9 +77,7 @@ void ExperimentRecording::on_reply(const servo::ServoReply& r, double now_s) {
 
 std::string ExperimentRecording::close() {
   const mcap::WriteSummary w = recorder_.close();
-  std::string counts;
-  for (const auto& [t, n] : w.topic_messages) counts += (counts.empty() ? "" : ", ") + t + " " + std::to_string(n);
-  return recorder_.describe(w) + "\n  recorded messages: " + counts;
+  return recorder_.describe(w) + "\n  recorded messages: " + cell_record::Recorder::topic_counts(w);
 }
 
 }  // namespace cellsim

@@ -280,21 +280,16 @@ class SimService {
         p, topic(cell_dds::kTfTopic), cell_dds::writer_qos(Stream::kFrame));
     description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
         p, topic(cell_dds::kRobotDescriptionTopic), cell_dds::writer_qos(Stream::kLatched));
-    using cell_record::recording;
-    using TwistType = geometry_msgs::msg::dds_::TwistStamped_PubSubType;
-    using ControlType = cell_msgs::msg::dds_::SimControl_PubSubType;
-    using StatusType = cell_msgs::msg::dds_::ServoStatus_PubSubType;
-    twist_in_ = std::make_unique<cell_dds::Reader<TwistType>>(
-        p, topic(cell_dds::kTwistTopic), cell_dds::reader_qos(Stream::kFrame),
-        [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); },
-        recording<TwistType>(recorder_.get(), topic(cell_dds::kTwistTopic), Stream::kFrame));
+    using cell_record::recorded_reader;
+    twist_in_ = recorded_reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(
+        p, topic(cell_dds::kTwistTopic), Stream::kFrame,
+        [this](TwistStamped_&& t) { inbox_.push(inbox_.twists, std::move(t), Inbox::kMaxTwists); }, recorder_.get());
     // every command that reaches the cell, the autorun's own included, is recorded here once
-    control_in_ = std::make_unique<cell_dds::Reader<ControlType>>(
-        p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
-        [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); },
-        recording<ControlType>(recorder_.get(), topic(cell_dds::kControlTopic), Stream::kCommand));
-    status_in_ = std::make_unique<cell_dds::Reader<StatusType>>(
-        p, topic(cell_dds::kStatusTopic), cell_dds::reader_qos(Stream::kLatched),
+    control_in_ = recorded_reader<cell_msgs::msg::dds_::SimControl_PubSubType>(
+        p, topic(cell_dds::kControlTopic), Stream::kCommand,
+        [this](SimControl_&& c) { inbox_.push(inbox_.commands, std::move(c), Inbox::kMaxCommands); }, recorder_.get());
+    status_in_ = recorded_reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>(
+        p, topic(cell_dds::kStatusTopic), Stream::kLatched,
         [this](ServoStatus_&& s) {
           {
             std::lock_guard<std::mutex> l(inbox_.m);
@@ -303,15 +298,11 @@ class SimService {
           }
           inbox_.push(inbox_.statuses, std::move(s), Inbox::kMaxStatuses);
         },
-        recording<StatusType>(recorder_.get(), topic(cell_dds::kStatusTopic), Stream::kLatched));
-    if (recorder_) {
-      // the servo's decoded spots: read only to be recorded
-      using SpotsType = cell_msgs::msg::dds_::DecodedSpots_PubSubType;
-      spots_in_ = std::make_unique<cell_dds::Reader<SpotsType>>(
-          p, topic(cell_dds::kSpotsTopic), cell_dds::reader_qos(Stream::kFrame),
-          [](cell_msgs::msg::dds_::DecodedSpots_&&) {},
-          recording<SpotsType>(recorder_.get(), topic(cell_dds::kSpotsTopic), Stream::kFrame));
-    }
+        recorder_.get());
+    // the servo's decoded spots: read only to be recorded
+    if (recorder_)
+      spots_in_ = recorded_reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(
+          p, topic(cell_dds::kSpotsTopic), Stream::kFrame, [](cell_msgs::msg::dds_::DecodedSpots_&&) {}, recorder_.get());
     record_writes();
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
@@ -514,9 +505,7 @@ class SimService {
       // the recording's path, size and what it holds per topic (what an MCAP reader must find)
       const mcap::WriteSummary w = recorder_->close();
       std::printf("cellsim: recorded %s\n", recorder_->describe(w).c_str());
-      std::string counts;
-      for (const auto& [t, n] : w.topic_messages) counts += (counts.empty() ? "" : ", ") + t + " " + std::to_string(n);
-      std::printf("cellsim: recorded messages: %s\n", counts.c_str());
+      std::printf("cellsim: recorded messages: %s\n", cell_record::Recorder::topic_counts(w).c_str());
     }
     std::fflush(stdout);
   }

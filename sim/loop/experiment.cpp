@@ -332,6 +332,14 @@ class Experiment {
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) { return Experiment(cell, o).run(); }
 
+double desired_depth(const sim::Cell& cell) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& t : sim::compute_truth(cell, cell.scenario.world_T_desired))
+    if (t.visible) sum += t.depth_m, ++n;
+  return n ? sum / n : 1.0;
+}
+
 LoopSetup experiment_loop_setup(const sim::Cell& cell, const ExperimentOptions& o, std::uint64_t seed) {
   return loop_setup(cell, o, seed);
 }

@@ -71,6 +71,9 @@ control::ProjectorModel projector_model_of(const sim::Cell& cell);
 // calibration taken as exact.
 servo::ServoConfig servo_config_for(const sim::Cell& cell);
 
+// Z-hat by default: the mean depth, at the desired pose, of the spots the camera sees.
+double desired_depth(const sim::Cell& cell);
+
 // What calibration would give with the drawn errors (issue 13): the projector's pose as the
 // servo is told it (the camera's: sim::believed_camera).
 control::ProjectorModel believed_projector(const control::ProjectorModel& truth, const sim::DrawnErrors& errors);

@@ -90,15 +90,7 @@ servo::ServoConfig servo_config(const Scenario& s, const std::string& model, dou
                                 const std::string& robust) {
   servo::ServoConfig cfg = cellsim::servo_config_for(*s.cell);
   cfg.law.model = control::parse_interaction_model(model);
-  if (z_hat > 0) {
-    cfg.law.z_hat_m = z_hat;
-  } else {
-    double sum = 0;
-    int n = 0;
-    for (const auto& t : sim::compute_truth(*s.cell, s.cell->scenario.world_T_desired))
-      if (t.visible) sum += t.depth_m, ++n;
-    cfg.law.z_hat_m = n ? sum / n : 1.0;
-  }
+  cfg.law.z_hat_m = z_hat > 0 ? z_hat : cellsim::desired_depth(*s.cell);
   if (!(gain > 0 && gain < 100)) throw py::value_error("gain must be in (0, 100)");
   cfg.law.gain = {gain, gain, 0};
   cfg.law.robust = control::parse_robust_estimator(robust);
@@ -106,27 +98,23 @@ servo::ServoConfig servo_config(const Scenario& s, const std::string& model, dou
   return cfg;
 }
 
+// one array of a field of every row
+template <typename T, typename Row, typename Get>
+py::array_t<T> column(const std::vector<Row>& rows, Get get) {
+  py::array_t<T> a(static_cast<py::ssize_t>(rows.size()));
+  for (std::size_t i = 0; i < rows.size(); ++i) a.mutable_at(static_cast<py::ssize_t>(i)) = get(rows[i]);
+  return a;
+}
+
 py::dict truth_dict(const std::vector<sim::SpotTruth>& truth) {
-  const auto n = static_cast<py::ssize_t>(truth.size());
-  py::array_t<int> row(n), col(n);
-  py::array_t<bool> visible(n);
-  py::array_t<double> u(n), v(n), depth(n);
-  for (py::ssize_t i = 0; i < n; ++i) {
-    const auto& t = truth[static_cast<std::size_t>(i)];
-    row.mutable_at(i) = t.row;
-    col.mutable_at(i) = t.col;
-    visible.mutable_at(i) = t.visible;
-    u.mutable_at(i) = t.uv.x();
-    v.mutable_at(i) = t.uv.y();
-    depth.mutable_at(i) = t.depth_m;
-  }
+  using T = sim::SpotTruth;
   py::dict d;
-  d["row"] = row;
-  d["col"] = col;
-  d["visible"] = visible;
-  d["u"] = u;
-  d["v"] = v;
-  d["depth_m"] = depth;
+  d["row"] = column<int>(truth, [](const T& t) { return t.row; });
+  d["col"] = column<int>(truth, [](const T& t) { return t.col; });
+  d["visible"] = column<bool>(truth, [](const T& t) { return t.visible; });
+  d["u"] = column<double>(truth, [](const T& t) { return t.uv.x(); });
+  d["v"] = column<double>(truth, [](const T& t) { return t.uv.y(); });
+  d["depth_m"] = column<double>(truth, [](const T& t) { return t.depth_m; });
   return d;
 }
 
@@ -141,21 +129,12 @@ py::tuple render(const Scenario& s, const py::object& pose_spec, std::uint64_t f
 }
 
 py::dict spots_dict(const std::vector<servo::ImageSpot>& spots, int detected) {
-  const auto n = static_cast<py::ssize_t>(spots.size());
-  py::array_t<int> row(n), col(n);
-  py::array_t<double> u(n), v(n);
-  for (py::ssize_t i = 0; i < n; ++i) {
-    const auto& s = spots[static_cast<std::size_t>(i)];
-    row.mutable_at(i) = s.row;
-    col.mutable_at(i) = s.col;
-    u.mutable_at(i) = s.u;
-    v.mutable_at(i) = s.v;
-  }
+  using S = servo::ImageSpot;
   py::dict d;
-  d["row"] = row;
-  d["col"] = col;
-  d["u"] = u;
-  d["v"] = v;
+  d["row"] = column<int>(spots, [](const S& s) { return s.row; });
+  d["col"] = column<int>(spots, [](const S& s) { return s.col; });
+  d["u"] = column<double>(spots, [](const S& s) { return s.u; });
+  d["v"] = column<double>(spots, [](const S& s) { return s.v; });
   d["detected"] = detected;
   return d;
 }
@@ -203,19 +182,11 @@ py::dict experiment(const Scenario& s, const std::string& model, double z_hat, d
     py::gil_scoped_release release;  // a long run: other Python threads go on
     r = cellsim::run_experiment(*s.cell, o);
   }
-  const auto n = static_cast<py::ssize_t>(r.trace.size());
-  py::array_t<double> t(n), twist({n, py::ssize_t{6}}), e(n), te(n), re(n);
-  py::array_t<int> decoded(n), matched(n);
-  for (py::ssize_t i = 0; i < n; ++i) {
-    const auto& it = r.trace[static_cast<std::size_t>(i)];
-    t.mutable_at(i) = it.t_s;
-    for (int k = 0; k < 6; ++k) twist.mutable_at(i, k) = it.twist[k];
-    e.mutable_at(i) = it.error_norm;
-    te.mutable_at(i) = it.translation_error_m;
-    re.mutable_at(i) = it.rotation_error_deg;
-    decoded.mutable_at(i) = it.decoded;
-    matched.mutable_at(i) = it.matched;
-  }
+  using I = cellsim::IterationRecord;
+  const auto& tr = r.trace;
+  py::array_t<double> twist({static_cast<py::ssize_t>(tr.size()), py::ssize_t{6}});
+  for (std::size_t i = 0; i < tr.size(); ++i)
+    for (int k = 0; k < 6; ++k) twist.mutable_at(static_cast<py::ssize_t>(i), k) = tr[i].twist[k];
   py::dict d;
   d["converged"] = r.converged;
   d["stop_reason"] = r.stop_reason;
@@ -224,13 +195,13 @@ py::dict experiment(const Scenario& s, const std::string& model, double z_hat, d
   d["decoded_initial"] = r.decoded_initial;
   d["final_translation_error_m"] = r.final_translation_error_m;
   d["final_rotation_error_deg"] = r.final_rotation_error_deg;
-  d["t"] = t;
+  d["t"] = column<double>(tr, [](const I& i) { return i.t_s; });
   d["twist"] = twist;
-  d["error_norm"] = e;
-  d["translation_error_m"] = te;
-  d["rotation_error_deg"] = re;
-  d["decoded"] = decoded;
-  d["matched"] = matched;
+  d["error_norm"] = column<double>(tr, [](const I& i) { return i.error_norm; });
+  d["translation_error_m"] = column<double>(tr, [](const I& i) { return i.translation_error_m; });
+  d["rotation_error_deg"] = column<double>(tr, [](const I& i) { return i.rotation_error_deg; });
+  d["decoded"] = column<int>(tr, [](const I& i) { return i.decoded; });
+  d["matched"] = column<int>(tr, [](const I& i) { return i.matched; });
   return d;
 }
 

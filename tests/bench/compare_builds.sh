@@ -14,6 +14,7 @@ old="$1"; new="$2"; src="$3"; rounds="${4:-3}"
 export OPENCV_FOR_THREADS_NUM=1
 work="$(mktemp -d)"; trap 'rm -rf "$work"' EXIT
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( $$ % 100 + 100 ))}" ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY
 median() { printf '%s\n' "$@" | sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
 report() {  # report NAME UNIT HIGHER_IS_BETTER OLD_VALUES... -- NEW_VALUES...
   local name="$1" unit="$2" higher="$3"; shift 3

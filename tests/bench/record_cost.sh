@@ -8,7 +8,9 @@
 set -euo pipefail
 bin="$1"; src="$2"; pairs="${3:-5}"
 work="$(mktemp -d)"; trap 'rm -rf "$work"' EXIT
-export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( $$ % 100 + 120 ))}"
+# loopback only, whatever the caller's ROS 2 environment says
+export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( $$ % 100 + 120 ))}" ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY
 pattern="$src/servo/pattern/data/marray_20x20_k3_w3.txt"
 one_run() {  # prints the loop rate of one run; $@: extra cellsim flags
   local dir; dir="$(mktemp -d "$work/run.XXXX")"

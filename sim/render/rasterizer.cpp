@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <immintrin.h>
+
 namespace sim {
 namespace {
 
@@ -13,8 +15,44 @@ struct ScreenVertex {
   double u, v, inv_z;
 };
 
+// w(x, y) = a x + b y + c: barycentric weights and 1/z are affine in screen space
+struct Affine {
+  double a, b, c;
+  double at(double x, double y) const { return a * x + b * y + c; }
+};
+
+// fill_triangle's row spans for rows y..y+3, with AVX2: per edge the same c = b y + c,
+// -(c + 1e-9) / a, std::max / std::min (maxpd and minpd return their second operand for a
+// NaN, as std::max(lo, v) keeps lo), the same ceil, floor and truncating conversion (an
+// out-of-range value becomes INT_MIN in both). A row outside an edge parallel to the rows is
+// empty (the scalar loop's hi = lo - 1).
+__attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine* const edges[3], int* xa, int* xb) {
+  const __m256d yv = _mm256_setr_pd(y, y + 1, y + 2, y + 3);
+  __m256d lo = _mm256_set1_pd(x0), hi = _mm256_set1_pd(x1);
+  __m256d empty = _mm256_setzero_pd();
+  for (int k = 0; k < 3; ++k) {
+    const Affine& e = *edges[k];
+    const __m256d c = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(e.b), yv), _mm256_set1_pd(e.c));
+    if (e.a > 1e-15 || e.a < -1e-15) {
+      const __m256d bound = _mm256_div_pd(_mm256_xor_pd(_mm256_add_pd(c, _mm256_set1_pd(1e-9)), _mm256_set1_pd(-0.0)),
+                                          _mm256_set1_pd(e.a));
+      if (e.a > 0) lo = _mm256_max_pd(bound, lo);
+      else hi = _mm256_min_pd(bound, hi);
+    } else {
+      empty = _mm256_or_pd(empty, _mm256_cmp_pd(c, _mm256_set1_pd(-1e-9), _CMP_LT_OQ));
+    }
+  }
+  __m128i a = _mm_max_epi32(_mm_set1_epi32(x0), _mm256_cvttpd_epi32(_mm256_ceil_pd(lo)));
+  __m128i b = _mm_min_epi32(_mm_set1_epi32(x1), _mm256_cvttpd_epi32(_mm256_floor_pd(hi)));
+  const __m128i empty32 = _mm256_castsi256_si128(
+      _mm256_permutevar8x32_epi32(_mm256_castpd_si256(empty), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
+  b = _mm_blendv_epi8(b, _mm_sub_epi32(a, _mm_set1_epi32(1)), empty32);
+  _mm_store_si128(reinterpret_cast<__m128i*>(xa), a);
+  _mm_store_si128(reinterpret_cast<__m128i*>(xb), b);
+}
+
 void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, std::int32_t id,
-                   DepthBuffer& out, const RasterClip& clip) {
+                   DepthBuffer& out, const RasterClip& clip, bool vector) {
   const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
   if (std::abs(area) < 1e-12) return;
   const double m = out.margin;
@@ -23,12 +61,7 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
   const int y0 = std::max(clip.y0, static_cast<int>(std::ceil(std::min({p0.v, p1.v, p2.v}) + m)));
   const int y1 = std::min({out.height - 1, clip.y1, static_cast<int>(std::floor(std::max({p0.v, p1.v, p2.v}) + m))});
   if (x0 > x1 || y0 > y1) return;
-  // barycentric weights and 1/z are affine in screen space: w(x, y) = a x + b y + c
   const double inv_area = 1.0 / area;
-  struct Affine {
-    double a, b, c;
-    double at(double x, double y) const { return a * x + b * y + c; }
-  };
   const auto edge = [&](const ScreenVertex& s, const ScreenVertex& e) {
     // ((e.u - s.u) (y - s.v) - (e.v - s.v) (x - s.u)) / area, in buffer coordinates
     const double a = -(e.v - s.v) * inv_area, b = (e.u - s.u) * inv_area;
@@ -39,6 +72,28 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
                   w0.b * p0.inv_z + w1.b * p1.inv_z + w2.b * p2.inv_z,
                   w0.c * p0.inv_z + w1.c * p1.inv_z + w2.c * p2.inv_z};
   const Affine* edges[3] = {&w0, &w1, &w2};
+  const auto fill_span = [&](int y, int xa, int xb) {
+    float q = static_cast<float>(iz.at(xa, y));
+    const float dq = static_cast<float>(iz.a);
+    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y) * out.width];
+    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y) * out.width];
+    for (int x = xa; x <= xb; ++x, q += dq) {
+      if (q > inv_depth[x]) {  // nearer
+        inv_depth[x] = q;
+        tri[x] = id;
+      }
+    }
+  };
+  if (vector) {
+    // the spans of four rows at once: the same divisions, comparisons and roundings
+    alignas(16) int xa[4], xb[4];
+    for (int y = y0; y <= y1; y += 4) {
+      spans4(y, x0, x1, edges, xa, xb);
+      for (int r = 0; r < 4 && y + r <= y1; ++r)
+        if (xa[r] <= xb[r]) fill_span(y + r, xa[r], xb[r]);
+    }
+    return;
+  }
   for (int y = y0; y <= y1; ++y) {
     // the span of this row inside all three edges, solved per edge (a x + b y + c >= 0), so
     // the loop below visits only covered pixels (thin triangles leave most of their box empty)
@@ -50,17 +105,7 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
       else if (c < -1e-9) hi = lo - 1;  // parallel to this edge and outside it
     }
     const int xa = std::max(x0, static_cast<int>(std::ceil(lo))), xb = std::min(x1, static_cast<int>(std::floor(hi)));
-    if (xa > xb) continue;
-    float q = static_cast<float>(iz.at(xa, y));
-    const float dq = static_cast<float>(iz.a);
-    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y) * out.width];
-    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y) * out.width];
-    for (int x = xa; x <= xb; ++x, q += dq) {
-      if (q > inv_depth[x]) {  // nearer
-        inv_depth[x] = q;
-        tri[x] = id;
-      }
-    }
+    if (xa <= xb) fill_span(y, xa, xb);
   }
 }
 
@@ -94,19 +139,20 @@ SceneTriangles collect_triangles(const World& world) {
 }
 
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
-               DepthBuffer& out) {
+               DepthBuffer& out, bool vector) {
   out.margin = margin;
   out.width = k.width + 2 * margin;
   out.height = k.height + 2 * margin;
   const std::size_t n = static_cast<std::size_t>(out.width) * out.height;
   out.inv_depth.assign(n, 0.0f);
   out.triangle.assign(n, -1);
-  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{});
+  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{}, vector);
 }
 
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip) {
-
+                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  vector = vector && avx2;
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
   };
@@ -116,7 +162,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
     if (behind == 3) continue;
     const auto id = static_cast<std::int32_t>(i);
     if (behind == 0) {
-      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip);
+      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip, vector);
       continue;
     }
     // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
@@ -130,7 +176,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
       if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
     }
     for (int f = 1; f + 1 < count; ++f)
-      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip);
+      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip, vector);
   }
 }
 

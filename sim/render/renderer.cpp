@@ -3,10 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+#include <limits>
 
+#include <immintrin.h>
 #include <opencv2/core/utility.hpp>
 
 #include "servo/pattern/palette.hpp"
+#include "sim/render/render_parts.hpp"
 
 namespace sim {
 namespace {
@@ -18,8 +22,7 @@ std::uint64_t splitmix64(std::uint64_t& state) {
   return z ^ (z >> 31);
 }
 
-// 0.5 erfc(x / sqrt 2): the fraction of a Gaussian-blurred edge's light at signed distance x
-// (in sigmas) outside it. Tabulated: std::erfc costs ~30 ns and runs once per lit pixel.
+// 0.5 erfc(x / sqrt 2), tabulated: std::erfc costs ~30 ns and runs once per lit pixel.
 class EdgeProfile {
  public:
   EdgeProfile() {
@@ -33,16 +36,76 @@ class EdgeProfile {
     const float t = static_cast<float>(f - i);
     return table_[i] + t * (table_[i + 1] - table_[i]);
   }
+  const float* table() const { return table_.data(); }
 
- private:
   static constexpr int kN = 2049;
   static constexpr double kLo = -6.0, kStep = 12.0 / (kN - 1);
+
+ private:
   std::array<float, kN> table_{};
 };
 
 const EdgeProfile& edge_profile() {
   static const EdgeProfile profile;  // immutable table, built once
   return profile;
+}
+
+}  // namespace
+
+namespace render_parts {
+
+float edge_fraction(double x) { return edge_profile()(x); }
+
+std::array<Eigen::Vector3f, 10> spot_colours(const CameraSpec& cam) {
+  std::array<Eigen::Vector3f, 10> spot_rgb;
+  for (int i = 0; i < 10; ++i) {
+    const pattern::Rgb c = pattern::symbol_colour(i);
+    const Eigen::Vector3f raw(c.r / 255.f, c.g / 255.f, c.b / 255.f);
+    const float x = static_cast<float>(cam.crosstalk);
+    spot_rgb[i] = (1 - 2 * x) * raw + x * Eigen::Vector3f(raw.y() + raw.z(), raw.x() + raw.z(), raw.x() + raw.y());
+  }
+  return spot_rgb;
+}
+
+Sensor::Sensor(const Cell& cell, const CameraSpec& cam, std::uint64_t noise_seed)
+    : gain(static_cast<float>(255.0 * cam.exposure)),
+      read_var(static_cast<float>(cam.noise_sigma * cam.noise_sigma)),
+      shot(static_cast<float>(cam.shot_noise)),
+      noisy(cam.noise_sigma > 0 || cam.shot_noise > 0),
+      pool(cell.noise_pool.data()),
+      pool_span(1),
+      seed(noise_seed) {
+  const std::size_t row_len = static_cast<std::size_t>(cell.scenario.camera.intrinsics.width) * 3;
+  pool_span = cell.noise_pool.size() > row_len ? cell.noise_pool.size() - row_len : 1;
+}
+
+namespace {
+// One clone per instruction set, picked when the program starts: the same IEEE operations
+// in the same order give the same bytes whatever the vector width (no FMA: "avx2" does not
+// allow the compiler to contract a multiply and an add).
+__attribute__((target_clones("avx2", "default"))) void expose(const float* __restrict in, std::uint8_t* __restrict row,
+                                                              const float* __restrict noise, std::size_t n, float g,
+                                                              float rv, float sh, bool noisy) {
+  if (noisy) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const float value = g * in[i];
+      const float noisy_value = value + std::sqrt(rv + sh * std::max(value, 0.f)) * noise[i];
+      row[i] = static_cast<std::uint8_t>(std::min(std::max(noisy_value + 0.5f, 0.f), 255.f));
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) row[i] = static_cast<std::uint8_t>(std::min(std::max(g * in[i] + 0.5f, 0.f), 255.f));
+  }
+}
+}  // namespace
+
+const float* Sensor::row_noise(int v) const {
+  // a contiguous run of the pool at a seeded offset: the loop over it vectorises
+  std::uint64_t state = seed ^ (0x9E3779B97F4A7C15ull * static_cast<std::uint64_t>(v + 1));
+  return pool + splitmix64(state) % pool_span;
+}
+
+void Sensor::expose_row(int v, const float* radiance, std::uint8_t* out, std::size_t n) const {
+  expose(radiance, out, row_noise(v), n, gain, read_var, shot, noisy);
 }
 
 // The image region one spot can light: the projected rim and centre hits on one object,
@@ -95,6 +158,10 @@ void spot_boxes(const Cell& cell, const std::vector<SpotHit>& hits, const Eigen:
     }
   }
 }
+
+}  // namespace render_parts
+
+namespace {
 
 // The scene's triangles with the arm's at its link poses: the static part is copied once per
 // buffer, then only the arm is replaced.
@@ -186,7 +253,7 @@ const DepthBuffer& arm_projector_depth(const Cell& cell, const SceneTriangles& t
     clip.x1 = std::min(clip.x1, static_cast<int>(std::ceil(box.max().x())) + d.margin + 2);
     clip.y1 = std::min(clip.y1, static_cast<int>(std::ceil(box.max().y())) + d.margin + 2);
   }
-  rasterize_more(triangles, first, p_T_w, kp, d, clip);
+  rasterize_more(triangles, first, p_T_w, kp, d, clip, !buf.scalar);
   buf.dirty_u0 = clip.x0;
   buf.dirty_v0 = clip.y0;
   buf.dirty_u1 = clip.x1;
@@ -229,148 +296,447 @@ std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame) {
   return splitmix64(s);
 }
 
+namespace {
+
+// Rows rendered together: the spots' light, then the sensor, while the rows' radiance is still
+// in the cache (a whole frame of radiance is 3.7 MB; eight rows are 61 kB).
+constexpr int kTileRows = 8;
+
+// What every spot's light has in common at one pixel of a tile: where the pixel's surface
+// lies on the projector's image plane and how far from it, the blur there, whether the
+// projector sees that point, and the light the surface returns. Computed once per pixel that
+// some spot's box covers; the boxes of blurred spots overlap several times over, and each
+// spot then only measures its distance on the projector's plane.
+struct TileLight {
+  enum State : std::uint8_t { kUnknown = 0, kNoSurface, kShadow, kLit };
+  // a tile row is `stride` pixels, the image's width rounded up to the vector unit's 4 lanes
+  std::size_t stride;
+  std::vector<double> pu, pv, zp, sigma, reach2;
+  std::vector<float> weight;
+  std::vector<std::uint8_t> state;
+  std::vector<float> radiance;  // linear RGB, 1 = full scale at exposure 1
+  TileLight(int rows, int width)
+      : stride((static_cast<std::size_t>(width) + 3) & ~std::size_t{3}),
+        pu(rows * stride), pv(pu.size()), zp(pu.size()), sigma(pu.size()), reach2(pu.size()), weight(pu.size()),
+        state(pu.size()), radiance(3 * pu.size()) {}
+};
+
+// One frame's light: the ambient on every surface and each spot's disc, blurred, on the
+// surfaces it reaches.
+class FrameLight {
+ public:
+  FrameLight(const Cell& cell, const FrameScene& scene, const RenderScratch& s, const Eigen::Isometry3d& world_T_camera,
+             const CameraSpec& cam)
+      : cell_(cell), proj_(*cell.projector), ps_(proj_.spec()), kp_(ps_.intrinsics), k_(cell.scenario.camera.intrinsics),
+        tris_(*scene.triangles), hits_(*scene.spot_hits), projector_depth_(*scene.projector_depth),
+        arm_depth_(scene.arm_projector_depth), s_(s), ambient_(static_cast<float>(cam.ambient)),
+        spot_rgb_(render_parts::spot_colours(cam)), R_(world_T_camera.linear()), C_(world_T_camera.translation()),
+        P_(ps_.world_T_projector.translation()), radius_(ps_.spot_radius_px),
+        focus_mid_(0.5 * (ps_.focus_near_m + ps_.focus_far_m)), rays_(cell.camera->pixel_rays().data()),
+        proj_per_cam_px_(kp_.fx / k_.fx) {
+    const Eigen::Isometry3d p_T_c = proj_.projector_T_world() * world_T_camera;
+    p_R_c_ = p_T_c.linear();
+    p_t_c_ = p_T_c.translation();
+  }
+
+  // Rows [v0, v1) into the tile's radiance. `vector`: with the AVX2 unit, four pixels at a
+  // time (the same operations in the same order: the same bits).
+  void shade(int v0, int v1, TileLight& tile, bool vector) const {
+    std::fill(tile.state.begin(), tile.state.end(), TileLight::kUnknown);
+    for (int v = v0; v < v1; ++v) {
+      const std::size_t first = static_cast<std::size_t>(v) * k_.width, row = (v - v0) * tile.stride;
+      for (int u = 0; u < k_.width; ++u) {
+        const std::int32_t zi = cell_.pixel_to_zbuffer[first + u];
+        const std::int32_t t = zi >= 0 ? s_.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
+        float* out = &tile.radiance[3 * (row + u)];
+        out[0] = out[1] = out[2] = t >= 0 ? ambient_ * tris_.albedo[t] : 0.f;
+      }
+      for (std::size_t u = k_.width; u < tile.stride; ++u) tile.state[row + u] = TileLight::kNoSurface;
+    }
+    for (const SpotBox& box : s_.boxes) {
+      const int bv0 = std::max(box.v0, v0), bv1 = std::min(box.v1, v1 - 1);
+      if (bv0 > bv1) continue;
+      if (vector)
+        shade_spot_avx2(box, bv0, bv1, v0, tile);
+      else
+        shade_spot(box, bv0, bv1, v0, tile);
+    }
+  }
+
+ private:
+  void shade_spot(const SpotBox& box, int bv0, int bv1, int v0, TileLight& tile) const {
+    const SpotHit& hit = hits_[box.spot];
+    const Eigen::Vector2d centre = proj_.spot_pixel(hit.row, hit.col);
+    const double cx = centre.x(), cy = centre.y();
+    const Eigen::Vector3f& colour = spot_rgb_[hit.symbol];
+    const double reach_max2 = box.reach_px * box.reach_px;
+    // The projector's depth is looked up at (u - cx) + cx, the distance measured from this
+    // spot's centre and added back. Within reach of a centre at least 2.5 reaches from the
+    // plane's origin that is u itself, bit for bit (the difference of two numbers within a
+    // factor 2 of each other is exact, Sterbenz), so the pixel's own lookup serves every
+    // spot; any other spot looks up its own.
+    const bool own_lookup = !(cx > 0 && cy > 0 && box.reach_px <= 0.4 * std::min(cx, cy));
+    for (int v = bv0; v <= bv1; ++v) {
+      const std::size_t row = static_cast<std::size_t>(v - v0) * tile.stride;
+      for (int u = box.u0; u <= box.u1; ++u) {
+        const std::size_t i = row + u;
+        if (tile.state[i] == TileLight::kUnknown) surface_light(static_cast<std::size_t>(v) * k_.width + u, i, tile);
+        if (tile.state[i] == TileLight::kNoSurface) continue;
+        const double du = tile.pu[i] - cx;
+        const double dv = tile.pv[i] - cy;
+        const double rho2 = du * du + dv * dv;
+        if (rho2 > reach_max2) continue;  // most of the box: between spots
+        if (rho2 > tile.reach2[i]) continue;
+        if (own_lookup ? !lit(du + cx, dv + cy, tile.zp[i]) : tile.state[i] != TileLight::kLit) continue;
+        add_light(tile, i, edge_((std::sqrt(rho2) - radius_) / tile.sigma[i]) * tile.weight[i], colour);
+      }
+    }
+  }
+
+  // Pixel `px` of the image, `i` of the tile: the surface its ray meets, seen from the projector.
+  void surface_light(std::size_t px, std::size_t i, TileLight& tile) const {
+    tile.state[i] = TileLight::kNoSurface;
+    const std::int32_t zi = cell_.pixel_to_zbuffer[px];
+    const std::int32_t t = zi >= 0 ? s_.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
+    if (t < 0) return;
+    const Eigen::Vector3d d_c(rays_[2 * px], rays_[2 * px + 1], 1.0);
+    // exact intersection of this pixel's ray with the triangle's plane (camera frame)
+    const double denom = s_.normal_c[t].dot(d_c);
+    if (std::abs(denom) < 1e-12) return;
+    const double z_c = s_.offset_c[t] / denom;
+    if (z_c <= 0) return;
+    const Eigen::Vector3d X_p = z_c * (p_R_c_ * d_c) + p_t_c_;
+    if (X_p.z() <= 1e-3) return;
+    const double inv_z = 1.0 / X_p.z();
+    tile.pu[i] = kp_.fx * X_p.x() * inv_z + kp_.cx;
+    tile.pv[i] = kp_.fy * X_p.y() * inv_z + kp_.cy;
+    tile.zp[i] = X_p.z();
+    const double blur = proj_.defocus_sigma_px(X_p.z());
+    // a camera pixel at depth z seen from the projector at z_p
+    const double pixel_in_proj = z_c * proj_per_cam_px_ * inv_z;
+    const double sigma = std::sqrt(blur * blur + 0.083 * pixel_in_proj * pixel_in_proj) + 1e-6;
+    tile.sigma[i] = sigma;
+    const double reach = radius_ + 3.0 * sigma;  // 0.5 erfc(3 / sqrt 2) = 0.1 %: nothing beyond
+    tile.reach2[i] = reach * reach;
+    const Eigen::Vector3d X = C_ + z_c * (R_ * d_c);
+    const Eigen::Vector3d L = P_ - X;
+    const double dist2 = L.squaredNorm();
+    const double cos_in = std::abs(tris_.normal_w[t].dot(L)) / std::sqrt(dist2);
+    const double falloff = (focus_mid_ * focus_mid_) / dist2;
+    tile.weight[i] = static_cast<float>(tris_.albedo[t] * ps_.brightness * cos_in * falloff);
+    tile.state[i] = lit(tile.pu[i], tile.pv[i], X_p.z()) ? TileLight::kLit : TileLight::kShadow;
+  }
+
+  // Spot centre and whether this spot may use each pixel's own depth lookup (shade_spot).
+  struct SpotFrame {
+    double cx, cy, reach_max2;
+    bool own_lookup;
+    const Eigen::Vector3f* colour;
+  };
+  SpotFrame spot_frame(const SpotBox& box) const {
+    const SpotHit& hit = hits_[box.spot];
+    const Eigen::Vector2d centre = proj_.spot_pixel(hit.row, hit.col);
+    return {centre.x(), centre.y(), box.reach_px * box.reach_px,
+            !(centre.x() > 0 && centre.y() > 0 && box.reach_px <= 0.4 * std::min(centre.x(), centre.y())),
+            &spot_rgb_[hit.symbol]};
+  }
+
+  // shade_spot, four pixels at a time; blocks of four aligned on the tile's rows, each
+  // block's surfaces computed (all four) the first time a spot reaches it.
+  __attribute__((target("avx2"))) void shade_spot_avx2(const SpotBox& box, int bv0, int bv1, int v0,
+                                                      TileLight& tile) const {
+    const SpotFrame f = spot_frame(box);
+    const __m256d cx = _mm256_set1_pd(f.cx), cy = _mm256_set1_pd(f.cy), reach_max2 = _mm256_set1_pd(f.reach_max2);
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    const int b0 = box.u0 & ~3;
+    for (int v = bv0; v <= bv1; ++v) {
+      const std::size_t row = static_cast<std::size_t>(v - v0) * tile.stride;
+      for (int b = b0; b <= box.u1; b += 4) {
+        const std::size_t i = row + b;
+        std::uint32_t states;
+        std::memcpy(&states, &tile.state[i], 4);
+        if ((states & 0xFFu) == 0 || (states & 0xFF00u) == 0 || (states & 0xFF0000u) == 0 || (states & 0xFF000000u) == 0)
+          surface_light4(v, b, i, tile);
+        // the lanes inside the box
+        const __m256i ub = _mm256_add_epi64(_mm256_set1_epi64x(b), lane);
+        const __m256i inside = _mm256_andnot_si256(
+            _mm256_or_si256(_mm256_cmpgt_epi64(_mm256_set1_epi64x(box.u0), ub), _mm256_cmpgt_epi64(ub, _mm256_set1_epi64x(box.u1))),
+            _mm256_set1_epi64x(-1));
+        const __m256d du = _mm256_sub_pd(_mm256_loadu_pd(&tile.pu[i]), cx);
+        const __m256d dv = _mm256_sub_pd(_mm256_loadu_pd(&tile.pv[i]), cy);
+        const __m256d rho2 = _mm256_add_pd(_mm256_mul_pd(du, du), _mm256_mul_pd(dv, dv));
+        // shade_spot's `continue`s, negated as they are written (a NaN goes on, as there)
+        const __m256d go = _mm256_and_pd(_mm256_cmp_pd(rho2, reach_max2, _CMP_NGT_UQ),
+                                         _mm256_cmp_pd(rho2, _mm256_loadu_pd(&tile.reach2[i]), _CMP_NGT_UQ));
+        int lanes = _mm256_movemask_pd(_mm256_and_pd(go, _mm256_castsi256_pd(inside)));
+        if (!lanes) continue;
+        if (f.own_lookup) {
+          alignas(32) double du_[4], dv_[4], rho2_[4];
+          _mm256_store_pd(du_, du);
+          _mm256_store_pd(dv_, dv);
+          _mm256_store_pd(rho2_, rho2);
+          for (; lanes; lanes &= lanes - 1) {
+            const int l = __builtin_ctz(static_cast<unsigned>(lanes));
+            const std::size_t j = i + l;
+            if (tile.state[j] == TileLight::kNoSurface || !lit(du_[l] + f.cx, dv_[l] + f.cy, tile.zp[j])) continue;
+            add_light(tile, j, edge_((std::sqrt(rho2_[l]) - radius_) / tile.sigma[j]) * tile.weight[j], *f.colour);
+          }
+          continue;
+        }
+        for (int l = 0; l < 4; ++l)
+          if (tile.state[i + l] != TileLight::kLit) lanes &= ~(1 << l);
+        if (!lanes) continue;
+        alignas(16) float e[4];
+        _mm_store_ps(e, _mm_mul_ps(edge4(_mm256_div_pd(_mm256_sub_pd(_mm256_sqrt_pd(rho2), _mm256_set1_pd(radius_)),
+                                                       _mm256_loadu_pd(&tile.sigma[i]))),
+                                   _mm_loadu_ps(&tile.weight[i])));
+        for (; lanes; lanes &= lanes - 1) {
+          const int l = __builtin_ctz(static_cast<unsigned>(lanes));
+          add_light(tile, i + l, e[l], *f.colour);
+        }
+      }
+    }
+  }
+
+  static void add_light(TileLight& tile, std::size_t j, float e, const Eigen::Vector3f& colour) {
+    float* out = &tile.radiance[3 * j];
+    out[0] += e * colour[0];
+    out[1] += e * colour[1];
+    out[2] += e * colour[2];
+  }
+
+  // EdgeProfile's lookup of four values: the same bounds, truncation and float interpolation
+  __attribute__((target("avx2"))) __m128 edge4(__m256d x) const {
+    const __m256d f = _mm256_div_pd(_mm256_sub_pd(x, _mm256_set1_pd(EdgeProfile::kLo)), _mm256_set1_pd(EdgeProfile::kStep));
+    const __m256d below = _mm256_cmp_pd(f, _mm256_setzero_pd(), _CMP_LE_OQ);
+    const __m256d above = _mm256_cmp_pd(f, _mm256_set1_pd(EdgeProfile::kN - 1), _CMP_GE_OQ);
+    // the table's index only where f lies strictly inside it (NaN too is outside: a lane that
+    // is not lit may hold anything, and must not send the gather out of the table)
+    const __m256d safe = _mm256_and_pd(f, _mm256_and_pd(_mm256_cmp_pd(f, _mm256_setzero_pd(), _CMP_GT_OQ),
+                                                        _mm256_cmp_pd(f, _mm256_set1_pd(EdgeProfile::kN - 1), _CMP_LT_OQ)));
+    const __m128i i = _mm256_cvttpd_epi32(safe);
+    const __m128 t = _mm256_cvtpd_ps(_mm256_sub_pd(safe, _mm256_cvtepi32_pd(i)));
+    const __m128 a = _mm_i32gather_ps(edge_.table(), i, 4);
+    const __m128 b = _mm_i32gather_ps(edge_.table() + 1, i, 4);
+    const __m128 value = _mm_add_ps(a, _mm_mul_ps(t, _mm_sub_ps(b, a)));
+    const __m128 below32 = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(_mm256_castpd_ps(below), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
+    const __m128 above32 = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(_mm256_castpd_ps(above), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
+    return _mm_blendv_ps(_mm_blendv_ps(value, _mm_setzero_ps(), above32), _mm_set1_ps(1.0f), below32);
+  }
+
+  // surface_light of the four pixels (v, u..u+3), tile index i..i+3. Eigen evaluates
+  // z (M d) + t as ((z M0) d0 + (z M1) d1) + (z M2) d2 + t in the first two rows and as
+  // (z M0) d0 + ((z M1) d1 + (z M2) d2) + t in the third (its packet and scalar paths);
+  // the dot products left to right. Written out in that order here.
+  __attribute__((target("avx2"))) void surface_light4(int v, int u, std::size_t i, TileLight& tile) const {
+    alignas(32) double rx[4], ry[4];
+    int tri[4];
+    int valid = 0;
+    for (int l = 0; l < 4; ++l) {
+      tri[l] = -1;
+      rx[l] = ry[l] = 0;
+      if (u + l < k_.width) {
+        const std::size_t px = static_cast<std::size_t>(v) * k_.width + u + l;
+        const std::int32_t zi = cell_.pixel_to_zbuffer[px];
+        tri[l] = zi >= 0 ? s_.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
+        rx[l] = rays_[2 * px];
+        ry[l] = rays_[2 * px + 1];
+      }
+      valid |= (tri[l] >= 0) << l;
+    }
+    for (int l = 0; l < 4; ++l) tile.state[i + l] = TileLight::kNoSurface;
+    if (!valid) return;
+    // the triangles' planes, normals and albedo per lane (a lane without one: a plane it meets)
+    __m256d n0, n1, n2, off, w0, w1, w2, alb;
+    if (tri[0] >= 0 && tri[1] == tri[0] && tri[2] == tri[0] && tri[3] == tri[0]) {  // the common case
+      const int t = tri[0];
+      n0 = _mm256_set1_pd(s_.normal_c[t].x()), n1 = _mm256_set1_pd(s_.normal_c[t].y()), n2 = _mm256_set1_pd(s_.normal_c[t].z());
+      off = _mm256_set1_pd(s_.offset_c[t]);
+      w0 = _mm256_set1_pd(tris_.normal_w[t].x()), w1 = _mm256_set1_pd(tris_.normal_w[t].y()), w2 = _mm256_set1_pd(tris_.normal_w[t].z());
+      alb = _mm256_set1_pd(tris_.albedo[t]);
+    } else {
+      alignas(32) double a[8][4];
+      for (int l = 0; l < 4; ++l) {
+        const int t = tri[l];
+        const Eigen::Vector3d nc = t >= 0 ? s_.normal_c[t] : Eigen::Vector3d::UnitZ();
+        const Eigen::Vector3d nw = t >= 0 ? tris_.normal_w[t] : Eigen::Vector3d::UnitZ();
+        a[0][l] = nc.x(), a[1][l] = nc.y(), a[2][l] = nc.z(), a[3][l] = t >= 0 ? s_.offset_c[t] : 1.0;
+        a[4][l] = nw.x(), a[5][l] = nw.y(), a[6][l] = nw.z(), a[7][l] = t >= 0 ? tris_.albedo[t] : 0.0;
+      }
+      n0 = _mm256_load_pd(a[0]), n1 = _mm256_load_pd(a[1]), n2 = _mm256_load_pd(a[2]), off = _mm256_load_pd(a[3]);
+      w0 = _mm256_load_pd(a[4]), w1 = _mm256_load_pd(a[5]), w2 = _mm256_load_pd(a[6]), alb = _mm256_load_pd(a[7]);
+    }
+    const __m256d dx = _mm256_load_pd(rx), dy = _mm256_load_pd(ry);
+    // the ray meets the triangle's plane
+    const __m256d denom = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(n0, dx), _mm256_mul_pd(n1, dy)),
+                                        _mm256_mul_pd(n2, _mm256_set1_pd(1.0)));
+    const __m256d abs_denom = _mm256_andnot_pd(_mm256_set1_pd(-0.0), denom);
+    const __m256d z = _mm256_div_pd(off, denom);
+    __m256d ok = _mm256_and_pd(_mm256_cmp_pd(abs_denom, _mm256_set1_pd(1e-12), _CMP_NLT_UQ),
+                               _mm256_cmp_pd(z, _mm256_setzero_pd(), _CMP_NLE_UQ));
+    const __m256d Xp = transform_row(p_R_c_, p_t_c_, 0, z, dx, dy);
+    const __m256d Yp = transform_row(p_R_c_, p_t_c_, 1, z, dx, dy);
+    const __m256d Zp = transform_row(p_R_c_, p_t_c_, 2, z, dx, dy);
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(Zp, _mm256_set1_pd(1e-3), _CMP_NLE_UQ));
+    const __m256d inv_z = _mm256_div_pd(_mm256_set1_pd(1.0), Zp);
+    const __m256d pu = _mm256_add_pd(_mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(kp_.fx), Xp), inv_z), _mm256_set1_pd(kp_.cx));
+    const __m256d pv = _mm256_add_pd(_mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(kp_.fy), Yp), inv_z), _mm256_set1_pd(kp_.cy));
+    // the projector's defocus there (Projector::defocus_sigma_px)
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d near_gap = _mm256_sub_pd(_mm256_set1_pd(ps_.focus_near_m), Zp);
+    const __m256d far_gap = _mm256_sub_pd(Zp, _mm256_set1_pd(ps_.focus_far_m));
+    __m256d outside = _mm256_blendv_pd(zero, near_gap, _mm256_cmp_pd(zero, near_gap, _CMP_LT_OQ));
+    outside = _mm256_blendv_pd(outside, far_gap, _mm256_cmp_pd(outside, far_gap, _CMP_LT_OQ));
+    const __m256d blur = _mm256_add_pd(_mm256_set1_pd(ps_.focused_blur_px), _mm256_mul_pd(_mm256_set1_pd(ps_.defocus_px_per_m), outside));
+    const __m256d pixel_in_proj = _mm256_mul_pd(_mm256_mul_pd(z, _mm256_set1_pd(proj_per_cam_px_)), inv_z);
+    const __m256d sigma = _mm256_add_pd(
+        _mm256_sqrt_pd(_mm256_add_pd(_mm256_mul_pd(blur, blur),
+                                     _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(0.083), pixel_in_proj), pixel_in_proj))),
+        _mm256_set1_pd(1e-6));
+    const __m256d reach = _mm256_add_pd(_mm256_set1_pd(radius_), _mm256_mul_pd(_mm256_set1_pd(3.0), sigma));
+    // the light the surface returns towards the camera
+    const __m256d Lx = _mm256_sub_pd(_mm256_set1_pd(P_.x()), _mm256_add_pd(_mm256_set1_pd(C_.x()), transform_row(R_, Eigen::Vector3d::Zero(), 0, z, dx, dy, false)));
+    const __m256d Ly = _mm256_sub_pd(_mm256_set1_pd(P_.y()), _mm256_add_pd(_mm256_set1_pd(C_.y()), transform_row(R_, Eigen::Vector3d::Zero(), 1, z, dx, dy, false)));
+    const __m256d Lz = _mm256_sub_pd(_mm256_set1_pd(P_.z()), _mm256_add_pd(_mm256_set1_pd(C_.z()), transform_row(R_, Eigen::Vector3d::Zero(), 2, z, dx, dy, false)));
+    const __m256d dist2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(Lx, Lx), _mm256_mul_pd(Ly, Ly)), _mm256_mul_pd(Lz, Lz));
+    const __m256d nL = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(w0, Lx), _mm256_mul_pd(w1, Ly)),
+                                     _mm256_mul_pd(w2, Lz));
+    const __m256d cos_in = _mm256_div_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), nL), _mm256_sqrt_pd(dist2));
+    const __m256d falloff = _mm256_div_pd(_mm256_set1_pd(focus_mid_ * focus_mid_), dist2);
+    const __m256d weight = _mm256_mul_pd(
+        _mm256_mul_pd(_mm256_mul_pd(alb, _mm256_set1_pd(ps_.brightness)), cos_in), falloff);
+    _mm256_storeu_pd(&tile.pu[i], pu);
+    _mm256_storeu_pd(&tile.pv[i], pv);
+    _mm256_storeu_pd(&tile.zp[i], Zp);
+    _mm256_storeu_pd(&tile.sigma[i], sigma);
+    _mm256_storeu_pd(&tile.reach2[i], _mm256_mul_pd(reach, reach));
+    _mm_storeu_ps(&tile.weight[i], _mm256_cvtpd_ps(weight));
+    const int good = valid & _mm256_movemask_pd(ok);
+    const int lit_lanes = lit4(pu, pv, Zp);
+    for (int l = 0; l < 4; ++l)
+      if (good >> l & 1) tile.state[i + l] = (lit_lanes >> l & 1) ? TileLight::kLit : TileLight::kShadow;
+  }
+
+  // lit() of four points: DepthBuffer::nearest and depth_at, lane by lane the same
+  // comparisons, casts and float division.
+  __attribute__((target("avx2"))) int lit4(__m256d u, __m256d v, __m256d z_p) const {
+    __m128 nearest = depth4(projector_depth_, u, v);
+    if (arm_depth_) {
+      // std::min(a, b) is (b < a) ? b : a
+      const __m128 b = depth4(*arm_depth_, u, v);
+      nearest = _mm_blendv_ps(nearest, b, _mm_cmplt_ps(b, nearest));
+    }
+    const __m256d limit = _mm256_add_pd(_mm256_mul_pd(_mm256_cvtps_pd(nearest), _mm256_set1_pd(1.0 + 2e-3)), _mm256_set1_pd(2e-3));
+    return ~_mm256_movemask_pd(_mm256_cmp_pd(z_p, limit, _CMP_GT_OQ)) & 0xF;
+  }
+  __attribute__((target("avx2"))) static __m128i nearest4(__m256d x) {
+    const __m256d inside = _mm256_and_pd(_mm256_cmp_pd(x, _mm256_set1_pd(-1e9), _CMP_GT_OQ),
+                                         _mm256_cmp_pd(x, _mm256_set1_pd(1e9), _CMP_LT_OQ));
+    const __m256d shifted = _mm256_add_pd(_mm256_add_pd(x, _mm256_set1_pd(0.5)), _mm256_set1_pd(DepthBuffer::kShift));
+    // outside +-1e9 the shifted value is not converted at all (a zero stands in for it)
+    const __m128i n = _mm_sub_epi32(_mm256_cvttpd_epi32(_mm256_and_pd(shifted, inside)),
+                                    _mm_set1_epi32(static_cast<int>(DepthBuffer::kShift)));
+    // the four 64-bit lane masks as four 32-bit ones
+    const __m128i inside32 = _mm256_castsi256_si128(
+        _mm256_permutevar8x32_epi32(_mm256_castpd_si256(inside), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
+    return _mm_blendv_epi8(_mm_set1_epi32(-(1 << 30)), n, inside32);
+  }
+  __attribute__((target("avx2"))) static __m128 depth4(const DepthBuffer& d, __m256d u, __m256d v) {
+    const __m128i margin = _mm_set1_epi32(d.margin);
+    const __m128i i = _mm_add_epi32(nearest4(u), margin), j = _mm_add_epi32(nearest4(v), margin);
+    const __m128i out = _mm_or_si128(_mm_or_si128(_mm_cmplt_epi32(i, _mm_setzero_si128()), _mm_cmplt_epi32(j, _mm_setzero_si128())),
+                                     _mm_or_si128(_mm_cmpgt_epi32(i, _mm_set1_epi32(d.width - 1)),
+                                                  _mm_cmpgt_epi32(j, _mm_set1_epi32(d.height - 1))));
+    const __m128i index = _mm_andnot_si128(out, _mm_add_epi32(_mm_mullo_epi32(j, _mm_set1_epi32(d.width)), i));
+    const __m128 q = _mm_mask_i32gather_ps(_mm_setzero_ps(), d.inv_depth.data(), index, _mm_castsi128_ps(_mm_andnot_si128(out, _mm_set1_epi32(-1))), 4);
+    const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
+    const __m128 depth = _mm_blendv_ps(inf, _mm_div_ps(_mm_set1_ps(1.0f), q), _mm_cmpgt_ps(q, _mm_setzero_ps()));
+    return _mm_blendv_ps(depth, inf, _mm_castsi128_ps(out));
+  }
+
+  // Row `r` of z (M d) + t, d = (dx, dy, 1), in Eigen's order (see surface_light4); without
+  // `add_t`, row r of z (M d) alone.
+  __attribute__((target("avx2"))) static __m256d transform_row(const Eigen::Matrix3d& M, const Eigen::Vector3d& t, int r,
+                                                                __m256d z, __m256d dx, __m256d dy, bool add_t = true) {
+    const __m256d a0 = _mm256_mul_pd(_mm256_mul_pd(z, _mm256_set1_pd(M(r, 0))), dx);
+    const __m256d a1 = _mm256_mul_pd(_mm256_mul_pd(z, _mm256_set1_pd(M(r, 1))), dy);
+    const __m256d a2 = _mm256_mul_pd(_mm256_mul_pd(z, _mm256_set1_pd(M(r, 2))), _mm256_set1_pd(1.0));
+    const __m256d sum = r < 2 ? _mm256_add_pd(_mm256_add_pd(a0, a1), a2) : _mm256_add_pd(a0, _mm256_add_pd(a1, a2));
+    return add_t ? _mm256_add_pd(sum, _mm256_set1_pd(t[r])) : sum;
+  }
+
+  // lit when the projector's nearest surface along this direction is this one
+  bool lit(double u, double v, double z_p) const {
+    float nearest = projector_depth_.depth_at(u, v);
+    if (arm_depth_) nearest = std::min(nearest, arm_depth_->depth_at(u, v));
+    return !(z_p > nearest * (1.0 + 2e-3) + 2e-3);
+  }
+
+  const EdgeProfile& edge_ = edge_profile();
+  const Cell& cell_;
+  const Projector& proj_;
+  const ProjectorSpec& ps_;
+  const Intrinsics& kp_;
+  const Intrinsics& k_;
+  const SceneTriangles& tris_;
+  const std::vector<SpotHit>& hits_;
+  const DepthBuffer& projector_depth_;
+  const DepthBuffer* arm_depth_;
+  const RenderScratch& s_;
+  const float ambient_;
+  const std::array<Eigen::Vector3f, 10> spot_rgb_;
+  const Eigen::Matrix3d R_;
+  const Eigen::Vector3d C_, P_;
+  const double radius_, focus_mid_;
+  const float* rays_;
+  const double proj_per_cam_px_;
+  Eigen::Matrix3d p_R_c_;
+  Eigen::Vector3d p_t_c_;
+};
+
+}  // namespace
+
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
                      RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links) {
   const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
   const Intrinsics& k = cell.scenario.camera.intrinsics;  // the lens is the cell's, whatever the sensor
-  const Projector& proj = *cell.projector;
-  const ProjectorSpec& ps = proj.spec();
-  const Intrinsics& kp = ps.intrinsics;
-  const EdgeProfile& edge = edge_profile();
 
   RenderScratch local;
   RenderScratch& s = scratch ? *scratch : local;
+  s.arm.scalar = s.scalar;
   const FrameScene scene = pose_scene(cell, links, s.arm, true);
   const SceneTriangles& tris = *scene.triangles;
-  const std::vector<SpotHit>& hits = *scene.spot_hits;
-  const DepthBuffer& projector_depth = *scene.projector_depth;
-  const DepthBuffer* arm_depth = scene.arm_projector_depth;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
-  rasterize(tris, c_T_w, k, cell.camera_margin_px, s.camera_depth);
-  spot_boxes(cell, hits, c_T_w, s.boxes);
-
-  // spot colours after the sensor's channel crosstalk, per pattern symbol
-  std::array<Eigen::Vector3f, 10> spot_rgb;
-  for (int i = 0; i < 10; ++i) {
-    const pattern::Rgb c = pattern::symbol_colour(i);
-    const Eigen::Vector3f raw(c.r / 255.f, c.g / 255.f, c.b / 255.f);
-    const float x = static_cast<float>(cam.crosstalk);
-    spot_rgb[i] = (1 - 2 * x) * raw + x * Eigen::Vector3f(raw.y() + raw.z(), raw.x() + raw.z(), raw.x() + raw.y());
-  }
-
+  rasterize(tris, c_T_w, k, cell.camera_margin_px, s.camera_depth, !s.scalar);
+  render_parts::spot_boxes(cell, *scene.spot_hits, c_T_w, s.boxes);
+  // triangle planes in the camera frame, once per frame
   const Eigen::Matrix3d R = world_T_camera.linear();
   const Eigen::Vector3d C = world_T_camera.translation();
-  const Eigen::Isometry3d p_T_w = proj.projector_T_world();
-  const Eigen::Vector3d P = ps.world_T_projector.translation();
-  const double radius = ps.spot_radius_px;
-  const double focus_mid = 0.5 * (ps.focus_near_m + ps.focus_far_m);
-  const float* rays = cell.camera->pixel_rays().data();
-  // triangle planes in the camera frame, and the camera -> projector motion, once per frame
   s.normal_c.resize(tris.normal_w.size());
   s.offset_c.resize(tris.normal_w.size());
   for (std::size_t i = 0; i < tris.normal_w.size(); ++i) {
     s.normal_c[i] = R.transpose() * tris.normal_w[i];
     s.offset_c[i] = tris.offset[i] - tris.normal_w[i].dot(C);
   }
-  const Eigen::Isometry3d p_T_c = p_T_w * world_T_camera;
-  const Eigen::Matrix3d p_R_c = p_T_c.linear();
-  const Eigen::Vector3d p_t_c = p_T_c.translation();
-  const std::size_t npx = static_cast<std::size_t>(k.width) * k.height;
-  const double proj_per_cam_px = kp.fx / k.fx;  // a camera pixel at depth z seen from the projector at z_p
-  s.radiance.resize(npx * 3);  // every value is written by the ambient pass below
+  const FrameLight light(cell, scene, s, world_T_camera, cam);
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  const bool vector = avx2 && !s.scalar;
+  const render_parts::Sensor sensor_model(cell, cam, noise_seed);
 
-  // Row bands run in parallel; every pixel is written by the band that owns its row, and
-  // the noise of a row depends only on the seed and the row, so the image does not depend
-  // on how the rows are split.
-  cv::parallel_for_(cv::Range(0, k.height), [&](const cv::Range& band) {
-    // ambient light on whatever surface each pixel sees
-    for (int v = band.start; v < band.end; ++v) {
-      float* out = &s.radiance[static_cast<std::size_t>(v) * k.width * 3];
-      const std::int32_t* zi = &cell.pixel_to_zbuffer[static_cast<std::size_t>(v) * k.width];
-      for (int u = 0; u < k.width; ++u) {
-        const std::int32_t t = zi[u] >= 0 ? s.camera_depth.triangle[static_cast<std::size_t>(zi[u])] : -1;
-        out[3 * u] = out[3 * u + 1] = out[3 * u + 2] = t >= 0 ? static_cast<float>(cam.ambient) * tris.albedo[t] : 0.f;
-      }
-    }
-    // each spot's light, inside its box
-    for (const SpotBox& box : s.boxes) {
-      const int v0 = std::max(box.v0, band.start), v1 = std::min(box.v1, band.end - 1);
-      if (v0 > v1) continue;
-      const SpotHit& hit = hits[box.spot];
-      const Eigen::Vector2d centre = proj.spot_pixel(hit.row, hit.col);
-      const Eigen::Vector3f& colour = spot_rgb[hit.symbol];
-      const double reach_max2 = box.reach_px * box.reach_px;
-      for (int v = v0; v <= v1; ++v)
-        for (int u = box.u0; u <= box.u1; ++u) {
-          const std::size_t px = static_cast<std::size_t>(v) * k.width + u;
-          const std::int32_t zi = cell.pixel_to_zbuffer[px];
-          const std::int32_t t = zi >= 0 ? s.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
-          if (t < 0) continue;
-          const Eigen::Vector3d d_c(rays[2 * px], rays[2 * px + 1], 1.0);
-          // exact intersection of this pixel's ray with the triangle's plane (camera frame)
-          const double denom = s.normal_c[t].dot(d_c);
-          if (std::abs(denom) < 1e-12) continue;
-          const double z_c = s.offset_c[t] / denom;
-          if (z_c <= 0) continue;
-          const Eigen::Vector3d X_p = z_c * (p_R_c * d_c) + p_t_c;
-          if (X_p.z() <= 1e-3) continue;
-          const double inv_z = 1.0 / X_p.z();
-          const double du = kp.fx * X_p.x() * inv_z + kp.cx - centre.x();
-          const double dv = kp.fy * X_p.y() * inv_z + kp.cy - centre.y();
-          const double rho2 = du * du + dv * dv;
-          if (rho2 > reach_max2) continue;  // most of the box: between spots
-          const double blur = proj.defocus_sigma_px(X_p.z());
-          const double pixel_in_proj = z_c * proj_per_cam_px * inv_z;
-          const double sigma = std::sqrt(blur * blur + 0.083 * pixel_in_proj * pixel_in_proj) + 1e-6;
-          const double reach = radius + 3.0 * sigma;  // 0.5 erfc(3 / sqrt 2) = 0.1 %: nothing beyond
-          if (rho2 > reach * reach) continue;
-          // lit when the projector's nearest surface along this direction is this one
-          float nearest = projector_depth.depth_at(du + centre.x(), dv + centre.y());
-          if (arm_depth) nearest = std::min(nearest, arm_depth->depth_at(du + centre.x(), dv + centre.y()));
-          if (X_p.z() > nearest * (1.0 + 2e-3) + 2e-3) continue;
-          const Eigen::Vector3d X = C + z_c * (R * d_c);
-          const Eigen::Vector3d L = P - X;
-          const double dist2 = L.squaredNorm();
-          const double cos_in = std::abs(tris.normal_w[t].dot(L)) / std::sqrt(dist2);
-          const double falloff = (focus_mid * focus_mid) / dist2;
-          const float e = edge((std::sqrt(rho2) - radius) / sigma) *
-                          static_cast<float>(tris.albedo[t] * ps.brightness * cos_in * falloff);
-          float* out = &s.radiance[3 * px];
-          out[0] += e * colour[0];
-          out[1] += e * colour[1];
-          out[2] += e * colour[2];
-        }
-    }
-  });
-
-  // the sensor: exposure, read + shot noise, 8-bit quantisation
-  const float gain = static_cast<float>(255.0 * cam.exposure);
-  const bool noisy = cam.noise_sigma > 0 || cam.shot_noise > 0;
-  const float read_var = static_cast<float>(cam.noise_sigma * cam.noise_sigma);
-  const float shot = static_cast<float>(cam.shot_noise);
-  const float* pool = cell.noise_pool.data();
-  const std::size_t row_len = static_cast<std::size_t>(k.width) * 3;
-  const std::size_t pool_span = cell.noise_pool.size() > row_len ? cell.noise_pool.size() - row_len : 1;
+  // Tiles of rows run in parallel; every pixel is written by the tile that owns its row, in
+  // the same order (ambient, then the spots in box order), and the noise of a row depends
+  // only on the seed and the row: the image does not depend on how the rows are split.
   cv::Mat image(k.height, k.width, CV_8UC3);
-  cv::parallel_for_(cv::Range(0, k.height), [&](const cv::Range& band) {
-    for (int v = band.start; v < band.end; ++v) {
-      // a contiguous run of the pool at a seeded offset: the loop below vectorises
-      std::uint64_t state = noise_seed ^ (0x9E3779B97F4A7C15ull * static_cast<std::uint64_t>(v + 1));
-      const float* __restrict noise = pool + splitmix64(state) % pool_span;
-      const float* __restrict in = &s.radiance[static_cast<std::size_t>(v) * row_len];
-      std::uint8_t* __restrict row = image.ptr<std::uint8_t>(v);
-      const std::size_t n = row_len;  // a local count: the loop vectorises only when it cannot alias
-      const float g = gain, rv = read_var, sh = shot;
-      if (noisy) {
-        for (std::size_t i = 0; i < n; ++i) {
-          const float value = g * in[i];
-          const float noisy_value = value + std::sqrt(rv + sh * std::max(value, 0.f)) * noise[i];
-          row[i] = static_cast<std::uint8_t>(std::min(std::max(noisy_value + 0.5f, 0.f), 255.f));
-        }
-      } else {
-        for (std::size_t i = 0; i < n; ++i)
-          row[i] = static_cast<std::uint8_t>(std::min(std::max(g * in[i] + 0.5f, 0.f), 255.f));
-      }
+  const std::size_t row_len = static_cast<std::size_t>(k.width) * 3;
+  const int tiles = (k.height + kTileRows - 1) / kTileRows;
+  cv::parallel_for_(cv::Range(0, tiles), [&](const cv::Range& band) {
+    TileLight tile(kTileRows, k.width);
+    for (int t = band.start; t < band.end; ++t) {
+      const int v0 = t * kTileRows, v1 = std::min(k.height, v0 + kTileRows);
+      light.shade(v0, v1, tile, vector);
+      for (int v = v0; v < v1; ++v)
+        sensor_model.expose_row(v, &tile.radiance[static_cast<std::size_t>(v - v0) * tile.stride * 3],
+                                image.ptr<std::uint8_t>(v), row_len);
     }
   });
   return image;

@@ -45,6 +45,7 @@ struct ArmFrameBuffers {
   // more than the rest of the arm's rendering)
   DepthBuffer arm_projector_depth;
   int dirty_u0 = 0, dirty_v0 = 0, dirty_u1 = -1, dirty_v1 = -1;
+  bool scalar = false;  // rasterise without the vector unit (see rasterize)
 };
 // The arm's triangles are added when `with_triangles` (rendering); the spots' hits always.
 FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buffers, bool with_triangles);
@@ -53,10 +54,11 @@ FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers&
 struct RenderScratch {
   ArmFrameBuffers arm;
   DepthBuffer camera_depth;
-  std::vector<float> radiance;  // linear RGB, 1 = full scale at exposure 1
   std::vector<SpotBox> boxes;
   std::vector<Eigen::Vector3d> normal_c;  // triangle planes in the camera frame
   std::vector<double> offset_c;
+  // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
+  bool scalar = false;
 };
 
 // RGB8 image (channel order R, G, B), camera resolution. `noise_seed` fixes every random

@@ -8,6 +8,7 @@
 
 #include "bench/bench_scenes.hpp"
 #include "sim/render/renderer.hpp"
+#include "support/reference_renderer.hpp"
 
 namespace {
 
@@ -145,3 +146,50 @@ BENCHMARK_CAPTURE(BM_ArmFrame, beam_base, false, false)->Name("render_arm_in_bea
 BENCHMARK_CAPTURE(BM_ArmFrame, beam_arm, false, true)->Name("render_arm_in_beam/with_arm")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_ArmFrame, view_base, true, false)->Name("render_arm_in_view/baseline_no_arm")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_ArmFrame, view_arm, true, true)->Name("render_arm_in_view/with_arm")->Unit(benchmark::kMillisecond);
+
+namespace {
+
+// Issue 22: the renderer against its straightforward form (tests/support/reference_renderer,
+// the renderer before issue 22, which it equals bit for bit), on one core. The scenes: the
+// plane and the cylinder at their initial poses (the robot's camera, the arm out of view), and
+// the arm in the projector's beam with the back wall's blurred spots (a campaign's frames).
+enum class Scene { kPlane, kCylinder, kBeam };
+struct SceneFrame {
+  const sim::Cell* cell;
+  Eigen::Isometry3d camera;
+  const sim::LinkPoses* links;
+};
+SceneFrame scene_frame(Scene scene) {
+  if (scene == Scene::kBeam) {
+    const ArmScene& s = arm_scene();
+    return {s.cell.get(), s.robot_camera, &s.links};
+  }
+  static std::map<Scene, std::unique_ptr<sim::Cell>> cells;
+  auto& cell = cells[scene];
+  if (!cell) cell = make_cell(scene == Scene::kPlane ? "plane" : "cylinder");
+  return {cell.get(), cell->scenario.world_T_initial(), nullptr};
+}
+
+void BM_OneCore(benchmark::State& state, Scene scene, bool reference) {
+  const SceneFrame f = scene_frame(scene);
+  const int threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  sim::RenderScratch scratch;
+  std::uint64_t frame = 0;
+  for (auto _ : state) {
+    const std::uint64_t seed = sim::frame_seed(1, frame++);
+    cv::Mat img = reference ? reference::render_image(*f.cell, f.camera, seed, nullptr, f.links)
+                            : sim::render_image(*f.cell, f.camera, seed, &scratch, nullptr, f.links);
+    benchmark::DoNotOptimize(img.data);
+  }
+  cv::setNumThreads(threads);
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(BM_OneCore, plane_ref, Scene::kPlane, true)->Name("one_core_plane/baseline_reference")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCore, plane, Scene::kPlane, false)->Name("one_core_plane/render")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCore, cyl_ref, Scene::kCylinder, true)->Name("one_core_cylinder/baseline_reference")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCore, cyl, Scene::kCylinder, false)->Name("one_core_cylinder/render")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCore, beam_ref, Scene::kBeam, true)->Name("one_core_arm_in_beam/baseline_reference")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCore, beam, Scene::kBeam, false)->Name("one_core_arm_in_beam/render")->Unit(benchmark::kMillisecond);

@@ -51,8 +51,54 @@ __attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine*
   _mm_store_si128(reinterpret_cast<__m128i*>(xb), b);
 }
 
+// Four rows' spans filled together, with AVX2. 1/z along a row is the scalar loop's running
+// sum q += dq, one rounding per pixel; the four rows' sums run side by side in one vector
+// (the same additions, each row's in its own lane), then each row's pixels are compared and
+// written eight at a time (q > inv_depth, as the scalar loop: nearer wins, NaN never).
+__attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int* xb, const float* q0, float dq,
+                                                 std::int32_t id, DepthBuffer& out, std::vector<float>& sums) {
+  int longest = 0;
+  for (int r = 0; r < 4; ++r) longest = std::max(longest, xb[r] - xa[r] + 1);
+  if (longest <= 0) return;
+  const std::size_t len = (static_cast<std::size_t>(longest) + 3) & ~std::size_t{3};
+  if (sums.size() < 4 * len) sums.resize(4 * len);
+  __m128 q = _mm_loadu_ps(q0);
+  const __m128 step = _mm_set1_ps(dq);
+  for (std::size_t k = 0; k < len; k += 4) {
+    __m128 a = q, b = _mm_add_ps(a, step), c = _mm_add_ps(b, step), d = _mm_add_ps(c, step);
+    q = _mm_add_ps(d, step);
+    _MM_TRANSPOSE4_PS(a, b, c, d);  // a: row 0's sums k..k+3, b: row 1's, ...
+    _mm_storeu_ps(&sums[k], a);
+    _mm_storeu_ps(&sums[len + k], b);
+    _mm_storeu_ps(&sums[2 * len + k], c);
+    _mm_storeu_ps(&sums[3 * len + k], d);
+  }
+  const __m256i ids = _mm256_set1_epi32(id);
+  for (int r = 0; r < 4; ++r) {
+    if (xa[r] > xb[r]) continue;
+    const float* sum = &sums[r * len];
+    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y + r) * out.width + xa[r]];
+    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y + r) * out.width + xa[r]];
+    const int n = xb[r] - xa[r] + 1;
+    int x = 0;
+    for (; x + 8 <= n; x += 8) {
+      const __m256 qv = _mm256_loadu_ps(sum + x), dv = _mm256_loadu_ps(inv_depth + x);
+      const __m256 nearer = _mm256_cmp_ps(qv, dv, _CMP_GT_OQ);
+      _mm256_storeu_ps(inv_depth + x, _mm256_blendv_ps(dv, qv, nearer));
+      const __m256i tv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(tri + x));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(tri + x),
+                          _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(tv), _mm256_castsi256_ps(ids), nearer)));
+    }
+    for (; x < n; ++x)
+      if (sum[x] > inv_depth[x]) {
+        inv_depth[x] = sum[x];
+        tri[x] = id;
+      }
+  }
+}
+
 void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, std::int32_t id,
-                   DepthBuffer& out, const RasterClip& clip, bool vector) {
+                   DepthBuffer& out, const RasterClip& clip, bool vector, std::vector<float>& sums) {
   const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
   if (std::abs(area) < 1e-12) return;
   const double m = out.margin;
@@ -87,10 +133,14 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
   if (vector) {
     // the spans of four rows at once: the same divisions, comparisons and roundings
     alignas(16) int xa[4], xb[4];
+    alignas(16) float q0[4];
     for (int y = y0; y <= y1; y += 4) {
       spans4(y, x0, x1, edges, xa, xb);
-      for (int r = 0; r < 4 && y + r <= y1; ++r)
-        if (xa[r] <= xb[r]) fill_span(y + r, xa[r], xb[r]);
+      for (int r = 0; r < 4; ++r) {
+        if (y + r > y1) xb[r] = xa[r] - 1;  // past the triangle's last row
+        q0[r] = xa[r] <= xb[r] ? static_cast<float>(iz.at(xa[r], y + r)) : 0.f;
+      }
+      fill_spans4(y, xa, xb, q0, static_cast<float>(iz.a), id, out, sums);
     }
     return;
   }
@@ -153,6 +203,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
                     const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
   vector = vector && avx2;
+  std::vector<float> sums;  // fill_spans4's running sums
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
   };
@@ -162,7 +213,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
     if (behind == 3) continue;
     const auto id = static_cast<std::int32_t>(i);
     if (behind == 0) {
-      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip, vector);
+      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip, vector, sums);
       continue;
     }
     // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
@@ -176,7 +227,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
       if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
     }
     for (int f = 1; f + 1 < count; ++f)
-      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip, vector);
+      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip, vector, sums);
   }
 }
 

@@ -370,12 +370,6 @@ class FrameLight {
     const double cx = centre.x(), cy = centre.y();
     const Eigen::Vector3f& colour = spot_rgb_[hit.symbol];
     const double reach_max2 = box.reach_px * box.reach_px;
-    // The projector's depth is looked up at (u - cx) + cx, the distance measured from this
-    // spot's centre and added back. Within reach of a centre at least 2.5 reaches from the
-    // plane's origin that is u itself, bit for bit (the difference of two numbers within a
-    // factor 2 of each other is exact, Sterbenz), so the pixel's own lookup serves every
-    // spot; any other spot looks up its own.
-    const bool own_lookup = !(cx > 0 && cy > 0 && box.reach_px <= 0.4 * std::min(cx, cy));
     for (int v = bv0; v <= bv1; ++v) {
       const std::size_t row = static_cast<std::size_t>(v - v0) * tile.stride;
       for (int u = box.u0; u <= box.u1; ++u) {
@@ -387,7 +381,7 @@ class FrameLight {
         const double rho2 = du * du + dv * dv;
         if (rho2 > reach_max2) continue;  // most of the box: between spots
         if (rho2 > tile.reach2[i]) continue;
-        if (own_lookup ? !lit(du + cx, dv + cy, tile.zp[i]) : tile.state[i] != TileLight::kLit) continue;
+        if (!lit_from(du + cx, dv + cy, i, tile)) continue;
         add_light(tile, i, edge_((std::sqrt(rho2) - radius_) / tile.sigma[i]) * tile.weight[i], colour);
       }
     }
@@ -428,17 +422,23 @@ class FrameLight {
   }
 
   // Spot centre and whether this spot may use each pixel's own depth lookup (shade_spot).
+  // The projector's depth is looked up where the spot's distance from its centre, added back
+  // to the centre, points: (u - cx) + cx. Almost always that is the pixel's own u, bit for
+  // bit (the difference of two numbers within a factor 2 of each other is exact), and the
+  // pixel's own lookup serves; where it is not, the point's own.
+  bool lit_from(double u, double v, std::size_t i, const TileLight& tile) const {
+    if (u == tile.pu[i] && v == tile.pv[i]) return tile.state[i] == TileLight::kLit;
+    return lit(u, v, tile.zp[i]);
+  }
+
   struct SpotFrame {
     double cx, cy, reach_max2;
-    bool own_lookup;
     const Eigen::Vector3f* colour;
   };
   SpotFrame spot_frame(const SpotBox& box) const {
     const SpotHit& hit = hits_[box.spot];
     const Eigen::Vector2d centre = proj_.spot_pixel(hit.row, hit.col);
-    return {centre.x(), centre.y(), box.reach_px * box.reach_px,
-            !(centre.x() > 0 && centre.y() > 0 && box.reach_px <= 0.4 * std::min(centre.x(), centre.y())),
-            &spot_rgb_[hit.symbol]};
+    return {centre.x(), centre.y(), box.reach_px * box.reach_px, &spot_rgb_[hit.symbol]};
   }
 
   // shade_spot, four pixels at a time; blocks of four aligned on the tile's rows, each
@@ -448,6 +448,9 @@ class FrameLight {
     const SpotFrame f = spot_frame(box);
     const __m256d cx = _mm256_set1_pd(f.cx), cy = _mm256_set1_pd(f.cy), reach_max2 = _mm256_set1_pd(f.reach_max2);
     const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    const Eigen::Vector3f& c = *f.colour;
+    const __m256 colour8 = _mm256_setr_ps(c[0], c[1], c[2], c[0], c[1], c[2], c[0], c[1]);
+    const __m128 colour4 = _mm_setr_ps(c[2], c[0], c[1], c[2]);
     const int b0 = box.u0 & ~3;
     for (int v = bv0; v <= bv1; ++v) {
       const std::size_t row = static_cast<std::size_t>(v - v0) * tile.stride;
@@ -470,30 +473,35 @@ class FrameLight {
                                          _mm256_cmp_pd(rho2, _mm256_loadu_pd(&tile.reach2[i]), _CMP_NGT_UQ));
         int lanes = _mm256_movemask_pd(_mm256_and_pd(go, _mm256_castsi256_pd(inside)));
         if (!lanes) continue;
-        if (f.own_lookup) {
-          alignas(32) double du_[4], dv_[4], rho2_[4];
-          _mm256_store_pd(du_, du);
-          _mm256_store_pd(dv_, dv);
-          _mm256_store_pd(rho2_, rho2);
-          for (; lanes; lanes &= lanes - 1) {
-            const int l = __builtin_ctz(static_cast<unsigned>(lanes));
-            const std::size_t j = i + l;
-            if (tile.state[j] == TileLight::kNoSurface || !lit(du_[l] + f.cx, dv_[l] + f.cy, tile.zp[j])) continue;
-            add_light(tile, j, edge_((std::sqrt(rho2_[l]) - radius_) / tile.sigma[j]) * tile.weight[j], *f.colour);
-          }
-          continue;
+        // lit: the pixel's own lookup where the spot's lookup point is the pixel's (see lit_from)
+        const __m256d same = _mm256_and_pd(_mm256_cmp_pd(_mm256_add_pd(du, cx), _mm256_loadu_pd(&tile.pu[i]), _CMP_EQ_OQ),
+                                           _mm256_cmp_pd(_mm256_add_pd(dv, cy), _mm256_loadu_pd(&tile.pv[i]), _CMP_EQ_OQ));
+        const int own = _mm256_movemask_pd(same);
+        std::memcpy(&states, &tile.state[i], 4);
+        const __m128i state = _mm_cvtsi32_si128(static_cast<int>(states));
+        const int lit_lanes = _mm_movemask_epi8(_mm_cmpeq_epi8(state, _mm_set1_epi8(TileLight::kLit))) & 0xF;
+        const int surface = ~_mm_movemask_epi8(_mm_cmpeq_epi8(state, _mm_set1_epi8(TileLight::kNoSurface))) & 0xF;
+        int elsewhere = lanes & ~own & surface;  // rare: a spot whose lookup point is not the pixel's
+        lanes &= own & lit_lanes;
+        for (; elsewhere; elsewhere &= elsewhere - 1) {
+          const int l = __builtin_ctz(static_cast<unsigned>(elsewhere));
+          const std::size_t j = i + l;
+          if (lit(tile.pu[j] - f.cx + f.cx, tile.pv[j] - f.cy + f.cy, tile.zp[j])) lanes |= 1 << l;
         }
-        for (int l = 0; l < 4; ++l)
-          if (tile.state[i + l] != TileLight::kLit) lanes &= ~(1 << l);
         if (!lanes) continue;
-        alignas(16) float e[4];
-        _mm_store_ps(e, _mm_mul_ps(edge4(_mm256_div_pd(_mm256_sub_pd(_mm256_sqrt_pd(rho2), _mm256_set1_pd(radius_)),
-                                                       _mm256_loadu_pd(&tile.sigma[i]))),
-                                   _mm_loadu_ps(&tile.weight[i])));
-        for (; lanes; lanes &= lanes - 1) {
-          const int l = __builtin_ctz(static_cast<unsigned>(lanes));
-          add_light(tile, i + l, e[l], *f.colour);
-        }
+        const __m128 e = _mm_mul_ps(edge4(_mm256_div_pd(_mm256_sub_pd(_mm256_sqrt_pd(rho2), _mm256_set1_pd(radius_)),
+                                                        _mm256_loadu_pd(&tile.sigma[i]))),
+                                    _mm_loadu_ps(&tile.weight[i]));
+        // the four pixels' 12 radiance values in one go: a lane not lit adds +0 (radiance is
+        // never -0: adding +0 changes no bit), the others e * colour, as add_light does
+        const __m128 e_lit = _mm_and_ps(e, _mm_castsi128_ps(_mm_cmpgt_epi32(
+                                               _mm_and_si128(_mm_set1_epi32(lanes), _mm_setr_epi32(1, 2, 4, 8)),
+                                               _mm_setzero_si128())));
+        const __m256 e8 = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(e_lit), _mm256_setr_epi32(0, 0, 0, 1, 1, 1, 2, 2));
+        const __m128 e4 = _mm_permutevar_ps(_mm_movehl_ps(e_lit, e_lit), _mm_setr_epi32(0, 1, 1, 1));
+        float* out = &tile.radiance[3 * i];
+        _mm256_storeu_ps(out, _mm256_add_ps(_mm256_loadu_ps(out), _mm256_mul_ps(e8, colour8)));
+        _mm_storeu_ps(out + 8, _mm_add_ps(_mm_loadu_ps(out + 8), _mm_mul_ps(e4, colour4)));
       }
     }
   }
@@ -516,8 +524,12 @@ class FrameLight {
                                                         _mm256_cmp_pd(f, _mm256_set1_pd(EdgeProfile::kN - 1), _CMP_LT_OQ)));
     const __m128i i = _mm256_cvttpd_epi32(safe);
     const __m128 t = _mm256_cvtpd_ps(_mm256_sub_pd(safe, _mm256_cvtepi32_pd(i)));
-    const __m128 a = _mm_i32gather_ps(edge_.table(), i, 4);
-    const __m128 b = _mm_i32gather_ps(edge_.table() + 1, i, 4);
+    // four scalar loads of each neighbouring pair (the gather instruction is slower here)
+    alignas(16) int at[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(at), i);
+    const float* table = edge_.table();
+    const __m128 a = _mm_setr_ps(table[at[0]], table[at[1]], table[at[2]], table[at[3]]);
+    const __m128 b = _mm_setr_ps(table[at[0] + 1], table[at[1] + 1], table[at[2] + 1], table[at[3] + 1]);
     const __m128 value = _mm_add_ps(a, _mm_mul_ps(t, _mm_sub_ps(b, a)));
     const __m128 below32 = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(_mm256_castpd_ps(below), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
     const __m128 above32 = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(_mm256_castpd_ps(above), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
@@ -648,7 +660,11 @@ class FrameLight {
                                      _mm_or_si128(_mm_cmpgt_epi32(i, _mm_set1_epi32(d.width - 1)),
                                                   _mm_cmpgt_epi32(j, _mm_set1_epi32(d.height - 1))));
     const __m128i index = _mm_andnot_si128(out, _mm_add_epi32(_mm_mullo_epi32(j, _mm_set1_epi32(d.width)), i));
-    const __m128 q = _mm_mask_i32gather_ps(_mm_setzero_ps(), d.inv_depth.data(), index, _mm_castsi128_ps(_mm_andnot_si128(out, _mm_set1_epi32(-1))), 4);
+    // four scalar loads (index 0 stands in outside the buffer; its value is not used)
+    alignas(16) int at[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(at), index);
+    const float* inv_depth = d.inv_depth.data();
+    const __m128 q = _mm_setr_ps(inv_depth[at[0]], inv_depth[at[1]], inv_depth[at[2]], inv_depth[at[3]]);
     const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
     const __m128 depth = _mm_blendv_ps(inf, _mm_div_ps(_mm_set1_ps(1.0f), q), _mm_cmpgt_ps(q, _mm_setzero_ps()));
     return _mm_blendv_ps(depth, inf, _mm_castsi128_ps(out));

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -409,6 +410,17 @@ struct DecodeSweepCommand {
   }
 };
 
+// The renderer's threads (issue 22): its rows shared out over OpenCV's pool, every core by
+// default (in lockstep the servo waits while a frame renders); 1 keeps it to one core.
+void add_render_threads(CLI::App* c, int& threads) {
+  c->add_option("--render-threads", threads, "threads that render each frame (0: every core)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 256));
+}
+void use_render_threads(int threads) {
+  if (threads > 0) cv::setNumThreads(threads);
+}
+
 struct ExperimentCommand {
   std::string scenario, source = "decoded", initial, dir;
   cell_record::RecordOptions record;
@@ -417,6 +429,7 @@ struct ExperimentCommand {
   ConditionFlags conditions;
   int max_iterations = 400;
   bool no_plot = false;
+  int render_threads = 0;
   CLI::App* add(CLI::App& app) {
     auto* c =
         app.add_subcommand("experiment", "teach at the desired pose, start at the initial pose, servo (in-process)");
@@ -431,9 +444,11 @@ struct ExperimentCommand {
     c->add_option("--record", record.file,
                   "record the run as cellsim serve --record would, into this MCAP file (simulated time)");
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording");
+    add_render_threads(c, render_threads);
     return c;
   }
   int run() {
+    use_render_threads(render_threads);
     record.images = !no_images;
     if (no_images && record.file.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
     return run_experiment_cli(scenario, law, conditions, source, max_iterations, initial, dir, !no_plot, record);
@@ -578,6 +593,7 @@ struct StudyCommand {
 struct ServeCommand {
   std::string scenario, mode = "lockstep", trace;
   bool no_images = false;
+  int render_threads = 0;
   cellsim::ServiceOptions svc;
   cell_dds::DdsFlags dds;
   CLI::App* add(CLI::App& app) {
@@ -602,9 +618,11 @@ struct ServeCommand {
                   "record every message on the wire into this MCAP file (ROS 2 profile: ros2 bag info, Foxglove, "
                   "servo replay)");
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording (long runs)");
+    add_render_threads(c, render_threads);
     return c;
   }
   int run() {
+    use_render_threads(render_threads);
     svc.scenario = scenario;
     if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");
     config::require_within("--watchdog-ms", svc.watchdog_ms, 1, 60000);

@@ -435,6 +435,7 @@ ExperimentResult run_job(const sim::Cell& cell, const CampaignOptions& o, const 
   e.latency = o.latency;
   e.servo.divergence_ratio = o.divergence_ratio;
   e.outlier_fraction = o.outlier_fraction;
+  e.render_threads = 1;  // one thread per run: the runs share the cores out among themselves
   ExperimentResult r = run_experiment(cell, e);
   r.trace.clear();  // keep memory flat: only the outcome matters here
   return r;

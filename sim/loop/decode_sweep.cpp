@@ -245,6 +245,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   int failure_images = 0;
   const auto work = [&] {
     sim::RenderScratch scratch;
+    scratch.threads = 1;  // the sweep's own threads share the cores
     // a decoder per thread (decoding is const and thread-safe, but cheap to own)
     const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), o.decoder);
     std::vector<WrongId> wrong;

@@ -160,6 +160,7 @@ LoopSetup loop_setup(const sim::Cell& cell, const ExperimentOptions& o, std::uin
   setup.source = o.source;
   setup.outlier_fraction = o.outlier_fraction;
   setup.max_steps = o.max_iterations;
+  setup.render_threads = o.render_threads;
   return setup;
 }
 

@@ -31,6 +31,9 @@ struct ExperimentOptions {
   double outlier_fraction = 0;
   // everything the loop passes, as the wire would carry it (cellsim experiment --record)
   LoopTap* tap = nullptr;
+  // the renderer's threads: 0 OpenCV's pool (cv::setNumThreads), 1 the run's own thread only
+  // (campaigns, whose runs already keep every core busy)
+  int render_threads = 0;
 };
 
 struct IterationRecord {

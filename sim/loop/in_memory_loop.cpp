@@ -49,6 +49,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       cell_(setup.scenario, lockstep_params(setup.max_steps), std::move(setup.robot)),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
+  scratch_.threads = setup.render_threads;
   camera_info_ = camera_info_of(setup.servo.camera, setup.scenario.camera);
   const std::string why = servo_.on_camera_info(camera_info_);
   if (!why.empty()) throw std::invalid_argument(setup.scenario.file.string() + ": " + why);

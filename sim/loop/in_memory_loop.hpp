@@ -34,6 +34,7 @@ struct LoopSetup {
   // are swapped among them before the servo steps on them
   double outlier_fraction = 0;
   long max_steps = 400;  // the cell's iteration cap
+  int render_threads = 0;  // sim::RenderScratch::threads: 0 OpenCV's pool, 1 this thread
 };
 
 // One frame of the loop: what the cell ordered, what the servo answered.

@@ -745,7 +745,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   cv::Mat image(k.height, k.width, CV_8UC3);
   const std::size_t row_len = static_cast<std::size_t>(k.width) * 3;
   const int tiles = (k.height + kTileRows - 1) / kTileRows;
-  cv::parallel_for_(cv::Range(0, tiles), [&](const cv::Range& band) {
+  const auto render_tiles = [&](const cv::Range& band) {
     TileLight tile(kTileRows, k.width);
     for (int t = band.start; t < band.end; ++t) {
       const int v0 = t * kTileRows, v1 = std::min(k.height, v0 + kTileRows);
@@ -754,7 +754,11 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
         sensor_model.expose_row(v, &tile.radiance[static_cast<std::size_t>(v - v0) * tile.stride * 3],
                                 image.ptr<std::uint8_t>(v), row_len);
     }
-  });
+  };
+  if (s.threads == 1)
+    render_tiles(cv::Range(0, tiles));
+  else
+    cv::parallel_for_(cv::Range(0, tiles), render_tiles);
   return image;
 }
 

@@ -59,6 +59,9 @@ struct RenderScratch {
   std::vector<double> offset_c;
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
   bool scalar = false;
+  // 0: the rows are shared out over OpenCV's thread pool (as many threads as cv::setNumThreads
+  // allows); 1: all on the calling thread (a campaign's runs, one thread each)
+  int threads = 0;
 };
 
 // RGB8 image (channel order R, G, B), camera resolution. `noise_seed` fixes every random

@@ -174,6 +174,11 @@ struct Watcher {
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status;
 };
 
+// A servo whose CONVERGED status stays the latched one for a minute after cellsim has gone (it
+// reports LOST only then): a watcher that matched it late, on a loaded machine, after a run of
+// a few seconds, still reads CONVERGED.
+inline const std::vector<std::string> kStaysConverged{"--lost-ms", "60000"};
+
 inline std::vector<std::string> servo_args(const std::string& z_hat, const std::vector<std::string>& extra = {},
                                            const std::string& pattern = kPattern) {
   std::vector<std::string> a{kBin + "servo", "run", "--pattern", pattern, "--z-hat", z_hat};

@@ -35,6 +35,7 @@ struct Sensor {
 
   float gain, read_var, shot;
   bool noisy;
+  bool scalar = false;  // without the vector unit (tests hold the two to the same bytes)
   const float* pool;
   std::size_t pool_span;
   std::uint64_t seed;

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Speed per core, one build against another in one run (issue 22, item 1): for each measure,
 # the previous build's binaries and this one's in alternation, ROUNDS times (default 3), the
-# median of each and their ratio. Everything on one core (OPENCV_FOR_THREADS_NUM=1, campaigns
-# with --threads 1), so the ratios are per core.
+# median of each and their ratio. Everything but the DDS loop pinned to one core (taskset: a
+# build whose OpenCV pool would take the second core cannot), so the ratios are per core.
 #   tests/bench/compare_builds.sh OLD_BIN_DIR NEW_BIN_DIR SOURCE_DIR [ROUNDS]
 # e.g. git worktree add /tmp/prev <previous commit> && BUILD_DIR=/tmp/prev/build /tmp/prev/bin/setup
 #      tests/bench/compare_builds.sh /tmp/prev/build/bin build/bin . 3
@@ -12,6 +12,8 @@
 set -euo pipefail
 old="$1"; new="$2"; src="$3"; rounds="${4:-3}"
 export OPENCV_FOR_THREADS_NUM=1
+core="$(cut -d, -f1 <<<"$(taskset -pc $$ | sed 's/.*: //')" | cut -d- -f1)"
+one_core() { taskset -c "$core" "$@"; }  # the first core this script may run on
 work="$(mktemp -d)"; trap 'rm -rf "$work"' EXIT
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( $$ % 100 + 100 ))}" ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY
@@ -27,10 +29,10 @@ report() {  # report NAME UNIT HIGHER_IS_BETTER OLD_VALUES... -- NEW_VALUES...
 }
 
 # render per VGA frame: render_bench's own timings (one core)
-render_ms() {  # render_ms BIN NAME: CPU time per frame (ms)
-  "$1/render_bench" --benchmark_filter="^$2\$" --benchmark_min_time=1 --benchmark_out="$work/bench.csv" \
+render_ms() {  # render_ms BIN NAME: time per frame on one core (ms)
+  one_core "$1/render_bench" --benchmark_filter="^$2\$" --benchmark_min_time=1 --benchmark_out="$work/bench.csv" \
     --benchmark_out_format=csv >/dev/null 2>&1
-  awk -F, -v n="\"$2\"" '$1 == n {print $4}' "$work/bench.csv"
+  awk -F, -v n="\"$2\"" '$1 == n {print $3}' "$work/bench.csv"
 }
 for b in render_vga/plane render_vga/cylinder render_arm_in_beam/with_arm; do
   o=(); n=()
@@ -43,7 +45,7 @@ done
 experiment_s() {  # experiment_s BIN ITERATIONS
   local t0 t1
   t0=$(date +%s.%N)
-  "$1/cellsim" experiment "$src/sim/scenarios/cylinder.yaml" --max-iterations "$2" --no-plot >/dev/null 2>&1 || true
+  one_core "$1/cellsim" experiment "$src/sim/scenarios/cylinder.yaml" --max-iterations "$2" --no-plot >/dev/null 2>&1 || true
   t1=$(date +%s.%N)
   awk -v a="$t0" -v b="$t1" 'BEGIN {print b - a}'
 }
@@ -61,7 +63,7 @@ report "in-process iteration (cylinder, the arm)" "ms/iteration" 0 "${o[@]}" -- 
 runs_per_core_minute() {
   local t0 t1
   t0=$(date +%s.%N)
-  "$1/cellsim" campaign "$src/sim/scenarios/cylinder.yaml" --runs 4 --models desired-constant-depth \
+  one_core "$1/cellsim" campaign "$src/sim/scenarios/cylinder.yaml" --runs 4 --models desired-constant-depth \
     --max-iterations 300 --threads 1 --no-plot -o "$work/campaign_$RANDOM" >/dev/null 2>&1 || true
   t1=$(date +%s.%N)
   awk -v a="$t0" -v b="$t1" 'BEGIN {print 4 * 60 / (b - a)}'

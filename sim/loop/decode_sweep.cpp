@@ -52,13 +52,15 @@ struct FrameTruth {
   int rows, cols;
   const sim::SpotTruth& at(int r, int c) const { return spots[static_cast<std::size_t>(r) * cols + c]; }
   // the spots covered by a 3 x 3 window all of whose spots pass `seen`
+  // (with `one_object`, all nine on the object of the first)
   template <typename Seen>
-  std::vector<char> in_full_window(Seen seen) const {
+  std::vector<char> in_full_window(Seen seen, bool one_object = false) const {
     std::vector<char> covered(spots.size(), 0);
     for (int r0 = 0; r0 + 3 <= rows; ++r0)
       for (int c0 = 0; c0 + 3 <= cols; ++c0) {
         bool all = true;
-        for (int i = 0; i < 9 && all; ++i) all = seen(at(r0 + i / 3, c0 + i % 3));
+        for (int i = 0; i < 9 && all; ++i)
+          all = seen(at(r0 + i / 3, c0 + i % 3)) && (!one_object || at(r0 + i / 3, c0 + i % 3).object == at(r0, c0).object);
         if (!all) continue;
         for (int i = 0; i < 9; ++i) covered[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
       }
@@ -153,8 +155,8 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
   SweepSummary s;
   s.rows = rows;
   std::vector<double> ms;
-  double rate_sum = 0, decodable_rate_sum = 0, readable_rate_sum = 0;
-  int rated = 0, rated_decodable = 0, rated_readable = 0;
+  double rate_sum = 0, decodable_rate_sum = 0, readable_rate_sum = 0, one_object_rate_sum = 0;
+  int rated = 0, rated_decodable = 0, rated_readable = 0, rated_one_object = 0;
   for (const auto& r : rows) {
     s.total_decodable += r.decodable;
     s.total_correct += r.correct;
@@ -168,6 +170,12 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     if (r.readable > 0) {
       readable_rate_sum += static_cast<double>(r.correct_readable) / r.readable;
       ++rated_readable;
+    }
+    s.total_readable_one_object += r.readable_one_object;
+    s.total_correct_readable_one_object += r.correct_readable_one_object;
+    if (r.readable_one_object > 0) {
+      one_object_rate_sum += static_cast<double>(r.correct_readable_one_object) / r.readable_one_object;
+      ++rated_one_object;
     }
     if (r.decodable > 0) {
       decodable_rate_sum += static_cast<double>(r.correct_decodable) / r.decodable;
@@ -189,6 +197,7 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
   s.mean_rate = rated ? rate_sum / rated : 0;
   s.mean_decodable_rate = rated_decodable ? decodable_rate_sum / rated_decodable : 0;
   s.mean_readable_rate = rated_readable ? readable_rate_sum / rated_readable : 0;
+  s.mean_readable_one_object_rate = rated_one_object ? one_object_rate_sum / rated_one_object : 0;
   std::sort(ms.begin(), ms.end());
   if (!ms.empty()) {
     s.median_ms = ms[ms.size() / 2];
@@ -212,14 +221,15 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
   csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
          "partial,"
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
-         "readable_windowed\n";
+         "readable_windowed,readable_one_object,correct_readable_one_object\n";
   for (const auto& r : rows) {
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
     csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
         << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
         << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
-        << r.readable_linked << ',' << r.readable_windowed << '\n';
+        << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
+        << r.correct_readable_one_object << '\n';
   }
 }
 
@@ -271,6 +281,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       // decodable: covered by a fully visible 3 x 3 window; readable: by a fully resolved one
       const std::vector<char> decodable = truth.in_full_window([](const sim::SpotTruth& t) { return t.visible; });
       const std::vector<char> readable = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
+      const std::vector<char> one_object = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; }, true);
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       wrong.clear();
@@ -281,6 +292,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
         row.correct_decodable += decodable[i] && right[i];
         row.readable += readable[i];
         row.correct_readable += readable[i] && right[i];
+        row.readable_one_object += one_object[i];
+        row.correct_readable_one_object += one_object[i] && right[i];
       }
       if (row.wrong == 0) continue;
       std::lock_guard<std::mutex> lock(io);

@@ -50,6 +50,10 @@ struct SweepRow {
   // to the blobs of the true neighbours), windowed (its 8-neighbourhood after the graph check
   // is complete and right)
   int readable_segmented = 0, readable_linked = 0, readable_windowed = 0;
+  // readable on one object: in a fully resolved 3 x 3 window whose nine spots all land on one
+  // object. A window across the ham's silhouette (its rows on the ham, on the table) is
+  // readable, but no lattice shows it: its spots on the two surfaces lie apart in the image
+  int readable_one_object = 0, correct_readable_one_object = 0;
   double decode_ms = 0;
 };
 
@@ -59,9 +63,11 @@ struct SweepSummary {
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
   int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;
+  int total_readable_one_object = 0, total_correct_readable_one_object = 0;
   double mean_rate = 0, min_rate = 1;
   double mean_decodable_rate = 0;  // mean over poses of correct_decodable / decodable
   double mean_readable_rate = 0;   // mean over poses of correct_readable / readable
+  double mean_readable_one_object_rate = 0;
   double median_ms = 0, p99_ms = 0;
 };
 

@@ -824,6 +824,7 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
     if (!h.centre) continue;
     SpotTruth& t = truth[static_cast<std::size_t>(h.row) * pat.cols + h.col];
     t.on_arm = h.centre->object >= first_arm_object;
+    t.object = h.centre->object;
     t.point_w = h.centre->point_w;
     const Eigen::Vector3d X_c = c_T_w * t.point_w;
     t.depth_m = X_c.z();

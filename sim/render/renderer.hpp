@@ -79,6 +79,8 @@ struct SpotTruth {
   bool visible = false;            // lit, facing the camera, unoccluded, inside the image
   bool hidden_by_arm = false;      // lit and facing the camera, but an arm link is in the way
   bool on_arm = false;             // it lands on an arm link (the arm is in the projector's beam)
+  int object = -1;                 // what its centre hit lands on: an object of the cell, or (after
+                                   // them) an arm link; -1 when it lights nothing
   Eigen::Vector2d uv{0, 0};        // distorted image position of the centre hit (pixels)
   double depth_m = 0;              // Z of the centre hit in the camera frame
   Eigen::Vector3d point_w{0, 0, 0};

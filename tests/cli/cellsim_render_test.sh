@@ -26,7 +26,7 @@ one_line_error "corrupt mesh" "broken.obj: line 3: face corner '7' refers to no 
 out=$("$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 4 -o "$tmp/sweep") || fail "decode-sweep: $out"
 grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no decodable rate: $out"
-head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed$" ||
+head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object$" ||
   fail "sweep.csv lacks the decodable columns"
 grep -q "against the readable spots" <<<"$out" || fail "no readable rate: $out"
 [ -f "$tmp/sweep/wrong_ids.csv" ] || fail "no wrong_ids.csv"

@@ -6,6 +6,8 @@
 
 #include <immintrin.h>
 
+#include "sim/render/lane_masks.hpp"
+
 namespace sim {
 namespace {
 
@@ -44,9 +46,7 @@ __attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine*
   }
   __m128i a = _mm_max_epi32(_mm_set1_epi32(x0), _mm256_cvttpd_epi32(_mm256_ceil_pd(lo)));
   __m128i b = _mm_min_epi32(_mm_set1_epi32(x1), _mm256_cvttpd_epi32(_mm256_floor_pd(hi)));
-  const __m128i empty32 = _mm256_castsi256_si128(
-      _mm256_permutevar8x32_epi32(_mm256_castpd_si256(empty), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
-  b = _mm_blendv_epi8(b, _mm_sub_epi32(a, _mm_set1_epi32(1)), empty32);
+  b = _mm_blendv_epi8(b, _mm_sub_epi32(a, _mm_set1_epi32(1)), lanes32(empty));
   _mm_store_si128(reinterpret_cast<__m128i*>(xa), a);
   _mm_store_si128(reinterpret_cast<__m128i*>(xb), b);
 }

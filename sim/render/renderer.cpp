@@ -10,6 +10,7 @@
 #include <opencv2/core/utility.hpp>
 
 #include "servo/pattern/palette.hpp"
+#include "sim/render/lane_masks.hpp"
 #include "sim/render/render_parts.hpp"
 
 namespace sim {
@@ -397,11 +398,9 @@ class FrameLight {
 
  private:
   void shade_spot(const SpotBox& box, int bv0, int bv1, int v0, TileLight& tile) const {
-    const SpotHit& hit = hits_[box.spot];
-    const Eigen::Vector2d centre = proj_.spot_pixel(hit.row, hit.col);
-    const double cx = centre.x(), cy = centre.y();
-    const Eigen::Vector3f& colour = spot_rgb_[hit.symbol];
-    const double reach_max2 = box.reach_px * box.reach_px;
+    const SpotFrame f = spot_frame(box);
+    const double cx = f.cx, cy = f.cy, reach_max2 = f.reach_max2;
+    const Eigen::Vector3f& colour = *f.colour;
     for (int v = bv0; v <= bv1; ++v) {
       const std::size_t row = static_cast<std::size_t>(v - v0) * tile.stride;
       for (int u = box.u0; u <= box.u1; ++u) {
@@ -563,8 +562,7 @@ class FrameLight {
     const __m128 a = _mm_setr_ps(table[at[0]], table[at[1]], table[at[2]], table[at[3]]);
     const __m128 b = _mm_setr_ps(table[at[0] + 1], table[at[1] + 1], table[at[2] + 1], table[at[3] + 1]);
     const __m128 value = _mm_add_ps(a, _mm_mul_ps(t, _mm_sub_ps(b, a)));
-    const __m128 below32 = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(_mm256_castpd_ps(below), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
-    const __m128 above32 = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(_mm256_castpd_ps(above), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
+    const __m128 below32 = _mm_castsi128_ps(lanes32(below)), above32 = _mm_castsi128_ps(lanes32(above));
     return _mm_blendv_ps(_mm_blendv_ps(value, _mm_setzero_ps(), above32), _mm_set1_ps(1.0f), below32);
   }
 
@@ -680,10 +678,7 @@ class FrameLight {
     // outside +-1e9 the shifted value is not converted at all (a zero stands in for it)
     const __m128i n = _mm_sub_epi32(_mm256_cvttpd_epi32(_mm256_and_pd(shifted, inside)),
                                     _mm_set1_epi32(static_cast<int>(DepthBuffer::kShift)));
-    // the four 64-bit lane masks as four 32-bit ones
-    const __m128i inside32 = _mm256_castsi256_si128(
-        _mm256_permutevar8x32_epi32(_mm256_castpd_si256(inside), _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
-    return _mm_blendv_epi8(_mm_set1_epi32(-(1 << 30)), n, inside32);
+    return _mm_blendv_epi8(_mm_set1_epi32(-(1 << 30)), n, lanes32(inside));
   }
   __attribute__((target("avx2"))) static __m128 depth4(const DepthBuffer& d, __m256d u, __m256d v) {
     const __m128i margin = _mm_set1_epi32(d.margin);
@@ -791,7 +786,8 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   if (s.threads == 1)
     render_tiles(cv::Range(0, tiles));
   else
-    cv::parallel_for_(cv::Range(0, tiles), render_tiles);
+    // one stripe per thread: each stripe allocates its tile buffers once (230 kB)
+    cv::parallel_for_(cv::Range(0, tiles), render_tiles, std::max(1, cv::getNumThreads()));
   return image;
 }
 

@@ -930,12 +930,142 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
   return decoded;
 }
 
+namespace {
+// how far (fraction of a lattice step) a grown spot may be from where the lattice puts it:
+// wider than a propagated link's (0.25), as the prediction may reach across a missing link
+constexpr double kGrowSlack = 0.35;
+// a grown spot no bigger than this many times any source: a wider blob is the colour wash of a
+// surface far out of focus behind a silhouette, not a spot
+constexpr double kGrowLargest = 2.5;
+// A spot named from a single row or column neighbour (and corners) must look like its sources'
+// mean: at a silhouette the prediction can fall on a speck or a faint wash blob. Set on 1000-pose
+// sweeps of the cylinder behind an occluder, the scenario that showed such wrong ids.
+constexpr double kGrowDimmest = 0.6, kGrowAreaBelow = 0.6, kGrowAreaAbove = 1.7;
+constexpr int kGrowSmallestPx = 10;
+}  // namespace
+
+std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
+                                      const EpipolarCheck& check, const pattern::MArray& pattern,
+                                      std::vector<DecodedSpot> decoded, int min_sources) {
+  const std::size_t n = spots.size();
+  if (decoded.empty() || n < 2) return decoded;
+  std::vector<int> owner(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1);  // id -> spot
+  std::vector<int> at(n, -1);                                                          // spot -> decoded
+  const auto slot = [&](int r, int c) -> int& { return owner[static_cast<std::size_t>(r) * pattern.cols + c]; };
+  const auto inside = [&](int r, int c) { return r >= 0 && c >= 0 && r < pattern.rows && c < pattern.cols; };
+  const auto spot_at = [&](int r, int c) { return inside(r, c) ? slot(r, c) : -1; };
+  for (std::size_t i = 0; i < decoded.size(); ++i) {
+    at[decoded[i].spot] = static_cast<int>(i);
+    slot(decoded[i].row, decoded[i].col) = decoded[i].spot;
+  }
+  // the grid's cells a lattice step wide: the median length of the graph's links
+  std::vector<double> lengths;
+  for (std::size_t s = 0; s < n; ++s)
+    for (const int k : {kEast, kSouth})
+      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
+  if (lengths.empty()) return decoded;
+  const SpatialGrid near(spots, std::max(2.0, median(lengths)));
+  // The lattice step (dr, dc) at the identified spot (r, c), from identified spots only: ahead
+  // of it, behind it, or beside it (the next row or column), the nearest first.
+  const auto lattice_step = [&](int r, int c, int dr, int dc, double& vu, double& vv) {
+    const std::array<std::pair<int, int>, 4> refs{{{spot_at(r, c), spot_at(r + dr, c + dc)},
+                                                  {spot_at(r - dr, c - dc), spot_at(r, c)},
+                                                  {spot_at(r + dc, c + dr), spot_at(r + dc + dr, c + dr + dc)},
+                                                  {spot_at(r - dc, c - dr), spot_at(r - dc + dr, c - dr + dc)}}};
+    for (const auto& [a, b] : refs)
+      if (a >= 0 && b >= 0) {
+        vu = spots[b].u - spots[a].u, vv = spots[b].v - spots[a].v;
+        return true;
+      }
+    return false;
+  };
+  struct Proposal {
+    pattern::SpotId id{-1, -1};
+    int sources = 0, direct = 0;
+    bool conflict = false;
+    double strength = 0, area = 0;  // the sources' sums
+  };
+  std::vector<Proposal> proposals(n);
+  for (bool grew = true; grew;) {
+    grew = false;
+    std::fill(proposals.begin(), proposals.end(), Proposal{});
+    for (const DecodedSpot& from : decoded)
+      for (int dr = -1; dr <= 1; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int r = from.row + dr, c = from.col + dc;
+          if ((dr == 0 && dc == 0) || !inside(r, c) || slot(r, c) >= 0) continue;
+          // where the lattice puts id (r, c): one step along each axis that moves
+          double pu = spots[from.spot].u, pv = spots[from.spot].v, step2 = 1e300;
+          bool known = true;
+          for (const auto& [sr, sc] : {std::pair{dr, 0}, std::pair{0, dc}}) {
+            if (sr == 0 && sc == 0) continue;
+            double vu = 0, vv = 0;
+            known = known && lattice_step(from.row, from.col, sr, sc, vu, vv);
+            pu += vu, pv += vv;
+            step2 = std::min(step2, vu * vu + vv * vv);
+          }
+          if (!known) continue;
+          int found = -1;
+          double best = kGrowSlack * kGrowSlack * step2;
+          near.around(pu, pv, 1, [&](int j) {
+            const double du = spots[j].u - pu, dv = spots[j].v - pv;
+            if (du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
+          });
+          if (found < 0 || at[found] >= 0 || spots[found].truncated || !alike(spots[from.spot], spots[found]) ||
+              spots[found].area_px > kGrowLargest * spots[from.spot].area_px)
+            continue;
+          Proposal& p = proposals[found];
+          if (p.sources > 0 && !(p.id == pattern::SpotId{r, c})) p.conflict = true;
+          p.id = {r, c};
+          ++p.sources;
+          p.direct += dr == 0 || dc == 0;
+          p.strength += spots[from.spot].strength, p.area += spots[from.spot].area_px;
+        }
+    for (std::size_t j = 0; j < n; ++j) {
+      const Proposal& p = proposals[j];
+      if (p.conflict || p.sources < min_sources || p.direct < 1) continue;
+      if (p.direct == 1) {
+        const Spot& x = spots[j];
+        const double strength = p.strength / p.sources, area = p.area / p.sources;
+        if (x.strength < kGrowDimmest * strength || x.area_px < kGrowAreaBelow * area ||
+            x.area_px > kGrowAreaAbove * area || x.area_px < kGrowSmallestPx)
+          continue;
+      }
+      const int r = p.id.row, c = p.id.col;
+      if (slot(r, c) >= 0 || pattern.at(r, c) != spots[j].colour || !check.confirms(static_cast<int>(j), p.id)) continue;
+      // the id must be the only one around it that fits the spot (colour and epipolar line)
+      bool unique = true;
+      for (int dr = -1; dr <= 1 && unique; ++dr)
+        for (int dc = -1; dc <= 1 && unique; ++dc) {
+          const int rr = r + dr, cc = c + dc;
+          if ((dr == 0 && dc == 0) || !inside(rr, cc) || slot(rr, cc) >= 0) continue;
+          unique = !(pattern.at(rr, cc) == spots[j].colour && check.confirms(static_cast<int>(j), {rr, cc}));
+        }
+      if (!unique) continue;
+      at[j] = static_cast<int>(decoded.size());
+      slot(r, c) = static_cast<int>(j);
+      decoded.push_back({r, c, spots[j].u, spots[j].v, static_cast<int>(j)});
+      grew = true;
+    }
+  }
+  // the links the lattice found, where both ends had none in that direction
+  static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
+  for (const DecodedSpot& d : decoded)
+    for (int k = 0; k < 4; ++k) {
+      const int j = spot_at(d.row + kStep[k][0], d.col + kStep[k][1]);
+      if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
+        graph.next[d.spot][k] = j;
+        graph.next[j][(k + 2) % 4] = d.spot;
+      }
+    }
+  return decoded;
+}
+
 SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
     : table_(std::move(table)), options_(options) {
   options_.segmentation.colours = table_.array().colours;
   // the distance of the pattern decides how much a window may be repaired
-  const pattern::WindowPropertyReport rep = pattern::check_window_property(table_.array(), {3, 3});
-  distance_ = rep.holds ? rep.min_hamming : 0;
+  distance_ = table_.min_hamming();  // a table holds only arrays with the window property
   if (options_.tolerance.by_pattern_distance && distance_ >= 3) {
     options_.tolerance.enabled = true;
     options_.tolerance.max_missing = std::max(options_.tolerance.max_missing, std::min(2, distance_ - 1));
@@ -971,6 +1101,10 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     if (e.propagate) {
       r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded),
                                 e.min_sources);
+      r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+    }
+    if (e.grow) {
+      r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources);
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     }
   } else {

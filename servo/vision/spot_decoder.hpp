@@ -7,6 +7,8 @@
 //   5. check_island_consistency:   linked decoded spots must carry ids one step apart
 //   6. propagate_ids:              with the frame's epipolar geometry, ids spread to linked
 //                                  neighbours whose colour and epipolar line agree
+//   7. grow_lattice:               and to the spots where the identified lattice predicts
+//                                  them, links or none
 // SpotDecoder runs them in order.
 #pragma once
 
@@ -133,6 +135,16 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // missing spot or crossed a sheared column would otherwise pass an id on shifted by one.
 // Breadth first from the decoded spots. This names spots whose windows are cut by the
 // object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
+// Step 7, beyond the paper. The lattice grown from the identified region where the graph has
+// no link: from every identified spot, the lattice's steps (from identified neighbours) predict
+// where each of the 8 ids around it lies; the spot found there (within a quarter step) takes
+// the id when `min_sources` identified spots predict it there (one of them a row or column
+// neighbour), none predicts another id, and colour, epipolar line and uniqueness pass as in
+// step 6. The links the grown lattice found are added to `graph` where both ends had none.
+std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
+                                      const EpipolarCheck& check, const pattern::MArray& pattern,
+                                      std::vector<DecodedSpot> decoded, int min_sources = 3);
+
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
                                        const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
@@ -156,6 +168,7 @@ struct EpipolarOptions {
   // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.
   bool tolerant = false;
   bool propagate = true;   // step 6
+  bool grow = true;        // step 7
   // decoded neighbours (linked, or corners of its window) that must propose the same id: at an
   // object's edge the spot beyond (on the surface behind) can sit where the lattice goes on,
   // on the same epipolar line, so one source is not enough. Three: a spot beyond a decoded edge

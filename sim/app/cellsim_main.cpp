@@ -367,7 +367,7 @@ struct RenderCommand {
 struct DecodeSweepCommand {
   std::string scenario, dir, projector;
   cellsim::SweepOptions sweep;
-  bool tolerant = false, no_propagate = false;
+  bool tolerant = false, no_propagate = false, no_grow = false;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
     c->add_option("scenario", scenario, "scenario YAML file")->required();
@@ -394,6 +394,7 @@ struct DecodeSweepCommand {
         ->capture_default_str()
         ->check(CLI::Range(1, 4));
     c->add_flag("--no-propagate", no_propagate, "with --projector: do not propagate ids to linked neighbours");
+    c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing");
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")
@@ -408,6 +409,7 @@ struct DecodeSweepCommand {
     sweep.decoder.tolerance.enabled = tolerant;
     sweep.out_dir = dir;
     sweep.decoder.epipolar.propagate = !no_propagate;
+    sweep.decoder.epipolar.grow = !no_grow;
     if (!projector.empty()) sweep.projector = servo::load_projector_calibration(projector);
     return run_decode_sweep(scenario, sweep);
   }

@@ -4,6 +4,8 @@
 // threads off), as the targets are stated.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <map>
 #include <opencv2/features2d.hpp>
@@ -158,6 +160,41 @@ void BM_DecodePattern(benchmark::State& state, const char* scenario, const char*
   decode(state, frame_of_pattern(scenario, file), o);
 }
 
+// The same comparison with the two decoders taking turns frame by frame, on one core: on a
+// shared machine whose speed drifts over seconds, consecutive benchmarks can differ by 20 %
+// while a pair of decodes a millisecond apart sees the same machine. Counters: each decoder's
+// median time per frame, and the median of the per-pair ratios (corrected / today's).
+void BM_DecodeInterleaved(benchmark::State& state, const char* scenario) {
+  const Frame& today = frame_of_pattern(scenario, "marray_20x20_k3_w3.txt");
+  const Frame& d3 = frame_of_pattern(scenario, "marray_20x20_k3_w3_d3.txt");
+  vision::DecoderOptions before, after;
+  before.mend_links = false;
+  after.tolerance.by_pattern_distance = true;
+  const vision::SpotDecoder baseline(pattern::WindowTable(today.pattern, {3, 3}), before);
+  const vision::SpotDecoder corrected(pattern::WindowTable(d3.pattern, {3, 3}), after);
+  std::vector<double> t_before, t_after, ratio;
+  for (auto _ : state) {
+    using clock = std::chrono::steady_clock;
+    const auto t0 = clock::now();
+    const auto a = baseline.decode(today.rgb);
+    const auto t1 = clock::now();
+    const auto b = corrected.decode(d3.rgb);
+    const auto t2 = clock::now();
+    benchmark::DoNotOptimize(a.decoded.data());
+    benchmark::DoNotOptimize(b.decoded.data());
+    t_before.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+    t_after.push_back(std::chrono::duration<double, std::micro>(t2 - t1).count());
+    ratio.push_back(t_after.back() / t_before.back());
+  }
+  const auto median = [](std::vector<double> x) {
+    std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
+    return x[x.size() / 2];
+  };
+  state.counters["today_us"] = median(t_before);
+  state.counters["corrected_us"] = median(t_after);
+  state.counters["ratio"] = median(ratio);
+}
+
 void BM_DecodeImageSize(benchmark::State& state) { decode(state, frame("plane", 20, state.range(0) / 480.0)); }
 void BM_DecodePatternSize(benchmark::State& state) {
   decode(state, frame("plane", static_cast<int>(state.range(0)), 1.0));
@@ -188,6 +225,9 @@ BENCHMARK_CAPTURE(BM_DecodePattern, ham_d1, "ham", "marray_20x20_k3_w3.txt", tru
     ->Name("decode_correction/ham_paper_pattern")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodePattern, ham_d3, "ham", "marray_20x20_k3_w3_d3.txt", true)
     ->Name("decode_correction/ham_distance3_corrected")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeInterleaved, cylinder, "cylinder")
+    ->Name("decode_correction_interleaved/cylinder")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeInterleaved, ham, "ham")->Name("decode_correction_interleaved/ham")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/baseline_vga")->Arg(480)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/720p")->Arg(720)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/1080p")->Arg(1080)->Unit(benchmark::kMillisecond);

@@ -190,6 +190,72 @@ TEST(EpipolarDecoding, IdsPropagateToNeighboursOnlyWhenThreeSourcesColourAndLine
   EXPECT_TRUE(std::any_of(from_rows.begin(), from_rows.end(), [](const auto& d) { return d.row == 9; }));
 }
 
+// Step 7: where the graph has no links (cut here for a whole pattern row), propagation cannot
+// pass an id on; the lattice grown from the identified spots predicts each id's place and names
+// the spot found there, and adds the links it found. A spot whose colour or look (a speck, a
+// wash blob far bigger than its sources) does not fit stays unnamed.
+TEST(EpipolarDecoding, TheGrownLatticeNamesSpotsWhoseLinksAreMissingAndNoneWrong) {
+  const Frame f = render("plane", false);
+  const pattern::MArray& pat = f.cell->projector->pattern();
+  const std::vector<vision::Spot> spots =
+      vision::SpotDecoder(pattern::WindowTable(pat, {3, 3})).decode(f.rgb).detected;
+  vision::AdjacencyGraph graph = vision::build_adjacency(spots);
+  std::vector<vision::DecodedSpot> seeds;
+  std::map<int, pattern::SpotId> truth;
+  std::vector<int> cut;  // the spots of pattern row 12, columns 6..13
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    if (const auto id = truth_at(f, spots[s].u, spots[s].v)) {
+      const int i = static_cast<int>(s);
+      truth[i] = *id;
+      if (id->row >= 8 && id->row <= 11 && id->col >= 6 && id->col <= 13)
+        seeds.push_back({id->row, id->col, spots[s].u, spots[s].v, i});
+      if (id->row == 12 && id->col >= 6 && id->col <= 13) cut.push_back(i);
+    }
+  ASSERT_EQ(seeds.size(), 32u);
+  ASSERT_EQ(cut.size(), 8u);
+  for (const int i : cut)
+    for (int k = 0; k < 4; ++k)
+      if (const int j = graph.next[i][k]; j >= 0) graph.next[i][k] = graph.next[j][(k + 2) % 4] = -1;
+  const vision::Neighbourhoods hoods = vision::check_graph_consistency(graph);
+  const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
+  const auto named = [](const std::vector<vision::DecodedSpot>& d, int spot) {
+    return std::any_of(d.begin(), d.end(), [&](const vision::DecodedSpot& x) { return x.spot == spot; });
+  };
+  {
+    const vision::EpipolarCheck check(g, spots);
+    // propagation follows links: the cut row stays unnamed
+    const auto propagated = vision::propagate_ids(spots, graph, hoods, check, pat, seeds, 3);
+    for (const int i : cut) EXPECT_FALSE(named(propagated, i));
+    vision::AdjacencyGraph grown_graph = graph;
+    const auto grown = vision::grow_lattice(spots, grown_graph, check, pat, seeds, 3);
+    int wrong = 0;
+    for (const auto& d : grown) wrong += !(truth.at(d.spot) == pattern::SpotId{d.row, d.col});
+    EXPECT_EQ(wrong, 0);
+    for (const int i : cut) EXPECT_TRUE(named(grown, i)) << "spot " << i;
+    EXPECT_GT(grown.size(), 300u);  // and on over the plane, links or none
+    // the links it found are back, both ways
+    for (const int i : cut)
+      for (int k = 0; k < 4; ++k)
+        if (const int j = grown_graph.next[i][k]; j >= 0) {
+          EXPECT_EQ(grown_graph.next[j][(k + 2) % 4], i);
+        }
+    EXPECT_GE(grown_graph.next[cut[3]][vision::kNorth], 0);
+  }
+  // the same row with one spot recoloured, one shrunk to a speck and one swollen to a wash blob
+  std::vector<vision::Spot> tempted = spots;
+  const int recoloured = cut[2], speck = cut[4], wash = cut[6];
+  tempted[recoloured].colour = (tempted[recoloured].colour + 1) % 3;
+  tempted[speck].area_px = 4;
+  tempted[wash].area_px *= 6;
+  const vision::EpipolarCheck check(g, tempted);
+  const auto grown = vision::grow_lattice(tempted, graph, check, pat, seeds, 3);
+  for (const int i : {recoloured, speck, wash}) EXPECT_FALSE(named(grown, i)) << "spot " << i;
+  EXPECT_TRUE(named(grown, cut[3]));
+  int wrong = 0;
+  for (const auto& d : grown) wrong += !(truth.at(d.spot) == pattern::SpotId{d.row, d.col});
+  EXPECT_EQ(wrong, 0);
+}
+
 // (at the cylinder's initial pose both name 168 since the links are mended from the code)
 TEST(EpipolarDecoding, CalibratedDecodingNamesNoFewerSpotsOnTheCurvedObjectsAndNoneWrong) {
   for (const char* name : {"cylinder", "ham"}) {

@@ -997,7 +997,16 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
   for (bool grew = true; grew;) {
     grew = false;
     std::fill(proposals.begin(), proposals.end(), Proposal{});
-    for (const DecodedSpot& from : decoded)
+    for (const DecodedSpot& from : decoded) {
+      // the source's four axis steps, each looked up once (the diagonals add two of them)
+      std::array<int, 4> step_known{0, 0, 0, 0};  // 0: not looked up, 1: known, -1: none
+      std::array<std::array<double, 2>, 4> step{};
+      const auto axis_step = [&](int sr, int sc) -> const std::array<double, 2>* {
+        const int k = sr == 0 ? (sc > 0 ? 0 : 2) : (sr > 0 ? 1 : 3);
+        if (step_known[k] == 0)
+          step_known[k] = lattice_step(from.row, from.col, sr, sc, step[k][0], step[k][1]) ? 1 : -1;
+        return step_known[k] > 0 ? &step[k] : nullptr;
+      };
       for (int dr = -1; dr <= 1; ++dr)
         for (int dc = -1; dc <= 1; ++dc) {
           const int r = from.row + dr, c = from.col + dc;
@@ -1007,10 +1016,11 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           bool known = true;
           for (const auto& [sr, sc] : {std::pair{dr, 0}, std::pair{0, dc}}) {
             if (sr == 0 && sc == 0) continue;
-            double vu = 0, vv = 0;
-            known = known && lattice_step(from.row, from.col, sr, sc, vu, vv);
-            pu += vu, pv += vv;
-            step2 = std::min(step2, vu * vu + vv * vv);
+            const std::array<double, 2>* v = known ? axis_step(sr, sc) : nullptr;
+            known = v != nullptr;
+            if (!known) break;
+            pu += (*v)[0], pv += (*v)[1];
+            step2 = std::min(step2, (*v)[0] * (*v)[0] + (*v)[1] * (*v)[1]);
           }
           if (!known) continue;
           int found = -1;
@@ -1029,6 +1039,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           p.direct += dr == 0 || dc == 0;
           p.strength += spots[from.spot].strength, p.area += spots[from.spot].area_px;
         }
+    }
     for (std::size_t j = 0; j < n; ++j) {
       const Proposal& p = proposals[j];
       if (p.conflict || p.sources < min_sources || p.direct < 1) continue;

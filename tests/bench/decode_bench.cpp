@@ -72,6 +72,23 @@ void BM_DecodeCalibrated(benchmark::State& state, const char* scenario) {
   state.counters["decoded"] = static_cast<double>(decoded);
 }
 
+// Step 7 (the grown lattice, and propagation once more from it) against the calibrated
+// decoder without it, at the scene's desired pose.
+void BM_DecodeCalibratedGrow(benchmark::State& state, const char* scenario, bool grow) {
+  const Frame& f = frame(scenario);
+  vision::DecoderOptions o;
+  o.epipolar.grow = grow;
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), o);
+  std::size_t decoded = 0;
+  for (auto _ : state) {
+    const vision::EpipolarGeometry g(f.camera, f.projector, f.world_T_camera, 3.0);
+    const auto r = decoder.decode(f.rgb, &g);
+    decoded = r.decoded.size();
+    benchmark::DoNotOptimize(r.decoded.data());
+  }
+  state.counters["decoded"] = static_cast<double>(decoded);
+}
+
 void BM_SegmentOnly(benchmark::State& state) {
   const Frame& f = frame("plane");
   std::size_t n = 0;
@@ -208,6 +225,13 @@ BENCHMARK_CAPTURE(BM_Decode, plane, "plane")->Name("decode_vga/ours_plane")->Uni
 BENCHMARK_CAPTURE(BM_Decode, cylinder, "cylinder")->Name("decode_vga/ours_cylinder")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibrated, plane, "plane")->Name("decode_vga/ours_plane_calibrated")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibrated, cylinder, "cylinder")->Name("decode_vga/ours_cylinder_calibrated")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, ham_no_grow, "ham", false)
+    ->Name("decode_grow_ham/baseline_calibrated_not_grown")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, ham, "ham", true)->Name("decode_grow_ham/calibrated_grown")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, cylinder_no_grow, "cylinder", false)
+    ->Name("decode_grow_cylinder/baseline_calibrated_not_grown")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, cylinder, "cylinder", true)
+    ->Name("decode_grow_cylinder/calibrated_grown")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SegmentOnly)->Name("decode_vga/ours_segmentation_only")->Unit(benchmark::kMillisecond);
 // the baseline: the decoder before issue 19 (the paper's pattern, links as the nearest-spot
 // rule makes them)

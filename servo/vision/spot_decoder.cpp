@@ -994,10 +994,27 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
     double strength = 0, area = 0;  // the sources' sums
   };
   std::vector<Proposal> proposals(n);
+  // Each identified spot's claims (the spot at a predicted place, the id, a row or column
+  // neighbour's or a corner's). A source's claims depend only on the ids within one step of it,
+  // so they are recomputed only for sources new or next to an id named in the round before
+  // (two steps, for margin); the others' are reused: the same ids, a fraction of the rounds'
+  // spatial lookups (8 rounds on the ham's frame).
+  struct Claim {
+    int spot;
+    pattern::SpotId id;
+    bool direct;
+  };
+  std::vector<std::vector<Claim>> claims;
+  std::vector<char> active;
+  std::vector<pattern::SpotId> named;
   for (bool grew = true; grew;) {
     grew = false;
+    claims.resize(decoded.size());
+    active.resize(decoded.size(), 1);
     std::fill(proposals.begin(), proposals.end(), Proposal{});
-    for (const DecodedSpot& from : decoded) {
+    for (std::size_t i = 0; i < decoded.size(); ++i) {
+      const DecodedSpot& from = decoded[i];
+      if (active[i]) claims[i].clear();
       // the source's four axis steps, each looked up once (the diagonals add two of them)
       std::array<int, 4> step_known{0, 0, 0, 0};  // 0: not looked up, 1: known, -1: none
       std::array<std::array<double, 2>, 4> step{};
@@ -1007,7 +1024,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           step_known[k] = lattice_step(from.row, from.col, sr, sc, step[k][0], step[k][1]) ? 1 : -1;
         return step_known[k] > 0 ? &step[k] : nullptr;
       };
-      for (int dr = -1; dr <= 1; ++dr)
+      for (int dr = -1; dr <= 1 && active[i]; ++dr)
         for (int dc = -1; dc <= 1; ++dc) {
           const int r = from.row + dr, c = from.col + dc;
           if ((dr == 0 && dc == 0) || !inside(r, c) || slot(r, c) >= 0) continue;
@@ -1032,14 +1049,18 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           if (found < 0 || at[found] >= 0 || spots[found].truncated || !alike(spots[from.spot], spots[found]) ||
               spots[found].area_px > kGrowLargest * spots[from.spot].area_px)
             continue;
-          Proposal& p = proposals[found];
-          if (p.sources > 0 && !(p.id == pattern::SpotId{r, c})) p.conflict = true;
-          p.id = {r, c};
-          ++p.sources;
-          p.direct += dr == 0 || dc == 0;
-          p.strength += spots[from.spot].strength, p.area += spots[from.spot].area_px;
+          claims[i].push_back({found, {r, c}, dr == 0 || dc == 0});
         }
+      for (const Claim& claim : claims[i]) {
+        Proposal& p = proposals[claim.spot];
+        if (p.sources > 0 && !(p.id == claim.id)) p.conflict = true;
+        p.id = claim.id;
+        ++p.sources;
+        p.direct += claim.direct;
+        p.strength += spots[from.spot].strength, p.area += spots[from.spot].area_px;
+      }
     }
+    named.clear();
     for (std::size_t j = 0; j < n; ++j) {
       const Proposal& p = proposals[j];
       if (p.conflict || p.sources < min_sources || p.direct < 1) continue;
@@ -1057,8 +1078,15 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
       at[j] = static_cast<int>(decoded.size());
       slot(r, c) = static_cast<int>(j);
       decoded.push_back({r, c, spots[j].u, spots[j].v, static_cast<int>(j)});
+      named.push_back(p.id);
       grew = true;
     }
+    std::fill(active.begin(), active.end(), 0);
+    for (const pattern::SpotId& id : named)
+      for (int dr = -2; dr <= 2; ++dr)
+        for (int dc = -2; dc <= 2; ++dc)
+          if (const int x = spot_at(id.row + dr, id.col + dc); x >= 0 && at[x] < static_cast<int>(active.size()))
+            active[at[x]] = 1;
   }
   // the links the lattice found, where both ends had none in that direction
   static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)

@@ -59,9 +59,8 @@ void BM_Decode(benchmark::State& state, const char* scenario) { decode(state, fr
 
 // With the projector's calibration: the frame's epipolar geometry is built each frame (the
 // camera moves), then the epipolar check and propagation (what `servo run --projector` does).
-void BM_DecodeCalibrated(benchmark::State& state, const char* scenario) {
-  const Frame& f = frame(scenario);
-  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}));
+void decode_calibrated(benchmark::State& state, const Frame& f, const vision::DecoderOptions& options = {}) {
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), options);
   std::size_t decoded = 0;
   for (auto _ : state) {
     const vision::EpipolarGeometry g(f.camera, f.projector, f.world_T_camera, 3.0);
@@ -72,21 +71,14 @@ void BM_DecodeCalibrated(benchmark::State& state, const char* scenario) {
   state.counters["decoded"] = static_cast<double>(decoded);
 }
 
+void BM_DecodeCalibrated(benchmark::State& state, const char* scenario) { decode_calibrated(state, frame(scenario)); }
+
 // Step 7 (the grown lattice, and propagation once more from it) against the calibrated
 // decoder without it, at the scene's desired pose.
 void BM_DecodeCalibratedGrow(benchmark::State& state, const char* scenario, bool grow) {
-  const Frame& f = frame(scenario);
   vision::DecoderOptions o;
   o.epipolar.grow = grow;
-  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), o);
-  std::size_t decoded = 0;
-  for (auto _ : state) {
-    const vision::EpipolarGeometry g(f.camera, f.projector, f.world_T_camera, 3.0);
-    const auto r = decoder.decode(f.rgb, &g);
-    decoded = r.decoded.size();
-    benchmark::DoNotOptimize(r.decoded.data());
-  }
-  state.counters["decoded"] = static_cast<double>(decoded);
+  decode_calibrated(state, frame(scenario), o);
 }
 
 void BM_SegmentOnly(benchmark::State& state) {

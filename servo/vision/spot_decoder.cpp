@@ -8,6 +8,8 @@ namespace vision {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// the id steps of the four directions, E S W N as (drow, dcol)
+constexpr int kIdStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};
 
 // Buckets spots on a uniform grid so neighbour queries touch only nearby cells.
 class SpatialGrid {
@@ -769,12 +771,11 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
                                                   int spot_count, int min_island, bool sheared_links) {
   std::vector<int> at(static_cast<std::size_t>(spot_count), -1);  // spot -> index in decoded
   for (std::size_t i = 0; i < decoded.size(); ++i) at[decoded[i].spot] = static_cast<int>(i);
-  static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
   const auto agrees = [&](const DecodedSpot& a, const DecodedSpot& b, int k) {
-    const int dr = b.row - a.row - kStep[k][0], dc = b.col - a.col - kStep[k][1];
+    const int dr = b.row - a.row - kIdStep[k][0], dc = b.col - a.col - kIdStep[k][1];
     if (dr == 0 && dc == 0) return true;
     // a sheared link: one step along k and one across it
-    return sheared_links && (kStep[k][0] == 0 ? (dc == 0 && std::abs(dr) == 1) : (dr == 0 && std::abs(dc) == 1));
+    return sheared_links && (kIdStep[k][0] == 0 ? (dc == 0 && std::abs(dr) == 1) : (dr == 0 && std::abs(dc) == 1));
   };
   // a link between two decoded spots whose ids disagree condemns both
   std::vector<bool> keep(decoded.size(), true);
@@ -818,6 +819,32 @@ bool alike(const Spot& source, const Spot& s) {
   return s.strength >= kAlike * source.strength && s.area_px >= kAlike * source.area_px;
 }
 
+// Which spot carries each id, and where each identified spot is in the decoded list: the
+// bookkeeping of the steps that name spots one at a time (propagation, growth).
+class IdMap {
+ public:
+  IdMap(const pattern::MArray& pattern, std::size_t spot_count, const std::vector<DecodedSpot>& decoded)
+      : rows_(pattern.rows), cols_(pattern.cols), owner_(static_cast<std::size_t>(rows_) * cols_, -1),
+        at_(spot_count, -1) {
+    for (std::size_t i = 0; i < decoded.size(); ++i) add(decoded[i], static_cast<int>(i));
+  }
+  bool inside(int r, int c) const { return r >= 0 && c >= 0 && r < rows_ && c < cols_; }
+  // the spot carrying id (r, c); -1 when none does or (r, c) is off the pattern
+  int spot_at(int r, int c) const { return inside(r, c) ? owner_[static_cast<std::size_t>(r) * cols_ + c] : -1; }
+  bool taken(int r, int c) const { return spot_at(r, c) >= 0; }
+  // the spot's index in the decoded list, -1 while it has no id
+  int index_of(int spot) const { return at_[spot]; }
+  void add(const DecodedSpot& d, int index) {
+    owner_[static_cast<std::size_t>(d.row) * cols_ + d.col] = d.spot;
+    at_[d.spot] = index;
+  }
+
+ private:
+  int rows_, cols_;
+  std::vector<int> owner_;  // id -> spot
+  std::vector<int> at_;     // spot -> index in decoded
+};
+
 // Spot j may take id X: the pattern has its colour at X, it lies on X's epipolar line, and no
 // free id around X (`taken(row, col)` false) fits it as well: a step that skipped a missing
 // spot or crossed a sheared column would otherwise pass an id on shifted by one.
@@ -841,19 +868,10 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
                                        const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
                                        int min_sources) {
-  static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
-  std::vector<int> owner(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1);  // id -> spot
-  std::vector<int> at(spots.size(), -1);                                               // spot -> decoded
-  const auto slot = [&](int r, int c) -> int& { return owner[static_cast<std::size_t>(r) * pattern.cols + c]; };
-  for (std::size_t i = 0; i < decoded.size(); ++i) {
-    at[decoded[i].spot] = static_cast<int>(i);
-    slot(decoded[i].row, decoded[i].col) = decoded[i].spot;
-  }
-  const auto spot_at = [&](int r, int c) {
-    return r < 0 || c < 0 || r >= pattern.rows || c >= pattern.cols ? -1 : slot(r, c);
-  };
+  IdMap ids(pattern, spots.size(), decoded);
+  const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
   const auto continues_lattice = [&](const DecodedSpot& from, int j, int k) {
-    const int dr = kStep[k][0], dc = kStep[k][1];
+    const int dr = kIdStep[k][0], dc = kIdStep[k][1];
     // reference steps in k: behind the source, then beside it (either side)
     const std::array<std::pair<int, int>, 3> refs{{{spot_at(from.row - dr, from.col - dc), from.spot},
                                                   {spot_at(from.row + dc, from.col + dr),
@@ -874,8 +892,8 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
   const auto beyond_agrees = [&](const DecodedSpot& from, int j, int k, const pattern::SpotId& id) {
     const int b = graph.next[j][k];
     if (b < 0) return true;
-    const pattern::SpotId next{id.row + kStep[k][0], id.col + kStep[k][1]};
-    if (at[b] >= 0) return decoded[at[b]].row == next.row && decoded[at[b]].col == next.col;
+    const pattern::SpotId next{id.row + kIdStep[k][0], id.col + kIdStep[k][1]};
+    if (ids.index_of(b) >= 0) return decoded[ids.index_of(b)].row == next.row && decoded[ids.index_of(b)].col == next.col;
     if (next.row < 0 || next.col < 0 || next.row >= pattern.rows || next.col >= pattern.cols) return false;
     if (pattern.at(next.row, next.col) != spots[b].colour) return false;
     const double vu = spots[j].u - spots[from.spot].u, vv = spots[j].v - spots[from.spot].v;
@@ -896,8 +914,8 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
     for (const DecodedSpot& from : decoded)
       for (int k = 0; k < 4; ++k) {
         const int j = graph.next[from.spot][k];
-        if (j < 0 || at[j] >= 0 || spots[j].truncated) continue;
-        const pattern::SpotId id{from.row + kStep[k][0], from.col + kStep[k][1]};
+        if (j < 0 || ids.index_of(j) >= 0 || spots[j].truncated) continue;
+        const pattern::SpotId id{from.row + kIdStep[k][0], from.col + kIdStep[k][1]};
         Proposal& p = proposals[j];
         if (!continues_lattice(from, j, k)) continue;  // j is not where this source's lattice goes
         // j looks like a spot of the source's surface: a faint speck of noise, or the dim light
@@ -915,8 +933,8 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
       if (p.sources == 0 || p.conflict) continue;
       for (const int i : {0, 2, 6, 8}) {
         const int q = hoods.window[j][i];
-        if (q < 0 || at[q] < 0) continue;
-        const DecodedSpot& d = decoded[at[q]];
+        if (q < 0 || ids.index_of(q) < 0) continue;
+        const DecodedSpot& d = decoded[ids.index_of(q)];
         const pattern::SpotId id{d.row - (i / 3 - 1), d.col - (i % 3 - 1)};
         if (!(p.id == id)) p.conflict = true;
         ++p.sources;
@@ -926,12 +944,11 @@ std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const Adj
       const Proposal& p = proposals[j];
       if (p.conflict || p.sources < min_sources) continue;
       const int r = p.id.row, c = p.id.col;
-      if (r < 0 || c < 0 || r >= pattern.rows || c >= pattern.cols || slot(r, c) >= 0) continue;
-      if (!only_fitting_id(spots, static_cast<int>(j), p.id, check, pattern, [&](int rr, int cc) { return slot(rr, cc) >= 0; }))
+      if (!ids.inside(r, c) || ids.taken(r, c)) continue;
+      if (!only_fitting_id(spots, static_cast<int>(j), p.id, check, pattern, [&](int rr, int cc) { return ids.taken(rr, cc); }))
         continue;
-      at[j] = static_cast<int>(decoded.size());
-      slot(r, c) = static_cast<int>(j);
       decoded.push_back({r, c, spots[j].u, spots[j].v, static_cast<int>(j)});
+      ids.add(decoded.back(), static_cast<int>(decoded.size()) - 1);
       grew = true;
     }
   }
@@ -961,15 +978,8 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
                                       std::vector<DecodedSpot> decoded, int min_sources) {
   const std::size_t n = spots.size();
   if (decoded.empty() || n < 2) return decoded;
-  std::vector<int> owner(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1);  // id -> spot
-  std::vector<int> at(n, -1);                                                          // spot -> decoded
-  const auto slot = [&](int r, int c) -> int& { return owner[static_cast<std::size_t>(r) * pattern.cols + c]; };
-  const auto inside = [&](int r, int c) { return r >= 0 && c >= 0 && r < pattern.rows && c < pattern.cols; };
-  const auto spot_at = [&](int r, int c) { return inside(r, c) ? slot(r, c) : -1; };
-  for (std::size_t i = 0; i < decoded.size(); ++i) {
-    at[decoded[i].spot] = static_cast<int>(i);
-    slot(decoded[i].row, decoded[i].col) = decoded[i].spot;
-  }
+  IdMap ids(pattern, n, decoded);
+  const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
   // the grid's cells a lattice step wide: the median length of the graph's links
   std::vector<double> lengths;
   for (std::size_t s = 0; s < n; ++s)
@@ -1031,7 +1041,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
       for (int dr = -1; dr <= 1 && active[i]; ++dr)
         for (int dc = -1; dc <= 1; ++dc) {
           const int r = from.row + dr, c = from.col + dc;
-          if ((dr == 0 && dc == 0) || !inside(r, c) || slot(r, c) >= 0) continue;
+          if ((dr == 0 && dc == 0) || !ids.inside(r, c) || ids.taken(r, c)) continue;
           // where the lattice puts id (r, c): one step along each axis that moves
           double pu = spots[from.spot].u, pv = spots[from.spot].v, step2 = 1e300;
           bool known = true;
@@ -1050,7 +1060,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
             const double du = spots[j].u - pu, dv = spots[j].v - pv;
             if (du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
           });
-          if (found < 0 || at[found] >= 0 || spots[found].truncated || !alike(spots[from.spot], spots[found]) ||
+          if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || !alike(spots[from.spot], spots[found]) ||
               spots[found].area_px > kGrowLargest * spots[from.spot].area_px)
             continue;
           claims[i].push_back({found, {r, c}, dr == 0 || dc == 0});
@@ -1076,12 +1086,11 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           continue;
       }
       const int r = p.id.row, c = p.id.col;
-      if (slot(r, c) >= 0 ||
-          !only_fitting_id(spots, static_cast<int>(j), p.id, check, pattern, [&](int rr, int cc) { return slot(rr, cc) >= 0; }))
+      if (ids.taken(r, c) ||
+          !only_fitting_id(spots, static_cast<int>(j), p.id, check, pattern, [&](int rr, int cc) { return ids.taken(rr, cc); }))
         continue;
-      at[j] = static_cast<int>(decoded.size());
-      slot(r, c) = static_cast<int>(j);
       decoded.push_back({r, c, spots[j].u, spots[j].v, static_cast<int>(j)});
+      ids.add(decoded.back(), static_cast<int>(decoded.size()) - 1);
       named.push_back(p.id);
       grew = true;
     }
@@ -1089,14 +1098,13 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
     for (const pattern::SpotId& id : named)
       for (int dr = -2; dr <= 2; ++dr)
         for (int dc = -2; dc <= 2; ++dc)
-          if (const int x = spot_at(id.row + dr, id.col + dc); x >= 0 && at[x] < static_cast<int>(active.size()))
-            active[at[x]] = 1;
+          if (const int x = spot_at(id.row + dr, id.col + dc); x >= 0 && ids.index_of(x) < static_cast<int>(active.size()))
+            active[ids.index_of(x)] = 1;
   }
   // the links the lattice found, where both ends had none in that direction
-  static constexpr int kStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // E S W N as (drow, dcol)
   for (const DecodedSpot& d : decoded)
     for (int k = 0; k < 4; ++k) {
-      const int j = spot_at(d.row + kStep[k][0], d.col + kStep[k][1]);
+      const int j = spot_at(d.row + kIdStep[k][0], d.col + kIdStep[k][1]);
       if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
         graph.next[d.spot][k] = j;
         graph.next[j][(k + 2) % 4] = d.spot;

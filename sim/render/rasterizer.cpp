@@ -13,6 +13,8 @@ namespace {
 
 constexpr double kNear = 0.01;  // metres
 
+enum class VectorUnit { kScalar, kAvx2, kAvx512 };
+
 struct ScreenVertex {
   double u, v, inv_z;
 };
@@ -55,11 +57,12 @@ __attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine*
 // sum q += dq, one rounding per pixel; the four rows' sums run side by side in one vector
 // (the same additions, each row's in its own lane), then each row's pixels are compared and
 // written eight at a time (q > inv_depth, as the scalar loop: nearer wins, NaN never).
-__attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int* xb, const float* q0, float dq,
-                                                 std::int32_t id, DepthBuffer& out, std::vector<float>& sums) {
+// The four rows' running sums, row r's at sums[r * len]; len = 0: no row has a span.
+__attribute__((target("avx2"))) std::size_t running_sums4(const int* xa, const int* xb, const float* q0, float dq,
+                                                         std::vector<float>& sums) {
   int longest = 0;
   for (int r = 0; r < 4; ++r) longest = std::max(longest, xb[r] - xa[r] + 1);
-  if (longest <= 0) return;
+  if (longest <= 0) return 0;
   const std::size_t len = (static_cast<std::size_t>(longest) + 3) & ~std::size_t{3};
   if (sums.size() < 4 * len) sums.resize(4 * len);
   __m128 q = _mm_loadu_ps(q0);
@@ -73,6 +76,13 @@ __attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int
     _mm_storeu_ps(&sums[2 * len + k], c);
     _mm_storeu_ps(&sums[3 * len + k], d);
   }
+  return len;
+}
+
+__attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int* xb, const float* q0, float dq,
+                                                 std::int32_t id, DepthBuffer& out, std::vector<float>& sums) {
+  const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
+  if (len == 0) return;
   const __m256i ids = _mm256_set1_epi32(id);
   for (int r = 0; r < 4; ++r) {
     if (xa[r] > xb[r]) continue;
@@ -97,8 +107,33 @@ __attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int
   }
 }
 
+// fill_spans4 with AVX-512: each row sixteen pixels at a time, its last piece under a mask (a
+// span's remainder, one pixel at a time, mispredicted its branch on every short span: the
+// tessellated cylinder's are short)
+__attribute__((target("avx512f,avx512vl"))) void fill_spans4_avx512(int y, const int* xa, const int* xb,
+                                                                     const float* q0, float dq, std::int32_t id,
+                                                                     DepthBuffer& out, std::vector<float>& sums) {
+  const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
+  if (len == 0) return;
+  const __m512i ids = _mm512_set1_epi32(id);
+  for (int r = 0; r < 4; ++r) {
+    if (xa[r] > xb[r]) continue;
+    const float* sum = &sums[r * len];
+    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y + r) * out.width + xa[r]];
+    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y + r) * out.width + xa[r]];
+    const int n = xb[r] - xa[r] + 1;
+    for (int x = 0; x < n; x += 16) {
+      const __mmask16 in = n - x >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << (n - x)) - 1);
+      const __m512 qv = _mm512_maskz_loadu_ps(in, sum + x), dv = _mm512_maskz_loadu_ps(in, inv_depth + x);
+      const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
+      _mm512_mask_storeu_ps(inv_depth + x, nearer, qv);
+      _mm512_mask_storeu_epi32(tri + x, nearer, ids);
+    }
+  }
+}
+
 void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, std::int32_t id,
-                   DepthBuffer& out, const RasterClip& clip, bool vector, std::vector<float>& sums) {
+                   DepthBuffer& out, const RasterClip& clip, VectorUnit unit, std::vector<float>& sums) {
   const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
   if (std::abs(area) < 1e-12) return;
   const double m = out.margin;
@@ -130,7 +165,7 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
       }
     }
   };
-  if (vector) {
+  if (unit != VectorUnit::kScalar) {
     // the spans of four rows at once: the same divisions, comparisons and roundings
     alignas(16) int xa[4], xb[4];
     alignas(16) float q0[4];
@@ -140,7 +175,8 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
         if (y + r > y1) xb[r] = xa[r] - 1;  // past the triangle's last row
         q0[r] = xa[r] <= xb[r] ? static_cast<float>(iz.at(xa[r], y + r)) : 0.f;
       }
-      fill_spans4(y, xa, xb, q0, static_cast<float>(iz.a), id, out, sums);
+      (unit == VectorUnit::kAvx512 ? fill_spans4_avx512 : fill_spans4)(y, xa, xb, q0, static_cast<float>(iz.a), id,
+                                                                         out, sums);
     }
     return;
   }
@@ -189,20 +225,21 @@ SceneTriangles collect_triangles(const World& world) {
 }
 
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
-               DepthBuffer& out, bool vector) {
+               DepthBuffer& out, bool vector, bool avx512) {
   out.margin = margin;
   out.width = k.width + 2 * margin;
   out.height = k.height + 2 * margin;
   const std::size_t n = static_cast<std::size_t>(out.width) * out.height;
   out.inv_depth.assign(n, 0.0f);
   out.triangle.assign(n, -1);
-  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{}, vector);
+  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{}, vector, avx512);
 }
 
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector) {
+                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector, bool avx512) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  vector = vector && avx2;
+  static const bool avx512f = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+  const VectorUnit unit = !(vector && avx2) ? VectorUnit::kScalar : avx512 && avx512f ? VectorUnit::kAvx512 : VectorUnit::kAvx2;
   std::vector<float> sums;  // fill_spans4's running sums
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
@@ -213,7 +250,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
     if (behind == 3) continue;
     const auto id = static_cast<std::int32_t>(i);
     if (behind == 0) {
-      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip, vector, sums);
+      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip, unit, sums);
       continue;
     }
     // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
@@ -227,7 +264,7 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
       if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
     }
     for (int f = 1; f + 1 < count; ++f)
-      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip, vector, sums);
+      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip, unit, sums);
   }
 }
 

@@ -54,10 +54,11 @@ struct DepthBuffer {
 
 // Rasterises every triangle (both faces) seen from viewer_T_world through `k`.
 // Triangles crossing the near plane are clipped. `vector`: four rows' spans at a time where
-// the CPU has AVX2; false: one at a time (the same buffer, bit for bit; tests hold the two
-// to each other).
+// the CPU has AVX2 (their depth tests sixteen pixels at a time where it has AVX-512 and
+// `avx512` allows it); false: one at a time (the same buffer, bit for bit; tests hold the
+// three to each other).
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
-               DepthBuffer& out, bool vector = true);
+               DepthBuffer& out, bool vector = true, bool avx512 = true);
 // Buffer pixels a rasterisation may write (inclusive).
 struct RasterClip {
   int x0 = 0, y0 = 0, x1 = std::numeric_limits<int>::max(), y1 = std::numeric_limits<int>::max();
@@ -65,7 +66,8 @@ struct RasterClip {
 // Adds triangles [first, end) to a buffer rasterised from the same viewpoint (the moving
 // arm over the static scene's buffer), only inside `clip`.
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip = RasterClip{}, bool vector = true);
+                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip = RasterClip{}, bool vector = true,
+                    bool avx512 = true);
 // Appends a mesh placed at world_T_mesh, as object `object` with `albedo`.
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
                       const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& out);

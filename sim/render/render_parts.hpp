@@ -36,6 +36,7 @@ struct Sensor {
   float gain, read_var, shot;
   bool noisy;
   bool scalar = false;  // without the vector unit (tests hold the two to the same bytes)
+  bool avx512 = true;   // false: AVX2 at most, where the CPU has AVX-512 (the same bytes again)
   const float* pool;
   std::size_t pool_span;
   std::uint64_t seed;

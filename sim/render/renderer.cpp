@@ -23,6 +23,25 @@ std::uint64_t splitmix64(std::uint64_t& state) {
   return z ^ (z >> 31);
 }
 
+// The AVX-512 subsets the renderer's eight-lane paths use (AMD Zen 4 and 5, Intel since
+// Skylake-SP). -ffp-contract=off (CMake) keeps the compiler from fusing their multiplies and
+// adds: AVX-512 brings FMA, and a fused operation rounds once where the other paths round twice.
+#define SIM_AVX512_TARGET "avx512f,avx512vl,avx512dq,avx512bw"
+
+bool has_avx512() {
+  static const bool yes = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+                          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+  return yes;
+}
+
+enum class VectorUnit { kScalar, kAvx2, kAvx512 };
+// the widest unit the CPU has and the caller allows
+VectorUnit vector_unit(bool scalar, bool avx512) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (scalar || !avx2) return VectorUnit::kScalar;
+  return avx512 && has_avx512() ? VectorUnit::kAvx512 : VectorUnit::kAvx2;
+}
+
 // 0.5 erfc(x / sqrt 2), tabulated: std::erfc costs ~30 ns and runs once per lit pixel.
 class EdgeProfile {
  public:
@@ -128,6 +147,28 @@ __attribute__((target("avx2"))) void expose_avx2(const float* __restrict in, std
   }
   expose(in + i, row + i, noise + i, n - i, g, rv, sh, noisy);
 }
+
+// expose_avx2 sixteen values at a time
+__attribute__((target(SIM_AVX512_TARGET))) void expose_avx512(const float* __restrict in, std::uint8_t* __restrict row,
+                                                         const float* __restrict noise, std::size_t n, float g,
+                                                         float rv, float sh, bool noisy) {
+  if (!noisy) return expose(in, row, noise, n, g, rv, sh, noisy);
+  const __m512 gain = _mm512_set1_ps(g), read_var = _mm512_set1_ps(rv), shot = _mm512_set1_ps(sh);
+  const __m512 zero = _mm512_setzero_ps(), half = _mm512_set1_ps(0.5f), top = _mm512_set1_ps(255.f);
+  __m512 known = _mm512_set1_ps(std::numeric_limits<float>::quiet_NaN()), known_sd = zero;  // NaN equals nothing
+  std::size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    const __m512 value = _mm512_mul_ps(gain, _mm512_loadu_ps(in + i));
+    if (_mm512_cmp_ps_mask(value, known, _CMP_EQ_OQ) != 0xFFFF) {
+      known_sd = _mm512_sqrt_ps(_mm512_add_ps(read_var, _mm512_mul_ps(shot, _mm512_max_ps(value, zero))));
+      known = value;
+    }
+    const __m512 noisy_value = _mm512_add_ps(value, _mm512_mul_ps(known_sd, _mm512_loadu_ps(noise + i)));
+    const __m512i bytes = _mm512_cvttps_epi32(_mm512_min_ps(_mm512_max_ps(_mm512_add_ps(noisy_value, half), zero), top));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(row + i), _mm512_cvtepi32_epi8(bytes));
+  }
+  expose(in + i, row + i, noise + i, n - i, g, rv, sh, noisy);
+}
 }  // namespace
 
 const float* Sensor::row_noise(int v) const {
@@ -137,8 +178,9 @@ const float* Sensor::row_noise(int v) const {
 }
 
 void Sensor::expose_row(int v, const float* radiance, std::uint8_t* out, std::size_t n) const {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  (avx2 && !scalar ? expose_avx2 : expose)(radiance, out, row_noise(v), n, gain, read_var, shot, noisy);
+  const VectorUnit unit = vector_unit(scalar, avx512);
+  (unit == VectorUnit::kAvx512 ? expose_avx512 : unit == VectorUnit::kAvx2 ? expose_avx2 : expose)(
+      radiance, out, row_noise(v), n, gain, read_var, shot, noisy);
 }
 
 // The image region one spot can light: the projected rim and centre hits on one object,
@@ -342,14 +384,14 @@ constexpr int kTileRows = 8;
 // spot then only measures its distance on the projector's plane.
 struct TileLight {
   enum State : std::uint8_t { kUnknown = 0, kNoSurface, kShadow, kLit };
-  // a tile row is `stride` pixels, the image's width rounded up to the vector unit's 4 lanes
+  // a tile row is `stride` pixels, the image's width rounded up to the widest vector unit's 8 lanes
   std::size_t stride;
   std::vector<double> pu, pv, zp, sigma, reach2;
   std::vector<float> weight;
   std::vector<std::uint8_t> state;
   std::vector<float> radiance;  // linear RGB, 1 = full scale at exposure 1
   TileLight(int rows, int width)
-      : stride((static_cast<std::size_t>(width) + 3) & ~std::size_t{3}),
+      : stride((static_cast<std::size_t>(width) + 7) & ~std::size_t{7}),
         pu(rows * stride), pv(pu.size()), zp(pu.size()), sigma(pu.size()), reach2(pu.size()), weight(pu.size()),
         state(pu.size()), radiance(3 * pu.size()) {}
 };
@@ -372,13 +414,14 @@ class FrameLight {
     p_t_c_ = p_T_c.translation();
   }
 
-  // Rows [v0, v1) into the tile's radiance. `vector`: with the AVX2 unit, four pixels at a
-  // time (the same operations in the same order: the same bits).
-  void shade(int v0, int v1, TileLight& tile, bool vector) const {
+  // Rows [v0, v1) into the tile's radiance. With the AVX2 unit four pixels at a time, with
+  // AVX-512 eight (the same operations in the same order: the same bits).
+  void shade(int v0, int v1, TileLight& tile, VectorUnit unit) const {
     std::fill(tile.state.begin(), tile.state.end(), TileLight::kUnknown);
     for (int v = v0; v < v1; ++v) {
       const std::size_t first = static_cast<std::size_t>(v) * k_.width, row = (v - v0) * tile.stride;
-      for (int u = 0; u < k_.width; ++u) {
+      const int vector_end = unit == VectorUnit::kAvx512 ? ambient_avx512(first, row, tile) : 0;
+      for (int u = vector_end; u < k_.width; ++u) {
         const std::int32_t zi = cell_.pixel_to_zbuffer[first + u];
         const std::int32_t t = zi >= 0 ? s_.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
         float* out = &tile.radiance[3 * (row + u)];
@@ -389,7 +432,9 @@ class FrameLight {
     for (const SpotBox& box : s_.boxes) {
       const int bv0 = std::max(box.v0, v0), bv1 = std::min(box.v1, v1 - 1);
       if (bv0 > bv1) continue;
-      if (vector)
+      if (unit == VectorUnit::kAvx512)
+        shade_spot_avx512(box, bv0, bv1, v0, tile);
+      else if (unit == VectorUnit::kAvx2)
         shade_spot_avx2(box, bv0, bv1, v0, tile);
       else
         shade_spot(box, bv0, bv1, v0, tile);
@@ -708,6 +753,251 @@ class FrameLight {
     return add_t ? _mm256_add_pd(sum, _mm256_set1_pd(t[r])) : sum;
   }
 
+  // The ambient light of one image row's pixels into tile row `row`, sixteen at a time, as the
+  // scalar loop in shade computes it; returns where that loop goes on.
+  __attribute__((target(SIM_AVX512_TARGET))) int ambient_avx512(std::size_t first, std::size_t row,
+                                                                TileLight& tile) const {
+    const __m512 ambient = _mm512_set1_ps(ambient_);
+    const __m512i none = _mm512_set1_epi32(-1), zero = _mm512_setzero_si512();
+    // 16 pixels' values spread over their 48 channels: channel c of pixel p is value p
+    const __m512i spread[3] = {
+        _mm512_setr_epi32(0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 4, 4, 4, 5),
+        _mm512_setr_epi32(5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 9, 9, 9, 10, 10),
+        _mm512_setr_epi32(10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 14, 14, 14, 15, 15, 15)};
+    const std::int32_t* cell_of = cell_.pixel_to_zbuffer.data() + first;
+    const std::int32_t* triangle = s_.camera_depth.triangle.data();
+    const float* albedo = tris_.albedo.data();
+    int u = 0;
+    for (; u + 16 <= k_.width; u += 16) {
+      // the z-buffer cells 64 pixels on, on their way into the cache (a gather does not call
+      // the hardware's prefetcher: each new line waited for memory)
+      const std::int32_t ahead = cell_of[std::min(u + 64, k_.width - 1)];
+      if (ahead >= 0) _mm_prefetch(reinterpret_cast<const char*>(triangle + ahead), _MM_HINT_T0);
+      const __m512i zi = _mm512_loadu_si512(cell_of + u);
+      const __m512i t = _mm512_mask_i32gather_epi32(none, _mm512_cmpge_epi32_mask(zi, zero), zi, triangle, 4);
+      const __mmask16 surface = _mm512_cmpge_epi32_mask(t, zero);
+      const __m512 value = _mm512_maskz_mul_ps(surface, ambient, _mm512_mask_i32gather_ps(_mm512_setzero_ps(), surface, t, albedo, 4));
+      float* out = &tile.radiance[3 * (row + u)];
+      for (int k = 0; k < 3; ++k) _mm512_storeu_ps(out + 16 * k, _mm512_permutexvar_ps(spread[k], value));
+    }
+    return u;
+  }
+
+  // shade_spot_avx2 eight pixels at a time: blocks of eight aligned on the tile's rows, each
+  // block's surfaces computed (all eight) the first time a spot reaches it.
+  __attribute__((target(SIM_AVX512_TARGET))) void shade_spot_avx512(const SpotBox& box, int bv0, int bv1, int v0,
+                                                                TileLight& tile) const {
+    const SpotFrame f = spot_frame(box);
+    const __m512d cx = _mm512_set1_pd(f.cx), cy = _mm512_set1_pd(f.cy), reach_max2 = _mm512_set1_pd(f.reach_max2);
+    const __m512d radius = _mm512_set1_pd(radius_);
+    const Eigen::Vector3f& c = *f.colour;
+    // eight pixels' 24 radiance values: each pixel's light spread over its three channels
+    const __m256 colour[3] = {_mm256_setr_ps(c[0], c[1], c[2], c[0], c[1], c[2], c[0], c[1]),
+                              _mm256_setr_ps(c[2], c[0], c[1], c[2], c[0], c[1], c[2], c[0]),
+                              _mm256_setr_ps(c[1], c[2], c[0], c[1], c[2], c[0], c[1], c[2])};
+    const __m256i spread[3] = {_mm256_setr_epi32(0, 0, 0, 1, 1, 1, 2, 2), _mm256_setr_epi32(2, 3, 3, 3, 4, 4, 4, 5),
+                               _mm256_setr_epi32(5, 5, 6, 6, 6, 7, 7, 7)};
+    const int b0 = box.u0 & ~7;
+    for (int v = bv0; v <= bv1; ++v) {
+      const std::size_t row = static_cast<std::size_t>(v - v0) * tile.stride;
+      for (int b = b0; b <= box.u1; b += 8) {
+        const std::size_t i = row + b;
+        std::uint64_t states;
+        std::memcpy(&states, &tile.state[i], 8);
+        // some byte is kUnknown (0)
+        if ((states - 0x0101010101010101ull) & ~states & 0x8080808080808080ull) surface_light8(v, b, i, tile);
+        // the lanes inside the box
+        const int lo = std::max(0, box.u0 - b), hi = std::min(7, box.u1 - b);
+        const __mmask8 inside = static_cast<__mmask8>((0xFFu << lo) & (0xFFu >> (7 - hi)));
+        const __m512d pu = _mm512_loadu_pd(&tile.pu[i]), pv = _mm512_loadu_pd(&tile.pv[i]);
+        const __m512d du = _mm512_sub_pd(pu, cx), dv = _mm512_sub_pd(pv, cy);
+        const __m512d rho2 = _mm512_add_pd(_mm512_mul_pd(du, du), _mm512_mul_pd(dv, dv));
+        // shade_spot's `continue`s, negated as they are written (a NaN goes on, as there)
+        const __mmask8 go = _mm512_mask_cmp_pd_mask(inside, rho2, reach_max2, _CMP_NGT_UQ) &
+                            _mm512_cmp_pd_mask(rho2, _mm512_loadu_pd(&tile.reach2[i]), _CMP_NGT_UQ);
+        if (!go) continue;
+        // lit: the pixel's own lookup where the spot's lookup point is the pixel's (see lit_from)
+        const __mmask8 own = _mm512_cmp_pd_mask(_mm512_add_pd(du, cx), pu, _CMP_EQ_OQ) &
+                             _mm512_cmp_pd_mask(_mm512_add_pd(dv, cy), pv, _CMP_EQ_OQ);
+        std::memcpy(&states, &tile.state[i], 8);
+        const __m128i state = _mm_cvtsi64_si128(static_cast<long long>(states));
+        const int lit_lanes = _mm_movemask_epi8(_mm_cmpeq_epi8(state, _mm_set1_epi8(TileLight::kLit))) & 0xFF;
+        const int surface = ~_mm_movemask_epi8(_mm_cmpeq_epi8(state, _mm_set1_epi8(TileLight::kNoSurface))) & 0xFF;
+        int elsewhere = go & ~own & surface;  // rare: a spot whose lookup point is not the pixel's
+        int lanes = go & own & lit_lanes;
+        for (; elsewhere; elsewhere &= elsewhere - 1) {
+          const int l = __builtin_ctz(static_cast<unsigned>(elsewhere));
+          const std::size_t j = i + l;
+          if (lit(tile.pu[j] - f.cx + f.cx, tile.pv[j] - f.cy + f.cy, tile.zp[j])) lanes |= 1 << l;
+        }
+        if (!lanes) continue;
+        const __m256 e = _mm256_mul_ps(
+            edge8(_mm512_div_pd(_mm512_sub_pd(_mm512_sqrt_pd(rho2), radius), _mm512_loadu_pd(&tile.sigma[i]))),
+            _mm256_loadu_ps(&tile.weight[i]));
+        // a lane not lit adds +0 (radiance is never -0: adding +0 changes no bit), the others
+        // e * colour, as add_light does
+        const __m256 e_lit = _mm256_maskz_mov_ps(static_cast<__mmask8>(lanes), e);
+        float* out = &tile.radiance[3 * i];
+        for (int k = 0; k < 3; ++k)
+          _mm256_storeu_ps(out + 8 * k, _mm256_add_ps(_mm256_loadu_ps(out + 8 * k),
+                                                      _mm256_mul_ps(_mm256_permutevar8x32_ps(e_lit, spread[k]), colour[k])));
+      }
+    }
+  }
+
+  // edge4 of eight values
+  __attribute__((target(SIM_AVX512_TARGET))) __m256 edge8(__m512d x) const {
+    const __m512d f = _mm512_div_pd(_mm512_sub_pd(x, _mm512_set1_pd(EdgeProfile::kLo)), _mm512_set1_pd(EdgeProfile::kStep));
+    const __mmask8 below = _mm512_cmp_pd_mask(f, _mm512_setzero_pd(), _CMP_LE_OQ);
+    const __mmask8 above = _mm512_cmp_pd_mask(f, _mm512_set1_pd(EdgeProfile::kN - 1), _CMP_GE_OQ);
+    const __m512d safe = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(f, _mm512_setzero_pd(), _CMP_GT_OQ) &
+                                                 _mm512_cmp_pd_mask(f, _mm512_set1_pd(EdgeProfile::kN - 1), _CMP_LT_OQ),
+                                             f);
+    const __m256i i = _mm512_cvttpd_epi32(safe);
+    const __m256 t = _mm512_cvtpd_ps(_mm512_sub_pd(safe, _mm512_cvtepi32_pd(i)));
+    alignas(32) int at[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(at), i);
+    const float* table = edge_.table();
+    const __m256 a = _mm256_setr_ps(table[at[0]], table[at[1]], table[at[2]], table[at[3]], table[at[4]], table[at[5]],
+                                    table[at[6]], table[at[7]]);
+    const __m256 b = _mm256_setr_ps(table[at[0] + 1], table[at[1] + 1], table[at[2] + 1], table[at[3] + 1],
+                                    table[at[4] + 1], table[at[5] + 1], table[at[6] + 1], table[at[7] + 1]);
+    const __m256 value = _mm256_add_ps(a, _mm256_mul_ps(t, _mm256_sub_ps(b, a)));
+    return _mm256_mask_blend_ps(below, _mm256_mask_blend_ps(above, value, _mm256_setzero_ps()), _mm256_set1_ps(1.0f));
+  }
+
+  // surface_light4 of the eight pixels (v, u..u+7), tile index i..i+7, in the same order
+  __attribute__((target(SIM_AVX512_TARGET))) void surface_light8(int v, int u, std::size_t i, TileLight& tile) const {
+    alignas(64) double rx[8], ry[8];
+    int tri[8];
+    int valid = 0;
+    bool one_triangle = true;
+    for (int l = 0; l < 8; ++l) {
+      tri[l] = -1;
+      rx[l] = ry[l] = 0;
+      if (u + l < k_.width) {
+        const std::size_t px = static_cast<std::size_t>(v) * k_.width + u + l;
+        const std::int32_t zi = cell_.pixel_to_zbuffer[px];
+        tri[l] = zi >= 0 ? s_.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
+        rx[l] = rays_[2 * px];
+        ry[l] = rays_[2 * px + 1];
+      }
+      valid |= (tri[l] >= 0) << l;
+      one_triangle = one_triangle && tri[l] == tri[0];
+    }
+    std::memset(&tile.state[i], TileLight::kNoSurface, 8);
+    if (!valid) return;
+    __m512d n0, n1, n2, off, w0, w1, w2, alb;
+    if (tri[0] >= 0 && one_triangle) {  // the common case
+      const int t = tri[0];
+      n0 = _mm512_set1_pd(s_.normal_c[t].x()), n1 = _mm512_set1_pd(s_.normal_c[t].y()), n2 = _mm512_set1_pd(s_.normal_c[t].z());
+      off = _mm512_set1_pd(s_.offset_c[t]);
+      w0 = _mm512_set1_pd(tris_.normal_w[t].x()), w1 = _mm512_set1_pd(tris_.normal_w[t].y()), w2 = _mm512_set1_pd(tris_.normal_w[t].z());
+      alb = _mm512_set1_pd(tris_.albedo[t]);
+    } else {
+      alignas(64) double a[8][8];
+      for (int l = 0; l < 8; ++l) {
+        const int t = tri[l];
+        const Eigen::Vector3d nc = t >= 0 ? s_.normal_c[t] : Eigen::Vector3d::UnitZ();
+        const Eigen::Vector3d nw = t >= 0 ? tris_.normal_w[t] : Eigen::Vector3d::UnitZ();
+        a[0][l] = nc.x(), a[1][l] = nc.y(), a[2][l] = nc.z(), a[3][l] = t >= 0 ? s_.offset_c[t] : 1.0;
+        a[4][l] = nw.x(), a[5][l] = nw.y(), a[6][l] = nw.z(), a[7][l] = t >= 0 ? tris_.albedo[t] : 0.0;
+      }
+      n0 = _mm512_load_pd(a[0]), n1 = _mm512_load_pd(a[1]), n2 = _mm512_load_pd(a[2]), off = _mm512_load_pd(a[3]);
+      w0 = _mm512_load_pd(a[4]), w1 = _mm512_load_pd(a[5]), w2 = _mm512_load_pd(a[6]), alb = _mm512_load_pd(a[7]);
+    }
+    const __m512d dx = _mm512_load_pd(rx), dy = _mm512_load_pd(ry);
+    const __m512d zero = _mm512_setzero_pd();
+    const __m512d denom = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(n0, dx), _mm512_mul_pd(n1, dy)),
+                                        _mm512_mul_pd(n2, _mm512_set1_pd(1.0)));
+    const __m512d z = _mm512_div_pd(off, denom);
+    __mmask8 ok = _mm512_cmp_pd_mask(_mm512_abs_pd(denom), _mm512_set1_pd(1e-12), _CMP_NLT_UQ) &
+                  _mm512_cmp_pd_mask(z, zero, _CMP_NLE_UQ);
+    const __m512d Xp = transform_row8(p_R_c_, p_t_c_, 0, z, dx, dy);
+    const __m512d Yp = transform_row8(p_R_c_, p_t_c_, 1, z, dx, dy);
+    const __m512d Zp = transform_row8(p_R_c_, p_t_c_, 2, z, dx, dy);
+    ok &= _mm512_cmp_pd_mask(Zp, _mm512_set1_pd(1e-3), _CMP_NLE_UQ);
+    const __m512d inv_z = _mm512_div_pd(_mm512_set1_pd(1.0), Zp);
+    const __m512d pu = _mm512_add_pd(_mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(kp_.fx), Xp), inv_z), _mm512_set1_pd(kp_.cx));
+    const __m512d pv = _mm512_add_pd(_mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(kp_.fy), Yp), inv_z), _mm512_set1_pd(kp_.cy));
+    const __m512d near_gap = _mm512_sub_pd(_mm512_set1_pd(ps_.focus_near_m), Zp);
+    const __m512d far_gap = _mm512_sub_pd(Zp, _mm512_set1_pd(ps_.focus_far_m));
+    __m512d outside = _mm512_mask_blend_pd(_mm512_cmp_pd_mask(zero, near_gap, _CMP_LT_OQ), zero, near_gap);
+    outside = _mm512_mask_blend_pd(_mm512_cmp_pd_mask(outside, far_gap, _CMP_LT_OQ), outside, far_gap);
+    const __m512d blur = _mm512_add_pd(_mm512_set1_pd(ps_.focused_blur_px), _mm512_mul_pd(_mm512_set1_pd(ps_.defocus_px_per_m), outside));
+    const __m512d pixel_in_proj = _mm512_mul_pd(_mm512_mul_pd(z, _mm512_set1_pd(proj_per_cam_px_)), inv_z);
+    const __m512d sigma = _mm512_add_pd(
+        _mm512_sqrt_pd(_mm512_add_pd(_mm512_mul_pd(blur, blur),
+                                     _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(0.083), pixel_in_proj), pixel_in_proj))),
+        _mm512_set1_pd(1e-6));
+    const __m512d reach = _mm512_add_pd(_mm512_set1_pd(radius_), _mm512_mul_pd(_mm512_set1_pd(3.0), sigma));
+    const Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+    const __m512d Lx = _mm512_sub_pd(_mm512_set1_pd(P_.x()), _mm512_add_pd(_mm512_set1_pd(C_.x()), transform_row8(R_, origin, 0, z, dx, dy, false)));
+    const __m512d Ly = _mm512_sub_pd(_mm512_set1_pd(P_.y()), _mm512_add_pd(_mm512_set1_pd(C_.y()), transform_row8(R_, origin, 1, z, dx, dy, false)));
+    const __m512d Lz = _mm512_sub_pd(_mm512_set1_pd(P_.z()), _mm512_add_pd(_mm512_set1_pd(C_.z()), transform_row8(R_, origin, 2, z, dx, dy, false)));
+    const __m512d dist2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(Lx, Lx), _mm512_mul_pd(Ly, Ly)), _mm512_mul_pd(Lz, Lz));
+    const __m512d nL = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(w0, Lx), _mm512_mul_pd(w1, Ly)), _mm512_mul_pd(w2, Lz));
+    const __m512d cos_in = _mm512_div_pd(_mm512_abs_pd(nL), _mm512_sqrt_pd(dist2));
+    const __m512d falloff = _mm512_div_pd(_mm512_set1_pd(focus_mid_ * focus_mid_), dist2);
+    const __m512d weight = _mm512_mul_pd(_mm512_mul_pd(_mm512_mul_pd(alb, _mm512_set1_pd(ps_.brightness)), cos_in), falloff);
+    _mm512_storeu_pd(&tile.pu[i], pu);
+    _mm512_storeu_pd(&tile.pv[i], pv);
+    _mm512_storeu_pd(&tile.zp[i], Zp);
+    _mm512_storeu_pd(&tile.sigma[i], sigma);
+    _mm512_storeu_pd(&tile.reach2[i], _mm512_mul_pd(reach, reach));
+    _mm256_storeu_ps(&tile.weight[i], _mm512_cvtpd_ps(weight));
+    const __mmask8 good = static_cast<__mmask8>(valid) & ok;
+    const __mmask8 lit_lanes = static_cast<__mmask8>(lit8(pu, pv, Zp));
+    const __m128i state = _mm_mask_blend_epi8(
+        good, _mm_set1_epi8(TileLight::kNoSurface),
+        _mm_mask_blend_epi8(lit_lanes, _mm_set1_epi8(TileLight::kShadow), _mm_set1_epi8(TileLight::kLit)));
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(&tile.state[i]), state);
+  }
+
+  // lit4 of eight points
+  __attribute__((target(SIM_AVX512_TARGET))) int lit8(__m512d u, __m512d v, __m512d z_p) const {
+    __m256 nearest = depth8(projector_depth_, u, v);
+    if (arm_depth_) {
+      const __m256 b = depth8(*arm_depth_, u, v);
+      nearest = _mm256_blendv_ps(nearest, b, _mm256_cmp_ps(b, nearest, _CMP_LT_OQ));
+    }
+    const __m512d limit = _mm512_add_pd(_mm512_mul_pd(_mm512_cvtps_pd(nearest), _mm512_set1_pd(1.0 + 2e-3)), _mm512_set1_pd(2e-3));
+    return ~_mm512_cmp_pd_mask(z_p, limit, _CMP_GT_OQ) & 0xFF;
+  }
+  __attribute__((target(SIM_AVX512_TARGET))) static __m256i nearest8(__m512d x) {
+    const __mmask8 inside = _mm512_cmp_pd_mask(x, _mm512_set1_pd(-1e9), _CMP_GT_OQ) &
+                            _mm512_cmp_pd_mask(x, _mm512_set1_pd(1e9), _CMP_LT_OQ);
+    const __m512d shifted = _mm512_add_pd(_mm512_add_pd(x, _mm512_set1_pd(0.5)), _mm512_set1_pd(DepthBuffer::kShift));
+    const __m256i n = _mm256_sub_epi32(_mm512_cvttpd_epi32(_mm512_maskz_mov_pd(inside, shifted)),
+                                       _mm256_set1_epi32(static_cast<int>(DepthBuffer::kShift)));
+    return _mm256_mask_blend_epi32(inside, _mm256_set1_epi32(-(1 << 30)), n);
+  }
+  __attribute__((target(SIM_AVX512_TARGET))) static __m256 depth8(const DepthBuffer& d, __m512d u, __m512d v) {
+    const __m256i margin = _mm256_set1_epi32(d.margin), zero = _mm256_setzero_si256();
+    const __m256i i = _mm256_add_epi32(nearest8(u), margin), j = _mm256_add_epi32(nearest8(v), margin);
+    const __m256i out = _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(zero, i), _mm256_cmpgt_epi32(zero, j)),
+                                        _mm256_or_si256(_mm256_cmpgt_epi32(i, _mm256_set1_epi32(d.width - 1)),
+                                                        _mm256_cmpgt_epi32(j, _mm256_set1_epi32(d.height - 1))));
+    const __m256i index = _mm256_andnot_si256(out, _mm256_add_epi32(_mm256_mullo_epi32(j, _mm256_set1_epi32(d.width)), i));
+    alignas(32) int at[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(at), index);
+    const float* inv_depth = d.inv_depth.data();
+    const __m256 q = _mm256_setr_ps(inv_depth[at[0]], inv_depth[at[1]], inv_depth[at[2]], inv_depth[at[3]],
+                                    inv_depth[at[4]], inv_depth[at[5]], inv_depth[at[6]], inv_depth[at[7]]);
+    const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+    const __m256 depth = _mm256_blendv_ps(inf, _mm256_div_ps(_mm256_set1_ps(1.0f), q), _mm256_cmp_ps(q, _mm256_setzero_ps(), _CMP_GT_OQ));
+    return _mm256_blendv_ps(depth, inf, _mm256_castsi256_ps(out));
+  }
+  __attribute__((target(SIM_AVX512_TARGET))) static __m512d transform_row8(const Eigen::Matrix3d& M, const Eigen::Vector3d& t,
+                                                                        int r, __m512d z, __m512d dx, __m512d dy,
+                                                                        bool add_t = true) {
+    const __m512d a0 = _mm512_mul_pd(_mm512_mul_pd(z, _mm512_set1_pd(M(r, 0))), dx);
+    const __m512d a1 = _mm512_mul_pd(_mm512_mul_pd(z, _mm512_set1_pd(M(r, 1))), dy);
+    const __m512d a2 = _mm512_mul_pd(_mm512_mul_pd(z, _mm512_set1_pd(M(r, 2))), _mm512_set1_pd(1.0));
+    const __m512d sum = r < 2 ? _mm512_add_pd(_mm512_add_pd(a0, a1), a2) : _mm512_add_pd(a0, _mm512_add_pd(a1, a2));
+    return add_t ? _mm512_add_pd(sum, _mm512_set1_pd(t[r])) : sum;
+  }
+
   // lit when the projector's nearest surface along this direction is this one
   bool lit(double u, double v, double z_p) const {
     float nearest = projector_depth_.depth_at(u, v);
@@ -750,7 +1040,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   const FrameScene scene = pose_scene(cell, links, s.arm, true);
   const SceneTriangles& tris = *scene.triangles;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
-  rasterize(tris, c_T_w, k, cell.camera_margin_px, s.camera_depth, !s.scalar);
+  rasterize(tris, c_T_w, k, cell.camera_margin_px, s.camera_depth, !s.scalar, s.avx512);
   render_parts::spot_boxes(cell, *scene.spot_hits, c_T_w, s.boxes);
   // triangle planes in the camera frame, once per frame
   const Eigen::Matrix3d R = world_T_camera.linear();
@@ -762,10 +1052,10 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
     s.offset_c[i] = tris.offset[i] - tris.normal_w[i].dot(C);
   }
   const FrameLight light(cell, scene, s, world_T_camera, cam);
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  const bool vector = avx2 && !s.scalar;
+  const VectorUnit unit = vector_unit(s.scalar, s.avx512);
   render_parts::Sensor sensor_model(cell, cam, noise_seed);
   sensor_model.scalar = s.scalar;
+  sensor_model.avx512 = s.avx512;
 
   // Tiles of rows run in parallel; every pixel is written by the tile that owns its row, in
   // the same order (ambient, then the spots in box order), and the noise of a row depends
@@ -777,7 +1067,13 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
     TileLight tile(kTileRows, k.width);
     for (int t = band.start; t < band.end; ++t) {
       const int v0 = t * kTileRows, v1 = std::min(k.height, v0 + kTileRows);
-      light.shade(v0, v1, tile, vector);
+      // the rows' noise, runs at random places of an 8 MB pool, on its way into the cache
+      // while the tile is shaded (the sensor's loads waited for memory: half its time)
+      for (int v = v0; v < v1; ++v) {
+        const char* noise = reinterpret_cast<const char*>(sensor_model.row_noise(v));
+        for (std::size_t b = 0; b < row_len * sizeof(float); b += 64) _mm_prefetch(noise + b, _MM_HINT_T1);
+      }
+      light.shade(v0, v1, tile, unit);
       for (int v = v0; v < v1; ++v)
         sensor_model.expose_row(v, &tile.radiance[static_cast<std::size_t>(v - v0) * tile.stride * 3],
                                 image.ptr<std::uint8_t>(v), row_len);

@@ -59,6 +59,8 @@ struct RenderScratch {
   std::vector<double> offset_c;
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
   bool scalar = false;
+  // false: the AVX2 path even where the CPU has AVX-512 (the same bits again)
+  bool avx512 = true;
   // 0: the rows are shared out over OpenCV's thread pool (as many threads as cv::setNumThreads
   // allows); 1: all on the calling thread (a campaign's runs, one thread each)
   int threads = 0;

@@ -1,5 +1,6 @@
 // Rendering cost: one VGA frame against casting one Bullet ray per pixel (what the z-buffer
 // replaces), the projector's rays per second, and growth with pattern and image size.
+#include <chrono>
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -185,8 +186,54 @@ void BM_OneCore(benchmark::State& state, Scene scene, bool reference) {
   cv::setNumThreads(threads);
 }
 
+// The reference, the AVX2 path and the best path (AVX-512 where the CPU has it) in turns,
+// frame by frame: the machine's drift, which moves separate benchmarks by 20 % and more, moves
+// the three alike. Counters: each one's median time and the medians of the per-turn ratios.
+void BM_OneCoreInterleaved(benchmark::State& state, Scene scene) {
+  const SceneFrame f = scene_frame(scene);
+  const int threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  sim::RenderScratch avx2, best;
+  avx2.avx512 = false;
+  std::vector<double> t_ref, t_avx2, t_best, speedup, speedup_avx2;
+  std::uint64_t frame = 0;
+  for (auto _ : state) {
+    using clock = std::chrono::steady_clock;
+    const std::uint64_t seed = sim::frame_seed(1, frame++);
+    const auto t0 = clock::now();
+    const cv::Mat a = reference::render_image(*f.cell, f.camera, seed, nullptr, f.links);
+    const auto t1 = clock::now();
+    const cv::Mat b = sim::render_image(*f.cell, f.camera, seed, &avx2, nullptr, f.links);
+    const auto t2 = clock::now();
+    const cv::Mat c = sim::render_image(*f.cell, f.camera, seed, &best, nullptr, f.links);
+    const auto t3 = clock::now();
+    benchmark::DoNotOptimize(a.data);
+    benchmark::DoNotOptimize(b.data);
+    benchmark::DoNotOptimize(c.data);
+    const auto ms = [](auto d) { return std::chrono::duration<double, std::milli>(d).count(); };
+    t_ref.push_back(ms(t1 - t0));
+    t_avx2.push_back(ms(t2 - t1));
+    t_best.push_back(ms(t3 - t2));
+    speedup.push_back(t_ref.back() / t_best.back());
+    speedup_avx2.push_back(t_ref.back() / t_avx2.back());
+  }
+  cv::setNumThreads(threads);
+  const auto median = [](std::vector<double> x) {
+    std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
+    return x.empty() ? 0.0 : x[x.size() / 2];
+  };
+  state.counters["reference_ms"] = median(t_ref);
+  state.counters["avx2_ms"] = median(t_avx2);
+  state.counters["render_ms"] = median(t_best);
+  state.counters["speedup"] = median(speedup);
+  state.counters["speedup_avx2"] = median(speedup_avx2);
+}
+
 }  // namespace
 
+BENCHMARK_CAPTURE(BM_OneCoreInterleaved, plane, Scene::kPlane)->Name("one_core_interleaved/plane")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCoreInterleaved, cylinder, Scene::kCylinder)->Name("one_core_interleaved/cylinder")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OneCoreInterleaved, beam, Scene::kBeam)->Name("one_core_interleaved/arm_in_beam")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_OneCore, plane_ref, Scene::kPlane, true)->Name("one_core_plane/baseline_reference")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_OneCore, plane, Scene::kPlane, false)->Name("one_core_plane/render")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_OneCore, cyl_ref, Scene::kCylinder, true)->Name("one_core_cylinder/baseline_reference")->Unit(benchmark::kMillisecond);

@@ -281,14 +281,16 @@ TEST(Render, EveryFrameEqualsTheReferenceRendererBitForBit) {
         const cv::Mat want = reference::render_image(*cell, robot->world_T_camera(), seed, sensor, &links);
         RenderScratch scratch;
         for (int threads : {1, 0}) {
-          scratch.scalar = threads == 1 && p % 2 == 1;  // the scalar path too, where the CPU has AVX2
+          // the scalar path too, where the CPU has AVX2, and the AVX2 one where it has AVX-512
+          scratch.scalar = threads == 1 && p % 2 == 1;
+          scratch.avx512 = !(threads == 1 && p % 2 == 0);
           const int before = cv::getNumThreads();
           if (threads == 1) cv::setNumThreads(1);
           const cv::Mat got = render_image(*cell, robot->world_T_camera(), seed, &scratch, sensor, &links);
           cv::setNumThreads(before);
           ASSERT_EQ(got.size(), want.size());
           ASSERT_EQ(cv::norm(got, want, cv::NORM_INF), 0)
-              << name << " pose '" << poses[p] << "'" << (scratch.scalar ? " (scalar)" : "") << ": " << cv::countNonZero(cv::Mat(got != want).reshape(1)) << " bytes differ";
+              << name << " pose '" << poses[p] << "'" << (scratch.scalar ? " (scalar)" : scratch.avx512 ? "" : " (AVX2)") << ": " << cv::countNonZero(cv::Mat(got != want).reshape(1)) << " bytes differ";
           ++frames;
         }
       }

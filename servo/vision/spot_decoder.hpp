@@ -137,7 +137,7 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
 // Step 7, beyond the paper. The lattice grown from the identified region where the graph has
 // no link: from every identified spot, the lattice's steps (from identified neighbours) predict
-// where each of the 8 ids around it lies; the spot found there (within a quarter step) takes
+// where each of the 8 ids around it lies; the spot found there (within 0.45 of a step) takes
 // the id when `min_sources` identified spots predict it there (one of them a row or column
 // neighbour), none predicts another id, and colour, epipolar line and uniqueness pass as in
 // step 6. The links the grown lattice found are added to `graph` where both ends had none.

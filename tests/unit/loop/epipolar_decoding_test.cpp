@@ -266,8 +266,15 @@ TEST(EpipolarDecoding, CalibratedDecodingNamesNoFewerSpotsOnTheCurvedObjectsAndN
     const auto with = decoder.decode(f.rgb, &g);
     EXPECT_GE(with.decoded.size(), without.decoded.size()) << name;
     for (const auto& d : with.decoded) {
-      const auto id = truth_at(f, d.u, d.v);
-      EXPECT_TRUE(id && *id == (pattern::SpotId{d.row, d.col})) << name << " " << d.row << "," << d.col;
+      // right: the nearest visible spot is the one named. Grown spots on the ham's most oblique
+      // flank have their centroid up to 2.5 px from the spot's centre (the sweep's "mislocated")
+      const sim::SpotTruth* nearest = nullptr;
+      for (const auto& t : f.truth)
+        if (t.visible && (!nearest || (t.uv - Eigen::Vector2d(d.u, d.v)).norm() < (nearest->uv - Eigen::Vector2d(d.u, d.v)).norm()))
+          nearest = &t;
+      ASSERT_NE(nearest, nullptr);
+      EXPECT_LT((nearest->uv - Eigen::Vector2d(d.u, d.v)).norm(), 4.0) << name << " " << d.row << "," << d.col;
+      EXPECT_TRUE(nearest->row == d.row && nearest->col == d.col) << name << " " << d.row << "," << d.col;
     }
   }
 }

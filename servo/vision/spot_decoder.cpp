@@ -767,6 +767,41 @@ std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spo
   return check_vote_consistency(spots, votes, min_votes);
 }
 
+namespace {
+// Islands of decoded spots: the components of the graph's links between decoded spots that
+// `joins(i, j, k)` accepts (i, j indices into the decoded list, k the link's direction).
+struct Islands {
+  std::vector<int> of;    // decoded index -> island, -1 where `member` excluded it
+  std::vector<int> size;  // spots per island
+};
+template <typename Member, typename Joins>
+Islands find_islands(const AdjacencyGraph& graph, const std::vector<DecodedSpot>& decoded, const std::vector<int>& at,
+                     Member&& member, Joins&& joins) {
+  Islands islands;
+  islands.of.assign(decoded.size(), -1);
+  std::vector<int> stack;
+  for (std::size_t s = 0; s < decoded.size(); ++s) {
+    if (!member(static_cast<int>(s)) || islands.of[s] >= 0) continue;
+    const int id = static_cast<int>(islands.size.size());
+    islands.size.push_back(0);
+    stack.assign(1, static_cast<int>(s));
+    islands.of[s] = id;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      ++islands.size[id];
+      for (int k = 0; k < 4; ++k) {
+        const int j = graph.next[decoded[i].spot][k];
+        if (j < 0 || at[j] < 0 || islands.of[at[j]] >= 0 || !member(at[j]) || !joins(i, at[j], k)) continue;
+        islands.of[at[j]] = id;
+        stack.push_back(at[j]);
+      }
+    }
+  }
+  return islands;
+}
+}  // namespace
+
 std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
                                                   int spot_count, int min_island, bool sheared_links) {
   std::vector<int> at(static_cast<std::size_t>(spot_count), -1);  // spot -> index in decoded
@@ -777,37 +812,31 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
     // a sheared link: one step along k and one across it
     return sheared_links && (kIdStep[k][0] == 0 ? (dc == 0 && std::abs(dr) == 1) : (dr == 0 && std::abs(dc) == 1));
   };
-  // a link between two decoded spots whose ids disagree condemns both
-  std::vector<bool> keep(decoded.size(), true);
+  const auto all = [](int) { return true; };
+  // The regions the agreeing links join, before any spot is condemned. A link whose ids
+  // disagree condemns both its spots, unless it joins two such regions of min_island spots or
+  // more: that is two surfaces meeting at a depth edge, the nearest-spot rule linking across
+  // it (the ham's silhouette row over the table's lattice), and the link is what is wrong. A
+  // misread spot or patch has no such region of its own: its links to the right ids around
+  // it disagree.
+  const Islands regions = find_islands(graph, decoded, at, all, [&](int i, int j, int k) {
+    return agrees(decoded[i], decoded[j], k);
+  });
+  const auto large = [&](int i) { return regions.size[regions.of[i]] >= min_island; };
+  std::vector<char> keep(decoded.size(), 1);
   for (std::size_t i = 0; i < decoded.size(); ++i)
     for (int k = 0; k < 4; ++k) {
       const int j = graph.next[decoded[i].spot][k];
-      if (j >= 0 && at[j] >= 0 && !agrees(decoded[i], decoded[at[j]], k)) keep[i] = keep[at[j]] = false;
+      if (j < 0 || at[j] < 0 || agrees(decoded[i], decoded[at[j]], k)) continue;
+      if (min_island > 0 && regions.of[i] != regions.of[at[j]] && large(static_cast<int>(i)) && large(at[j])) continue;
+      keep[i] = keep[at[j]] = 0;
     }
   // islands of id-consistent linked spots
-  std::vector<int> island(decoded.size(), -1);
-  std::vector<int> size;
-  for (std::size_t s = 0; s < decoded.size(); ++s) {
-    if (!keep[s] || island[s] >= 0) continue;
-    const int id = static_cast<int>(size.size());
-    size.push_back(0);
-    std::vector<int> stack{static_cast<int>(s)};
-    island[s] = id;
-    while (!stack.empty()) {
-      const int i = stack.back();
-      stack.pop_back();
-      ++size[id];
-      for (int k = 0; k < 4; ++k) {
-        const int j = graph.next[decoded[i].spot][k];
-        if (j < 0 || at[j] < 0 || !keep[at[j]] || island[at[j]] >= 0) continue;
-        island[at[j]] = id;
-        stack.push_back(at[j]);
-      }
-    }
-  }
+  const Islands islands = find_islands(graph, decoded, at, [&](int i) { return keep[i] != 0; },
+                                       [](int, int, int) { return true; });
   std::vector<DecodedSpot> out;
   for (std::size_t i = 0; i < decoded.size(); ++i)
-    if (keep[i] && size[island[i]] >= min_island) out.push_back(decoded[i]);
+    if (keep[i] && islands.size[islands.of[i]] >= min_island) out.push_back(decoded[i]);
   return out;
 }
 

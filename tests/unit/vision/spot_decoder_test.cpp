@@ -95,6 +95,52 @@ TEST(IslandConsistency, AmbiguousShearGivesNoWrongIds) {
   EXPECT_GT(wrong, 0);
 }
 
+// An image grid of rows x cols spots, linked to their four neighbours; spot (y, x)'s id is
+// `id(y, x)`.
+template <typename Id>
+std::pair<AdjacencyGraph, std::vector<DecodedSpot>> linked_grid(int rows, int cols, Id id) {
+  AdjacencyGraph g;
+  std::vector<DecodedSpot> decoded;
+  g.next.assign(static_cast<std::size_t>(rows * cols), {-1, -1, -1, -1});
+  for (int y = 0; y < rows; ++y)
+    for (int x = 0; x < cols; ++x) {
+      const int i = y * cols + x;
+      if (x + 1 < cols) g.next[i][kEast] = i + 1, g.next[i + 1][kWest] = i;
+      if (y + 1 < rows) g.next[i][kSouth] = i + cols, g.next[i + cols][kNorth] = i;
+      const auto [r, c] = id(y, x);
+      decoded.push_back({r, c, 20.0 * x, 20.0 * y, i});
+    }
+  return {g, decoded};
+}
+
+TEST(IslandConsistency, TwoLargeRegionsMeetingAtADepthEdgeKeepTheirIdsAMisreadPatchDoesNot) {
+  // the top two rows are one surface (pattern rows 2-3), the bottom two another, whose lattice
+  // the image shows cut off (pattern rows 10-11, shifted 3 columns): every link between image
+  // rows 1 and 2 contradicts, as the nearest-spot rule links across the ham's silhouette
+  const auto surfaces = [](int y, int x) { return y < 2 ? std::pair{2 + y, 4 + x} : std::pair{8 + y, 7 + x}; };
+  auto [g, decoded] = linked_grid(4, 8, surfaces);
+  EXPECT_EQ(check_island_consistency(g, decoded, 32, 12).size(), 32u);
+  // the same edge with only four spots (two by two) below it: too small a region to outweigh
+  // the links, a misread patch (it and the spots it contradicts are dropped, as before)
+  auto [g2, patch] = linked_grid(4, 8, surfaces);
+  for (int i = 0; i < 32; ++i)
+    if (i / 8 >= 2 && i % 8 >= 2) {
+      for (int k = 0; k < 4; ++k)
+        if (const int j = g2.next[i][k]; j >= 0) g2.next[j][(k + 2) % 4] = -1;
+      g2.next[i] = {-1, -1, -1, -1};
+    }
+  std::erase_if(patch, [](const DecodedSpot& d) { return d.spot / 8 >= 2 && d.spot % 8 >= 2; });
+  const auto kept = check_island_consistency(g2, patch, 32, 12);
+  for (const auto& d : kept) EXPECT_LT(d.spot / 8, 2) << d.spot;
+  EXPECT_EQ(kept.size(), 14u);  // the top rows but the two spots above the patch
+  // a single misread spot inside one surface is dropped with the spots its links condemn
+  auto [g3, one] = linked_grid(4, 8, [](int y, int x) { return std::pair{2 + y, 4 + x}; });
+  one[10].col += 5;
+  const auto left = check_island_consistency(g3, one, 32, 12);
+  EXPECT_EQ(left.size(), 27u);
+  for (const auto& d : left) EXPECT_NE(d.spot, 10);
+}
+
 TEST(AdjacencyGraph, DoesNotLinkAcrossAMissingSpot) {
   Lattice l = lattice();
   const int gone = 6 * 20 + 6;

@@ -79,17 +79,28 @@ __attribute__((target("avx2"))) std::size_t running_sums4(const int* xa, const i
   return len;
 }
 
+// Row r of the four: its running sums and the buffer's cells from its first pixel; n = 0 when
+// the row has no span.
+struct RowSpan {
+  const float* sum;
+  float* inv_depth;
+  std::int32_t* tri;
+  int n;
+};
+RowSpan row_span(int r, int y, const int* xa, const int* xb, std::size_t len, const std::vector<float>& sums,
+                 DepthBuffer& out) {
+  if (xa[r] > xb[r]) return {nullptr, nullptr, nullptr, 0};
+  const std::size_t first = static_cast<std::size_t>(y + r) * out.width + xa[r];
+  return {&sums[r * len], &out.inv_depth[first], &out.triangle[first], xb[r] - xa[r] + 1};
+}
+
 __attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int* xb, const float* q0, float dq,
                                                  std::int32_t id, DepthBuffer& out, std::vector<float>& sums) {
   const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
   if (len == 0) return;
   const __m256i ids = _mm256_set1_epi32(id);
   for (int r = 0; r < 4; ++r) {
-    if (xa[r] > xb[r]) continue;
-    const float* sum = &sums[r * len];
-    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y + r) * out.width + xa[r]];
-    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y + r) * out.width + xa[r]];
-    const int n = xb[r] - xa[r] + 1;
+    const auto [sum, inv_depth, tri, n] = row_span(r, y, xa, xb, len, sums, out);
     int x = 0;
     for (; x + 8 <= n; x += 8) {
       const __m256 qv = _mm256_loadu_ps(sum + x), dv = _mm256_loadu_ps(inv_depth + x);
@@ -117,11 +128,7 @@ __attribute__((target("avx512f,avx512vl"))) void fill_spans4_avx512(int y, const
   if (len == 0) return;
   const __m512i ids = _mm512_set1_epi32(id);
   for (int r = 0; r < 4; ++r) {
-    if (xa[r] > xb[r]) continue;
-    const float* sum = &sums[r * len];
-    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y + r) * out.width + xa[r]];
-    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y + r) * out.width + xa[r]];
-    const int n = xb[r] - xa[r] + 1;
+    const auto [sum, inv_depth, tri, n] = row_span(r, y, xa, xb, len, sums, out);
     for (int x = 0; x < n; x += 16) {
       const __mmask16 in = n - x >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << (n - x)) - 1);
       const __m512 qv = _mm512_maskz_loadu_ps(in, sum + x), dv = _mm512_maskz_loadu_ps(in, inv_depth + x);

@@ -611,15 +611,12 @@ class FrameLight {
     return _mm_blendv_ps(_mm_blendv_ps(value, _mm_setzero_ps(), above32), _mm_set1_ps(1.0f), below32);
   }
 
-  // surface_light of the four pixels (v, u..u+3), tile index i..i+3. Eigen evaluates
-  // z (M d) + t as ((z M0) d0 + (z M1) d1) + (z M2) d2 + t in the first two rows and as
-  // (z M0) d0 + ((z M1) d1 + (z M2) d2) + t in the third (its packet and scalar paths);
-  // the dot products left to right. Written out in that order here.
-  __attribute__((target("avx2"))) void surface_light4(int v, int u, std::size_t i, TileLight& tile) const {
-    alignas(32) double rx[4], ry[4];
-    int tri[4];
+  // The triangle behind each of the pixels (v, u..u+N-1) and its ray (a lane past the image's
+  // edge: none, and a zero ray); returns the lanes with a surface, bit l for lane l.
+  template <int N>
+  int lane_surfaces(int v, int u, int* tri, double* rx, double* ry, bool& one_triangle) const {
     int valid = 0;
-    for (int l = 0; l < 4; ++l) {
+    for (int l = 0; l < N; ++l) {
       tri[l] = -1;
       rx[l] = ry[l] = 0;
       if (u + l < k_.width) {
@@ -630,12 +627,38 @@ class FrameLight {
         ry[l] = rays_[2 * px + 1];
       }
       valid |= (tri[l] >= 0) << l;
+      one_triangle = one_triangle && tri[l] == tri[0];
     }
+    return valid;
+  }
+  // The lanes' triangles, one row of `a` per quantity: the plane in the camera frame (normal,
+  // offset), the normal in the world, the albedo (a lane without a triangle: a plane its ray
+  // meets, albedo 0).
+  template <int N>
+  void lane_planes(const int* tri, double (*a)[N]) const {
+    for (int l = 0; l < N; ++l) {
+      const int t = tri[l];
+      const Eigen::Vector3d nc = t >= 0 ? s_.normal_c[t] : Eigen::Vector3d::UnitZ();
+      const Eigen::Vector3d nw = t >= 0 ? tris_.normal_w[t] : Eigen::Vector3d::UnitZ();
+      a[0][l] = nc.x(), a[1][l] = nc.y(), a[2][l] = nc.z(), a[3][l] = t >= 0 ? s_.offset_c[t] : 1.0;
+      a[4][l] = nw.x(), a[5][l] = nw.y(), a[6][l] = nw.z(), a[7][l] = t >= 0 ? tris_.albedo[t] : 0.0;
+    }
+  }
+
+  // surface_light of the four pixels (v, u..u+3), tile index i..i+3. Eigen evaluates
+  // z (M d) + t as ((z M0) d0 + (z M1) d1) + (z M2) d2 + t in the first two rows and as
+  // (z M0) d0 + ((z M1) d1 + (z M2) d2) + t in the third (its packet and scalar paths);
+  // the dot products left to right. Written out in that order here.
+  __attribute__((target("avx2"))) void surface_light4(int v, int u, std::size_t i, TileLight& tile) const {
+    alignas(32) double rx[4], ry[4];
+    int tri[4];
+    bool one_triangle = true;
+    const int valid = lane_surfaces<4>(v, u, tri, rx, ry, one_triangle);
     for (int l = 0; l < 4; ++l) tile.state[i + l] = TileLight::kNoSurface;
     if (!valid) return;
     // the triangles' planes, normals and albedo per lane (a lane without one: a plane it meets)
     __m256d n0, n1, n2, off, w0, w1, w2, alb;
-    if (tri[0] >= 0 && tri[1] == tri[0] && tri[2] == tri[0] && tri[3] == tri[0]) {  // the common case
+    if (tri[0] >= 0 && one_triangle) {  // the common case
       const int t = tri[0];
       n0 = _mm256_set1_pd(s_.normal_c[t].x()), n1 = _mm256_set1_pd(s_.normal_c[t].y()), n2 = _mm256_set1_pd(s_.normal_c[t].z());
       off = _mm256_set1_pd(s_.offset_c[t]);
@@ -643,13 +666,7 @@ class FrameLight {
       alb = _mm256_set1_pd(tris_.albedo[t]);
     } else {
       alignas(32) double a[8][4];
-      for (int l = 0; l < 4; ++l) {
-        const int t = tri[l];
-        const Eigen::Vector3d nc = t >= 0 ? s_.normal_c[t] : Eigen::Vector3d::UnitZ();
-        const Eigen::Vector3d nw = t >= 0 ? tris_.normal_w[t] : Eigen::Vector3d::UnitZ();
-        a[0][l] = nc.x(), a[1][l] = nc.y(), a[2][l] = nc.z(), a[3][l] = t >= 0 ? s_.offset_c[t] : 1.0;
-        a[4][l] = nw.x(), a[5][l] = nw.y(), a[6][l] = nw.z(), a[7][l] = t >= 0 ? tris_.albedo[t] : 0.0;
-      }
+      lane_planes<4>(tri, a);
       n0 = _mm256_load_pd(a[0]), n1 = _mm256_load_pd(a[1]), n2 = _mm256_load_pd(a[2]), off = _mm256_load_pd(a[3]);
       w0 = _mm256_load_pd(a[4]), w1 = _mm256_load_pd(a[5]), w2 = _mm256_load_pd(a[6]), alb = _mm256_load_pd(a[7]);
     }
@@ -870,21 +887,8 @@ class FrameLight {
   __attribute__((target(SIM_AVX512_TARGET))) void surface_light8(int v, int u, std::size_t i, TileLight& tile) const {
     alignas(64) double rx[8], ry[8];
     int tri[8];
-    int valid = 0;
     bool one_triangle = true;
-    for (int l = 0; l < 8; ++l) {
-      tri[l] = -1;
-      rx[l] = ry[l] = 0;
-      if (u + l < k_.width) {
-        const std::size_t px = static_cast<std::size_t>(v) * k_.width + u + l;
-        const std::int32_t zi = cell_.pixel_to_zbuffer[px];
-        tri[l] = zi >= 0 ? s_.camera_depth.triangle[static_cast<std::size_t>(zi)] : -1;
-        rx[l] = rays_[2 * px];
-        ry[l] = rays_[2 * px + 1];
-      }
-      valid |= (tri[l] >= 0) << l;
-      one_triangle = one_triangle && tri[l] == tri[0];
-    }
+    const int valid = lane_surfaces<8>(v, u, tri, rx, ry, one_triangle);
     std::memset(&tile.state[i], TileLight::kNoSurface, 8);
     if (!valid) return;
     __m512d n0, n1, n2, off, w0, w1, w2, alb;
@@ -896,13 +900,7 @@ class FrameLight {
       alb = _mm512_set1_pd(tris_.albedo[t]);
     } else {
       alignas(64) double a[8][8];
-      for (int l = 0; l < 8; ++l) {
-        const int t = tri[l];
-        const Eigen::Vector3d nc = t >= 0 ? s_.normal_c[t] : Eigen::Vector3d::UnitZ();
-        const Eigen::Vector3d nw = t >= 0 ? tris_.normal_w[t] : Eigen::Vector3d::UnitZ();
-        a[0][l] = nc.x(), a[1][l] = nc.y(), a[2][l] = nc.z(), a[3][l] = t >= 0 ? s_.offset_c[t] : 1.0;
-        a[4][l] = nw.x(), a[5][l] = nw.y(), a[6][l] = nw.z(), a[7][l] = t >= 0 ? tris_.albedo[t] : 0.0;
-      }
+      lane_planes<8>(tri, a);
       n0 = _mm512_load_pd(a[0]), n1 = _mm512_load_pd(a[1]), n2 = _mm512_load_pd(a[2]), off = _mm512_load_pd(a[3]);
       w0 = _mm512_load_pd(a[4]), w1 = _mm512_load_pd(a[5]), w2 = _mm512_load_pd(a[6]), alb = _mm512_load_pd(a[7]);
     }

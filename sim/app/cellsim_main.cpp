@@ -145,6 +145,10 @@ int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) 
   std::printf("  against the readable spots on one object (a fully resolved 3 x 3 window all on one object; one "
               "across a silhouette shows no lattice in the image): %d of %d identified (mean rate %.1f %%)\n",
               s.total_correct_readable_one_object, s.total_readable_one_object, 100 * s.mean_readable_one_object_rate);
+  std::printf("  against the readable spots apart in the image (no other visible spot's disc overlaps theirs; "
+              "towards a silhouette the columns crowd together and the camera merges them): %d of %d identified "
+              "(mean rate %.1f %%)\n",
+              s.total_correct_readable_apart, s.total_readable_apart, 100 * s.mean_readable_apart_rate);
   std::printf("  where the readable spots are lost: %d segmented (a blob of their colour), %d with their four "
               "links right, %d with their whole window right after the graph check, %d identified\n",
               s.total_readable_segmented, s.total_readable_linked, s.total_readable_windowed,

@@ -68,6 +68,22 @@ struct FrameTruth {
   }
 };
 
+// Each visible spot whose disc in the image no other visible spot's overlaps: their centres
+// at least the two discs' radii apart (a disc's radius: its farthest rim hit on its object).
+std::vector<char> apart_in_image(const std::vector<sim::SpotTruth>& spots) {
+  std::vector<double> radius(spots.size(), 0);
+  for (std::size_t i = 0; i < spots.size(); ++i)
+    for (const auto& p : spots[i].footprint_px) radius[i] = std::max(radius[i], (p - spots[i].uv).norm());
+  std::vector<char> apart(spots.size(), 0);
+  for (std::size_t i = 0; i < spots.size(); ++i) {
+    if (!spots[i].visible) continue;
+    apart[i] = 1;
+    for (std::size_t j = 0; j < spots.size() && apart[i]; ++j)
+      if (j != i && spots[j].visible && (spots[j].uv - spots[i].uv).norm() < radius[i] + radius[j]) apart[i] = 0;
+  }
+  return apart;
+}
+
 // Inside (or within kPartialPx of) the outline of the named spot's light: a blob cut by an
 // edge has its centroid inside the footprint, far from the centre and the rim.
 bool on_named_light(const sim::SpotTruth& named, double u, double v) {
@@ -155,8 +171,8 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
   SweepSummary s;
   s.rows = rows;
   std::vector<double> ms;
-  double rate_sum = 0, decodable_rate_sum = 0, readable_rate_sum = 0, one_object_rate_sum = 0;
-  int rated = 0, rated_decodable = 0, rated_readable = 0, rated_one_object = 0;
+  double rate_sum = 0, decodable_rate_sum = 0, readable_rate_sum = 0, one_object_rate_sum = 0, apart_rate_sum = 0;
+  int rated = 0, rated_decodable = 0, rated_readable = 0, rated_one_object = 0, rated_apart = 0;
   for (const auto& r : rows) {
     s.total_decodable += r.decodable;
     s.total_correct += r.correct;
@@ -170,6 +186,12 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     if (r.readable > 0) {
       readable_rate_sum += static_cast<double>(r.correct_readable) / r.readable;
       ++rated_readable;
+    }
+    s.total_readable_apart += r.readable_apart;
+    s.total_correct_readable_apart += r.correct_readable_apart;
+    if (r.readable_apart > 0) {
+      apart_rate_sum += static_cast<double>(r.correct_readable_apart) / r.readable_apart;
+      ++rated_apart;
     }
     s.total_readable_one_object += r.readable_one_object;
     s.total_correct_readable_one_object += r.correct_readable_one_object;
@@ -198,6 +220,7 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
   s.mean_decodable_rate = rated_decodable ? decodable_rate_sum / rated_decodable : 0;
   s.mean_readable_rate = rated_readable ? readable_rate_sum / rated_readable : 0;
   s.mean_readable_one_object_rate = rated_one_object ? one_object_rate_sum / rated_one_object : 0;
+  s.mean_readable_apart_rate = rated_apart ? apart_rate_sum / rated_apart : 0;
   std::sort(ms.begin(), ms.end());
   if (!ms.empty()) {
     s.median_ms = ms[ms.size() / 2];
@@ -221,7 +244,7 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
   csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
          "partial,"
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
-         "readable_windowed,readable_one_object,correct_readable_one_object\n";
+         "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart\n";
   for (const auto& r : rows) {
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
@@ -229,7 +252,7 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
         << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
         << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
         << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
-        << r.correct_readable_one_object << '\n';
+        << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart << '\n';
   }
 }
 
@@ -282,6 +305,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       const std::vector<char> decodable = truth.in_full_window([](const sim::SpotTruth& t) { return t.visible; });
       const std::vector<char> readable = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
       const std::vector<char> one_object = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; }, true);
+      const std::vector<char> apart = apart_in_image(spots);
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       wrong.clear();
@@ -294,6 +318,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
         row.correct_readable += readable[i] && right[i];
         row.readable_one_object += one_object[i];
         row.correct_readable_one_object += one_object[i] && right[i];
+        row.readable_apart += readable[i] && apart[i];
+        row.correct_readable_apart += readable[i] && apart[i] && right[i];
       }
       if (row.wrong == 0) continue;
       std::lock_guard<std::mutex> lock(io);

@@ -54,6 +54,11 @@ struct SweepRow {
   // object. A window across the ham's silhouette (its rows on the ham, on the table) is
   // readable, but no lattice shows it: its spots on the two surfaces lie apart in the image
   int readable_one_object = 0, correct_readable_one_object = 0;
+  // readable and apart in the image: no other visible spot's disc overlaps its own (centres
+  // at least the two discs' radii apart). Towards a silhouette the surface turns away and the
+  // columns crowd together in the image: the projector's focus leaves them spots, the camera's
+  // own sampling merges them (on the cylinder, half the readable spots the decoder misses)
+  int readable_apart = 0, correct_readable_apart = 0;
   double decode_ms = 0;
 };
 
@@ -64,10 +69,12 @@ struct SweepSummary {
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
   int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;
   int total_readable_one_object = 0, total_correct_readable_one_object = 0;
+  int total_readable_apart = 0, total_correct_readable_apart = 0;
   double mean_rate = 0, min_rate = 1;
   double mean_decodable_rate = 0;  // mean over poses of correct_decodable / decodable
   double mean_readable_rate = 0;   // mean over poses of correct_readable / readable
   double mean_readable_one_object_rate = 0;
+  double mean_readable_apart_rate = 0;
   double median_ms = 0, p99_ms = 0;
 };
 

@@ -26,9 +26,11 @@ one_line_error "corrupt mesh" "broken.obj: line 3: face corner '7' refers to no 
 out=$("$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 4 -o "$tmp/sweep") || fail "decode-sweep: $out"
 grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no decodable rate: $out"
-head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object$" ||
+head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart$" ||
   fail "sweep.csv lacks the decodable columns"
 grep -q "against the readable spots" <<<"$out" || fail "no readable rate: $out"
+grep -q "against the readable spots apart in the image (.*): [0-9]* of [0-9]* identified" <<<"$out" ||
+  fail "no rate against the readable spots apart in the image: $out"
 [ -f "$tmp/sweep/wrong_ids.csv" ] || fail "no wrong_ids.csv"
 # with the projector's calibration: more spots identified, none wrong (the exit code says so)
 "$cellsim" calibration "$src/sim/scenarios/cylinder.yaml" -o "$tmp/cyl.yaml" >/dev/null || fail "calibration"

@@ -74,12 +74,16 @@ std::vector<char> apart_in_image(const std::vector<sim::SpotTruth>& spots) {
   std::vector<double> radius(spots.size(), 0);
   for (std::size_t i = 0; i < spots.size(); ++i)
     for (const auto& p : spots[i].footprint_px) radius[i] = std::max(radius[i], (p - spots[i].uv).norm());
+  std::vector<std::size_t> visible;
+  for (std::size_t i = 0; i < spots.size(); ++i)
+    if (spots[i].visible) visible.push_back(i);
   std::vector<char> apart(spots.size(), 0);
-  for (std::size_t i = 0; i < spots.size(); ++i) {
-    if (!spots[i].visible) continue;
+  for (const std::size_t i : visible) {
     apart[i] = 1;
-    for (std::size_t j = 0; j < spots.size() && apart[i]; ++j)
-      if (j != i && spots[j].visible && (spots[j].uv - spots[i].uv).norm() < radius[i] + radius[j]) apart[i] = 0;
+    for (std::size_t k = 0; k < visible.size() && apart[i]; ++k) {
+      const std::size_t j = visible[k];
+      if (j != i && (spots[j].uv - spots[i].uv).norm() < radius[i] + radius[j]) apart[i] = 0;
+    }
   }
   return apart;
 }

@@ -7,13 +7,12 @@
 #include <immintrin.h>
 
 #include "sim/render/lane_masks.hpp"
+#include "sim/render/vector_unit.hpp"
 
 namespace sim {
 namespace {
 
 constexpr double kNear = 0.01;  // metres
-
-enum class VectorUnit { kScalar, kAvx2, kAvx512 };
 
 struct ScreenVertex {
   double u, v, inv_z;
@@ -121,7 +120,7 @@ __attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int
 // fill_spans4 with AVX-512: each row sixteen pixels at a time, its last piece under a mask (a
 // span's remainder, one pixel at a time, mispredicted its branch on every short span: the
 // tessellated cylinder's are short)
-__attribute__((target("avx512f,avx512vl"))) void fill_spans4_avx512(int y, const int* xa, const int* xb,
+__attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const int* xa, const int* xb,
                                                                      const float* q0, float dq, std::int32_t id,
                                                                      DepthBuffer& out, std::vector<float>& sums) {
   const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
@@ -244,9 +243,7 @@ void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_wor
 
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
                     const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector, bool avx512) {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  static const bool avx512f = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
-  const VectorUnit unit = !(vector && avx2) ? VectorUnit::kScalar : avx512 && avx512f ? VectorUnit::kAvx512 : VectorUnit::kAvx2;
+  const VectorUnit unit = vector_unit(!vector, avx512);
   std::vector<float> sums;  // fill_spans4's running sums
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};

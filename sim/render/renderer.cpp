@@ -12,6 +12,7 @@
 #include "servo/pattern/palette.hpp"
 #include "sim/render/lane_masks.hpp"
 #include "sim/render/render_parts.hpp"
+#include "sim/render/vector_unit.hpp"
 
 namespace sim {
 namespace {
@@ -21,25 +22,6 @@ std::uint64_t splitmix64(std::uint64_t& state) {
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   return z ^ (z >> 31);
-}
-
-// The AVX-512 subsets the renderer's eight-lane paths use (AMD Zen 4 and 5, Intel since
-// Skylake-SP). -ffp-contract=off (CMake) keeps the compiler from fusing their multiplies and
-// adds: AVX-512 brings FMA, and a fused operation rounds once where the other paths round twice.
-#define SIM_AVX512_TARGET "avx512f,avx512vl,avx512dq,avx512bw"
-
-bool has_avx512() {
-  static const bool yes = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-                          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
-  return yes;
-}
-
-enum class VectorUnit { kScalar, kAvx2, kAvx512 };
-// the widest unit the CPU has and the caller allows
-VectorUnit vector_unit(bool scalar, bool avx512) {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  if (scalar || !avx2) return VectorUnit::kScalar;
-  return avx512 && has_avx512() ? VectorUnit::kAvx512 : VectorUnit::kAvx2;
 }
 
 // 0.5 erfc(x / sqrt 2), tabulated: std::erfc costs ~30 ns and runs once per lit pixel.

@@ -236,6 +236,11 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, SegmentationScratch& sc) {
   return blobs;
 }
 
+// how much shorter a spot's reach towards the image border may be than away from it (pixels)
+constexpr double kBorderCutPx = 0.5;
+// and how far at least it must reach towards it (pixels)
+constexpr double kBorderReachPx = 1.5;
+
 // The blobs that are spots: their size, shape and fill, and a dominant palette colour.
 void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, int W, int H, Segmentation& out) {
   const std::vector<std::array<double, 3>> palette = palette_directions(p.colours);
@@ -269,7 +274,17 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, int W
     spot.colour = best;
     spot.area_px = b.area;
     spot.strength = static_cast<float>(b.sw / b.area);
-    spot.truncated = b.x0 == 0 || b.y0 == 0 || b.x1 == W - 1 || b.y1 == H - 1;
+    // Cut by the border: it touches the border and reaches less far from its centroid towards
+    // it than away from it. A spot that only grazes the border (its faint rim cut, the weights
+    // there are near 0) keeps its centroid: in 1000 cylinder poses those spots' centroids are
+    // 0.37 px from the truth on average, and reporting them names 0.5 points more of the readable
+    // spots. Every spot touching the border counted as cut before.
+    // A sliver whose centre lies beyond the border can reach as far both ways (two rows of a
+    // spot): the reach towards the border must also be a spot's half-width's worth.
+    const double left = spot.u - b.x0, right = b.x1 - spot.u, top = spot.v - b.y0, bottom = b.y1 - spot.v;
+    const auto cut = [](double towards, double away) { return towards < away - kBorderCutPx || towards < kBorderReachPx; };
+    spot.truncated = (b.x0 == 0 && cut(left, right)) || (b.x1 == W - 1 && cut(right, left)) ||
+                     (b.y0 == 0 && cut(top, bottom)) || (b.y1 == H - 1 && cut(bottom, top));
     out.spots.push_back(spot);
   }
 }

@@ -14,7 +14,7 @@ struct Spot {
   int colour = 0;        // pattern symbol (0 blue, 1 green, 2 red)
   int area_px = 0;
   float strength = 0;    // mean chroma above the threshold
-  bool truncated = false;  // touches the image border: its centroid is biased
+  bool truncated = false;  // cut by the image border: its centroid is biased
 };
 
 // A decoded spot: its identity in the pattern and where it is in the image.

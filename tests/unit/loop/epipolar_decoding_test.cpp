@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <optional>
 
 #include "servo/vision/epipolar.hpp"
 #include "servo/vision/spot_decoder.hpp"
@@ -256,6 +257,58 @@ TEST(EpipolarDecoding, TheGrownLatticeNamesSpotsWhoseLinksAreMissingAndNoneWrong
   EXPECT_EQ(wrong, 0);
 }
 
+// A 2 x 2 block below the cut row is seeded one column off (a misread patch): its sources claim
+// the cut row's spots one column over, against the three or more right sources above. The
+// spots at the block's corners have one dissenting source and are outvoted at once; those above
+// it have two and wait until the ids the block claims for them are taken by their right owners
+// (the one of (12, 12) is not seen). Every spot of the row comes out right, and the block's
+// wrong ids spread nowhere. (The vote's gain is in the curved-object test below: 2 of the
+// ham's spots at its initial pose.)
+TEST(EpipolarDecoding, TheGrownLatticeNamesARowThatAMisreadBlockDisputesAndNoneWrong) {
+  const Frame f = render("plane", false);
+  const pattern::MArray& pat = f.cell->projector->pattern();
+  std::vector<vision::Spot> spots = vision::SpotDecoder(pattern::WindowTable(pat, {3, 3})).decode(f.rgb).detected;
+  // spot (12, 12) is not seen: the id the block claims at (12, 11) is never taken by its owner
+  std::erase_if(spots, [&](const vision::Spot& s) { return truth_at(f, s.u, s.v) == pattern::SpotId{12, 12}; });
+  vision::AdjacencyGraph graph = vision::build_adjacency(spots);
+  std::vector<vision::DecodedSpot> seeds;
+  std::map<int, pattern::SpotId> truth;
+  std::map<std::pair<int, int>, int> spot_of;  // true id -> spot
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    if (const auto id = truth_at(f, spots[s].u, spots[s].v)) {
+      const int i = static_cast<int>(s);
+      truth[i] = *id;
+      spot_of[{id->row, id->col}] = i;
+      if (id->row >= 8 && id->row <= 11 && id->col >= 6 && id->col <= 13)
+        seeds.push_back({id->row, id->col, spots[s].u, spots[s].v, i});
+      if ((id->row == 13 || id->row == 14) && (id->col == 9 || id->col == 10))  // misread: one column over
+        seeds.push_back({id->row, id->col + 1, spots[s].u, spots[s].v, i});
+    }
+  ASSERT_EQ(seeds.size(), 36u);
+  const std::vector<int> cut_cols{6, 7, 8, 9, 10, 11, 13};
+  for (const int c : cut_cols) {  // the cut row: no links, only the lattice names it
+    ASSERT_TRUE(spot_of.count({12, c}));
+    const int i = spot_of.at({12, c});
+    for (int k = 0; k < 4; ++k)
+      if (const int j = graph.next[i][k]; j >= 0) graph.next[i][k] = graph.next[j][(k + 2) % 4] = -1;
+  }
+  const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 3.0);
+  const vision::EpipolarCheck check(g, spots);
+  const auto grown = vision::grow_lattice(spots, graph, check, pat, seeds, 3);
+  const auto id_of = [&](int r, int c) -> std::optional<pattern::SpotId> {
+    for (const auto& d : grown)
+      if (d.spot == spot_of.at({r, c})) return pattern::SpotId{d.row, d.col};
+    return std::nullopt;
+  };
+  for (const int c : cut_cols) EXPECT_EQ(id_of(12, c), (pattern::SpotId{12, c})) << "column " << c;
+  // nothing but the seeded block carries a wrong id
+  for (const auto& d : grown) {
+    const pattern::SpotId& t = truth.at(d.spot);
+    if ((t.row == 13 || t.row == 14) && (t.col == 9 || t.col == 10)) continue;
+    EXPECT_EQ(t, (pattern::SpotId{d.row, d.col})) << "spot " << d.spot;
+  }
+}
+
 // (at the cylinder's initial pose both name 168 since the links are mended from the code)
 TEST(EpipolarDecoding, CalibratedDecodingNamesNoFewerSpotsOnTheCurvedObjectsAndNoneWrong) {
   for (const char* name : {"cylinder", "ham"}) {
@@ -265,6 +318,9 @@ TEST(EpipolarDecoding, CalibratedDecodingNamesNoFewerSpotsOnTheCurvedObjectsAndN
     const auto without = decoder.decode(f.rgb);
     const auto with = decoder.decode(f.rgb, &g);
     EXPECT_GE(with.decoded.size(), without.decoded.size()) << name;
+    // what this decoder names there (2026-12-02); the ham's 165 needs the grown lattice's vote
+    // (163 without it). A change that names fewer must say why, here.
+    EXPECT_GE(with.decoded.size(), std::string(name) == "ham" ? 165u : 177u) << name;
     for (const auto& d : with.decoded) {
       // right: the nearest visible spot is the one named. Grown spots on the ham's most oblique
       // flank have their centroid up to 2.5 px from the spot's centre (the sweep's "mislocated")

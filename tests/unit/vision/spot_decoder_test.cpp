@@ -277,6 +277,41 @@ TEST(SpotDecoder, RotatedPerspectivePatternImage) {
   EXPECT_GT(correct, 300);
 }
 
+// A red spot of Gaussian profile (sigma 1.6 px, peak chroma 200) centred at (u, v).
+void paint_spot(cv::Mat& rgb, double u, double v) {
+  for (int y = 0; y < rgb.rows; ++y)
+    for (int x = 0; x < rgb.cols; ++x) {
+      const double d2 = (x - u) * (x - u) + (y - v) * (y - v);
+      const int c = static_cast<int>(std::lround(200 * std::exp(-d2 / (2 * 1.6 * 1.6))));
+      cv::Vec3b& px = rgb.at<cv::Vec3b>(y, x);
+      px[0] = static_cast<std::uint8_t>(std::min(255, px[0] + c));
+    }
+}
+
+TEST(Segmentation, ASpotGrazingTheBorderKeepsItsCentroidASpotCutByItIsTruncated) {
+  cv::Mat rgb(60, 80, CV_8UC3, cv::Scalar(0, 0, 0));
+  paint_spot(rgb, 2.0, 15.0);   // its rim touches the left border, the same reach on both sides
+  paint_spot(rgb, 0.3, 45.0);   // cut through: nearly half of it is beyond the border
+  paint_spot(rgb, 40.0, 30.0);  // inside
+  paint_spot(rgb, 40.0, 57.0);  // its rim touches the bottom border
+  paint_spot(rgb, 65.0, 59.9);  // its centre beyond the bottom border: a sliver of two rows
+  const Segmentation seg = segment_spots(rgb);
+  ASSERT_EQ(seg.spots.size(), 5u);
+  const auto at = [&](double u, double v) -> const Spot& {
+    for (const Spot& s : seg.spots)
+      if (std::hypot(s.u - u, s.v - v) < 2.0) return s;
+    ADD_FAILURE() << "no spot near " << u << ", " << v;
+    return seg.spots.front();
+  };
+  EXPECT_FALSE(at(2.0, 15.0).truncated);
+  EXPECT_NEAR(at(2.0, 15.0).u, 2.0, 0.25);
+  EXPECT_TRUE(at(0.3, 45.0).truncated);
+  EXPECT_FALSE(at(40.0, 30.0).truncated);
+  EXPECT_FALSE(at(40.0, 57.0).truncated);
+  EXPECT_NEAR(at(40.0, 57.0).v, 57.0, 0.25);
+  EXPECT_TRUE(at(65.0, 58.7).truncated);
+}
+
 TEST(SpotDecoder, BadImagesGiveAClearErrorOrNoSpots) {
   const SpotDecoder decoder(table());
   EXPECT_THROW(decoder.decode(cv::Mat()), std::invalid_argument);

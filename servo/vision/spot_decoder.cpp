@@ -724,7 +724,7 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
 }
 
 std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, const std::vector<IdVote>& votes,
-                                                int min_votes) {
+                                                int min_votes, bool two_exact) {
   struct Tally {
     pattern::SpotId id{-1, -1};
     int count = 0, exact = 0;
@@ -747,7 +747,9 @@ std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, 
   // window names is not named: at a depth edge a window read across two surfaces, columns
   // shifted by one and one colour off, is the shifted window at distance 1, and repairs alone
   // backed its shifted id (4 wrong ids in 1000 ham poses with the distance-3 pattern, issue 19)
-  const auto named = [&](const Tally& t) { return t.count >= min_votes && !t.conflict && t.exact > 0; };
+  const auto named = [&](const Tally& t) {
+    return !t.conflict && ((t.count >= min_votes && t.exact > 0) || (two_exact && t.count == 2 && t.exact == 2));
+  };
   for (std::size_t s = 0; s < spots.size(); ++s)
     if (named(tally[s])) ++owner(tally[s].id);
   std::vector<DecodedSpot> out;
@@ -1202,7 +1204,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     std::vector<IdVote> votes;
     add_window_votes(hoods, readings, votes);
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes);
-    r.decoded = check_vote_consistency(r.detected, votes, e.min_votes);
+    r.decoded = check_vote_consistency(r.detected, votes, e.min_votes, e.two_exact_votes);
     r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     if (e.propagate) {
       r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded),

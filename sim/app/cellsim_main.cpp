@@ -371,7 +371,7 @@ struct RenderCommand {
 struct DecodeSweepCommand {
   std::string scenario, dir, projector;
   cellsim::SweepOptions sweep;
-  bool tolerant = false, no_propagate = false, no_grow = false;
+  bool tolerant = false, propagate = false, no_grow = false, no_two_votes = false;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
     c->add_option("scenario", scenario, "scenario YAML file")->required();
@@ -397,7 +397,11 @@ struct DecodeSweepCommand {
                   "with --projector: decoded neighbours that must propose the same id")
         ->capture_default_str()
         ->check(CLI::Range(1, 4));
-    c->add_flag("--no-propagate", no_propagate, "with --projector: do not propagate ids to linked neighbours");
+    c->add_flag("--propagate", propagate,
+                "with --projector: propagate ids to linked neighbours (step 6, off since 2026-12-02: its wrong ids at "
+                "an occluder's edge, docs/decoding.md)");
+    c->add_flag("--no-two-votes", no_two_votes,
+                "with --projector: a spot needs --min-votes windows even when its two votes are both exact");
     c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing");
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
@@ -412,7 +416,8 @@ struct DecodeSweepCommand {
   int run() {
     sweep.decoder.tolerance.enabled = tolerant;
     sweep.out_dir = dir;
-    sweep.decoder.epipolar.propagate = !no_propagate;
+    sweep.decoder.epipolar.propagate = propagate;
+    sweep.decoder.epipolar.two_exact_votes = !no_two_votes;
     sweep.decoder.epipolar.grow = !no_grow;
     if (!projector.empty()) sweep.projector = servo::load_projector_calibration(projector);
     return run_decode_sweep(scenario, sweep);

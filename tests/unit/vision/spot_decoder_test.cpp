@@ -312,6 +312,28 @@ TEST(Segmentation, ASpotGrazingTheBorderKeepsItsCentroidASpotCutByItIsTruncated)
   EXPECT_TRUE(at(65.0, 58.7).truncated);
 }
 
+TEST(DecodingConsistency, TwoExactVotesNameASpotWhenAskedRepairedOrDisagreeingOnesDoNot) {
+  const std::vector<Spot> spots(6);
+  const pattern::SpotId a{4, 4}, b{4, 5}, c{4, 6}, d{4, 7}, e{4, 8};
+  std::vector<IdVote> votes{{0, a, false}, {0, a, false},                    // two exact
+                            {1, b, false}, {1, b, true},                     // one of them repaired
+                            {2, c, false}, {2, {4, 9}, false},               // disagreeing
+                            {3, d, false}, {3, d, false}, {3, d, true},      // three, one exact suffices
+                            {4, e, false}};                                  // one
+  const auto ids = [](const std::vector<DecodedSpot>& decoded) {
+    std::vector<int> out;
+    for (const auto& x : decoded) out.push_back(x.spot);
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  EXPECT_EQ(ids(check_vote_consistency(spots, votes, 3, true)), (std::vector<int>{0, 3}));
+  EXPECT_EQ(ids(check_vote_consistency(spots, votes, 3, false)), (std::vector<int>{3}));
+  // another spot named the same id by two exact votes: neither keeps it
+  votes.push_back({5, a, false});
+  votes.push_back({5, a, false});
+  EXPECT_EQ(ids(check_vote_consistency(spots, votes, 3, true)), (std::vector<int>{3}));
+}
+
 TEST(SpotDecoder, BadImagesGiveAClearErrorOrNoSpots) {
   const SpotDecoder decoder(table());
   EXPECT_THROW(decoder.decode(cv::Mat()), std::invalid_argument);

@@ -397,7 +397,8 @@ struct DecodeSweepCommand {
                   "with --projector: decoded neighbours that must propose the same id")
         ->capture_default_str()
         ->check(CLI::Range(1, 4));
-    c->add_flag("--propagate", propagate,
+    // `--no-propagate` (the default now) stays accepted: scripts written when it was on use it
+    c->add_flag("--propagate,!--no-propagate", propagate,
                 "with --projector: propagate ids to linked neighbours (step 6, off since 2026-12-02: its wrong ids at "
                 "an occluder's edge, docs/decoding.md)");
     c->add_flag("--no-two-votes", no_two_votes,

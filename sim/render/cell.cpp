@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/arm/arm_robot.hpp"
+#include "sim/render/shading.hpp"
 
 namespace sim {
 
@@ -47,6 +49,18 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   for (const SpotHit& h : cell->spot_hits)
     if (h.centre)
       cell->farthest_spot_m = std::max(cell->farthest_spot_m, (h.centre->point_w - scenario.projector.world_T_projector.translation()).norm());
+  {
+    const Projector& proj = *cell->projector;
+    const DepthBuffer& d = cell->projector_depth;
+    const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
+    const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell->farthest_spot_m + 0.5) + 4.0;
+    RasterClip& w = cell->beam;
+    w.x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin);
+    w.y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin);
+    w.x1 = std::min(d.width - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin);
+    w.y1 = std::min(d.height - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin);
+    cell->beam_depth = beam_window(d, w);
+  }
 
   // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it
   const Intrinsics& k = scenario.camera.intrinsics;
@@ -65,9 +79,38 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
     cell->pixel_to_zbuffer[i] = zu < 0 || zv < 0 || zu >= zw || zv >= zh ? -1 : zv * zw + zu;
   }
 
+  Cell::Lens& lens = cell->lens;
+  lens.stride = (k.width + 15) & ~15;
+  const std::size_t padded = static_cast<std::size_t>(lens.stride) * k.height;
+  lens.ray_x.assign(padded, std::numeric_limits<float>::quiet_NaN());
+  lens.ray_y.assign(padded, std::numeric_limits<float>::quiet_NaN());
+  lens.zfx = static_cast<float>(k.fx);
+  lens.zcx = static_cast<float>(k.cx + m + 0.5);
+  lens.zfy = static_cast<float>(k.fy);
+  lens.zcy = static_cast<float>(k.cy + m + 0.5);
+  lens.zrow_lo.assign(static_cast<std::size_t>(k.height), zh);
+  lens.zrow_hi.assign(static_cast<std::size_t>(k.height), -1);
+  for (int v = 0; v < k.height; ++v)
+    for (int u = 0; u < k.width; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * k.width + u, at = static_cast<std::size_t>(v) * lens.stride + u;
+      lens.ray_x[at] = rays[2 * px];
+      lens.ray_y[at] = rays[2 * px + 1];
+      // the kernel's cell: the same single-precision multiply and add, then floor
+      const float x = lens.ray_x[at] * lens.zfx + lens.zcx, y = lens.ray_y[at] * lens.zfy + lens.zcy;
+      if (!(x >= 0 && x < zw && y >= 0 && y < zh)) continue;
+      const int row = static_cast<int>(std::floor(y));
+      lens.zrow_lo[static_cast<std::size_t>(v)] = std::min(lens.zrow_lo[static_cast<std::size_t>(v)], row);
+      lens.zrow_hi[static_cast<std::size_t>(v)] = std::max(lens.zrow_hi[static_cast<std::size_t>(v)], row);
+    }
+  const pattern::MArray& pat = cell->projector->pattern();
+  cell->spot_symbol.assign(pat.cells.size(), shading::kUnlitSymbol);
+  for (int r = 0; r < pat.rows; ++r)
+    for (int c = 0; c < pat.cols; ++c)
+      if (cell->projector->is_lit(r, c)) cell->spot_symbol[static_cast<std::size_t>(r) * pat.cols + c] = pat.at(r, c);
+
   std::mt19937_64 rng(scenario.seed);
   std::normal_distribution<float> gauss(0.f, 1.f);
-  cell->noise_pool.resize(std::size_t{1} << 21);  // 8 MB, 2.2 VGA frames of values
+  cell->noise_pool.resize(std::size_t{1} << 16);
   for (float& x : cell->noise_pool) x = gauss(rng);
   return cell;
 }

@@ -23,14 +23,31 @@ struct Cell {
   std::unique_ptr<CameraModel> camera;
   // static while the world is: the projector's view (its shadow map) and its spots' hits
   DepthBuffer projector_depth;
+  // The window of the projector's depth buffer (inclusive cells) its spots can light: the
+  // pattern's extent widened by the farthest a blurred spot reaches. The renderer reads the
+  // depth only there (a copy, `beam_depth`, small enough to stay in the core's cache).
+  RasterClip beam;
+  std::vector<float> beam_depth;
   std::vector<SpotHit> spot_hits;
   double farthest_spot_m = 0;  // the farthest centre hit from the projector (bounds the blur)
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees
   // for each camera pixel, the z-buffer cell its ray passes through (-1: none): the lens is
   // fixed, so this is computed once instead of per pixel and frame
   std::vector<std::int32_t> pixel_to_zbuffer;
-  // unit-variance Gaussian samples drawn once from the scenario seed; each frame reads
-  // them from seeded random offsets (one load per pixel value instead of a draw)
+  // the rays laid out for the shading kernel (shading.hpp): rows padded to `stride` pixels (a
+  // multiple of 16), x and y apart, NaN in the padding; the z-buffer cell of a ray is column
+  // floor(x zfx + zcx), row floor(y zfy + zcy) in single precision (the kernel's operations)
+  struct Lens {
+    int stride = 0;
+    std::vector<float> ray_x, ray_y;
+    float zfx = 0, zcx = 0, zfy = 0, zcy = 0;
+    std::vector<int> zrow_lo, zrow_hi;  // per image row, the z-buffer rows its pixels look up (lo > hi: none)
+  } lens;
+  // each spot's pattern symbol, row-major; shading::kUnlitSymbol where the projector leaves it dark
+  std::vector<std::int32_t> spot_symbol;
+  // unit-variance Gaussian samples drawn once from the scenario seed; each frame reads them in
+  // runs of 64 at seeded random offsets (one load per pixel value instead of a draw). 256 kB:
+  // it stays in the core's cache
   std::vector<float> noise_pool;
   // the arm's link meshes in their link frames (none for the free-flying camera); a frame
   // places them with the robot's link poses (ArmRobot::world_T_links order)

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 #include <immintrin.h>
 
@@ -89,7 +90,7 @@ struct RowSpan {
 RowSpan row_span(int r, int y, const int* xa, const int* xb, std::size_t len, const std::vector<float>& sums,
                  DepthBuffer& out) {
   if (xa[r] > xb[r]) return {nullptr, nullptr, nullptr, 0};
-  const std::size_t first = static_cast<std::size_t>(y + r) * out.width + xa[r];
+  const std::size_t first = static_cast<std::size_t>(y + r - out.row0) * out.width + xa[r];
   return {&sums[r * len], &out.inv_depth[first], &out.triangle[first], xb[r] - xa[r] + 1};
 }
 
@@ -138,6 +139,19 @@ __attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const 
   }
 }
 
+// The rows a triangle may cover in a buffer with margin m (before any clip).
+void triangle_rows(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, double m, int& y0, int& y1) {
+  const double lo = std::ceil(std::min({p0.v, p1.v, p2.v}) + m), hi = std::floor(std::max({p0.v, p1.v, p2.v}) + m);
+  // beyond any buffer (or NaN): no rows (the casts below would be undefined)
+  if (!(lo > -1e9 && hi < 1e9)) {
+    y0 = 1;
+    y1 = 0;
+    return;
+  }
+  y0 = static_cast<int>(lo);
+  y1 = static_cast<int>(hi);
+}
+
 void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, std::int32_t id,
                    DepthBuffer& out, const RasterClip& clip, VectorUnit unit, std::vector<float>& sums) {
   const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
@@ -145,8 +159,9 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
   const double m = out.margin;
   const int x0 = std::max(clip.x0, static_cast<int>(std::ceil(std::min({p0.u, p1.u, p2.u}) + m)));
   const int x1 = std::min({out.width - 1, clip.x1, static_cast<int>(std::floor(std::max({p0.u, p1.u, p2.u}) + m))});
-  const int y0 = std::max(clip.y0, static_cast<int>(std::ceil(std::min({p0.v, p1.v, p2.v}) + m)));
-  const int y1 = std::min({out.height - 1, clip.y1, static_cast<int>(std::floor(std::max({p0.v, p1.v, p2.v}) + m))});
+  const int y0 = std::max({clip.y0, out.row0, static_cast<int>(std::ceil(std::min({p0.v, p1.v, p2.v}) + m))});
+  const int y1 = std::min({out.height - 1, out.row0 + out.rows - 1, clip.y1,
+                           static_cast<int>(std::floor(std::max({p0.v, p1.v, p2.v}) + m))});
   if (x0 > x1 || y0 > y1) return;
   const double inv_area = 1.0 / area;
   const auto edge = [&](const ScreenVertex& s, const ScreenVertex& e) {
@@ -162,8 +177,8 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
   const auto fill_span = [&](int y, int xa, int xb) {
     float q = static_cast<float>(iz.at(xa, y));
     const float dq = static_cast<float>(iz.a);
-    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y) * out.width];
-    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y) * out.width];
+    float* inv_depth = &out.inv_depth[static_cast<std::size_t>(y - out.row0) * out.width];
+    std::int32_t* tri = &out.triangle[static_cast<std::size_t>(y - out.row0) * out.width];
     for (int x = xa; x <= xb; ++x, q += dq) {
       if (q > inv_depth[x]) {  // nearer
         inv_depth[x] = q;
@@ -203,8 +218,26 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
 
 }  // namespace
 
+int closed_orientation(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+  // each directed edge once, and its reverse present: closed and consistently wound
+  std::unordered_map<std::uint64_t, int> edges;
+  edges.reserve(3 * triangles.size());
+  const auto key = [](int a, int b) { return static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32 | static_cast<std::uint32_t>(b); };
+  for (const auto& t : triangles)
+    for (int e = 0; e < 3; ++e)
+      if (++edges[key(t[e], t[(e + 1) % 3])] > 1) return 0;
+  double volume = 0;  // six times the signed volume: positive when the normals point out
+  for (const auto& t : triangles) {
+    for (int e = 0; e < 3; ++e)
+      if (!edges.count(key(t[(e + 1) % 3], t[e]))) return 0;
+    volume += vertices[static_cast<std::size_t>(t[0])].dot(
+        vertices[static_cast<std::size_t>(t[1])].cross(vertices[static_cast<std::size_t>(t[2])]));
+  }
+  return volume > 0 ? 1 : volume < 0 ? -1 : 0;
+}
+
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t) {
+                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t, int outward) {
   for (const auto& tri : triangles) {
     const Eigen::Vector3d a = world_T_mesh * vertices[tri[0]];
     const Eigen::Vector3d b = world_T_mesh * vertices[tri[1]];
@@ -218,7 +251,20 @@ void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::v
     t.offset.push_back(t.normal_w.back().dot(a));
     t.object.push_back(object);
     t.albedo.push_back(albedo);
+    t.outward.push_back(static_cast<std::int8_t>(outward));
   }
+}
+
+std::vector<float> beam_window(const DepthBuffer& d, const RasterClip& w) {
+  std::vector<float> out;
+  if (w.x0 > w.x1 || w.y0 > w.y1) return out;
+  const std::size_t width = static_cast<std::size_t>(w.x1 - w.x0 + 1);
+  out.reserve(width * static_cast<std::size_t>(w.y1 - w.y0 + 1));
+  for (int y = w.y0; y <= w.y1; ++y) {
+    const auto row = d.inv_depth.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(y) * d.width + w.x0);
+    out.insert(out.end(), row, row + static_cast<std::ptrdiff_t>(width));
+  }
+  return out;
 }
 
 SceneTriangles collect_triangles(const World& world) {
@@ -226,35 +272,47 @@ SceneTriangles collect_triangles(const World& world) {
   const auto& objects = world.objects();
   for (std::size_t o = 0; o < objects.size(); ++o)
     append_triangles(objects[o].vertices_w, objects[o].triangles, Eigen::Isometry3d::Identity(), static_cast<int>(o),
-                     static_cast<float>(objects[o].albedo), t);
+                     static_cast<float>(objects[o].albedo), t, closed_orientation(objects[o].vertices_w, objects[o].triangles));
   return t;
 }
 
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
-               DepthBuffer& out, bool vector, bool avx512) {
+               DepthBuffer& out, bool vector, bool avx512, bool cull) {
+  clear_band(k, margin, 0, k.height + 2 * margin, out);
+  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{}, vector, avx512, cull);
+}
+
+void clear_band(const Intrinsics& k, int margin, int row0, int rows, DepthBuffer& out) {
   out.margin = margin;
   out.width = k.width + 2 * margin;
   out.height = k.height + 2 * margin;
-  const std::size_t n = static_cast<std::size_t>(out.width) * out.height;
+  out.row0 = std::clamp(row0, 0, out.height);
+  out.rows = std::clamp(rows, 0, out.height - out.row0);
+  const std::size_t n = static_cast<std::size_t>(out.width) * out.rows;
   out.inv_depth.assign(n, 0.0f);
   out.triangle.assign(n, -1);
-  rasterize_more(tris, 0, viewer_T_world, k, out, RasterClip{}, vector, avx512);
 }
 
-void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector, bool avx512) {
-  const VectorUnit unit = vector_unit(!vector, avx512);
-  std::vector<float> sums;  // fill_spans4's running sums
+void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
+                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out) {
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
   };
+  const auto add = [&](const ScreenVertex& a, const ScreenVertex& b, const ScreenVertex& c, std::int32_t id) {
+    ScreenTriangle t{{a.u, b.u, c.u}, {a.v, b.v, c.v}, {a.inv_z, b.inv_z, c.inv_z}, id, 0, 0};
+    triangle_rows(a, b, c, margin, t.y0, t.y1);
+    if (t.y0 <= t.y1) out.push_back(t);
+  };
+  const Eigen::Vector3d viewer = viewer_T_world.inverse().translation();
+  cull = cull && tris.outward.size() == tris.a.size();
   for (std::size_t i = first; i < tris.a.size(); ++i) {
+    if (cull && tris.outward[i] != 0 && tris.outward[i] * tris.normal_w[i].dot(viewer - tris.a[i]) < 0) continue;
     const Eigen::Vector3d v[3] = {viewer_T_world * tris.a[i], viewer_T_world * tris.b[i], viewer_T_world * tris.c[i]};
     const int behind = (v[0].z() < kNear) + (v[1].z() < kNear) + (v[2].z() < kNear);
     if (behind == 3) continue;
     const auto id = static_cast<std::int32_t>(i);
     if (behind == 0) {
-      fill_triangle(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id, out, clip, unit, sums);
+      add(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id);
       continue;
     }
     // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
@@ -267,9 +325,28 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
       if (pin) poly[count++] = p;
       if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
     }
-    for (int f = 1; f + 1 < count; ++f)
-      fill_triangle(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id, out, clip, unit, sums);
+    for (int f = 1; f + 1 < count; ++f) add(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id);
   }
+}
+
+void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, const RasterClip& clip, bool vector,
+                    bool avx512) {
+  const VectorUnit unit = vector_unit(!vector, avx512);
+  const int lo = std::max(clip.y0, out.row0), hi = std::min(clip.y1, out.row0 + out.rows - 1);
+  thread_local std::vector<float> sums;  // fill_spans4's running sums
+  for (const ScreenTriangle& t : tris) {
+    if (t.y1 < lo || t.y0 > hi) continue;
+    fill_triangle({t.u[0], t.v[0], t.inv_z[0]}, {t.u[1], t.v[1], t.inv_z[1]}, {t.u[2], t.v[2], t.inv_z[2]}, t.id, out,
+                  clip, unit, sums);
+  }
+}
+
+void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
+                    const Intrinsics& k, DepthBuffer& out, const RasterClip& clip, bool vector, bool avx512,
+                    bool cull) {
+  std::vector<ScreenTriangle> screen;
+  project_triangles(tris, first, viewer_T_world, k, out.margin, cull, screen);
+  fill_triangles(screen, out, clip, vector, avx512);
 }
 
 }  // namespace sim

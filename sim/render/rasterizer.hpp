@@ -22,7 +22,15 @@ struct SceneTriangles {
   std::vector<double> offset;            // plane: normal_w . x = offset
   std::vector<int> object;               // index into World::objects()
   std::vector<float> albedo;
+  // +1: a face of a closed mesh whose normals point out of it, -1: into it; 0: of an open
+  // mesh. A closed mesh's faces turned away from a viewer outside it are hidden by its own
+  // faces turned towards it: rasterize() leaves them out where asked.
+  std::vector<std::int8_t> outward;
 };
+
+// +1 when the mesh is closed (every edge shared by exactly two faces, in opposite directions)
+// with normals pointing out of it, -1 closed with normals pointing in, 0 open.
+int closed_orientation(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles);
 
 SceneTriangles collect_triangles(const World& world);
 
@@ -31,6 +39,9 @@ struct DepthBuffer {
   // pixel (i, j) of the buffer is pixel (i - margin, j - margin) of the pinhole image, so a
   // distorted lens that sees beyond the ideal frame still finds its surfaces
   int margin = 0;
+  // the rows held: [row0, row0 + rows) (a band of the image, see fill_triangles); a whole
+  // buffer has row0 = 0 and rows = height
+  int row0 = 0, rows = 0;
   std::vector<float> inv_depth;       // 1/z in the viewer's frame (affine on screen); 0 where nothing
   std::vector<std::int32_t> triangle; // index into SceneTriangles; -1 where nothing
 
@@ -45,8 +56,8 @@ struct DepthBuffer {
   }
   float depth_at(double u, double v) const {
     const int i = nearest(u) + margin;
-    const int j = nearest(v) + margin;
-    if (i < 0 || j < 0 || i >= width || j >= height) return std::numeric_limits<float>::infinity();
+    const int j = nearest(v) + margin - row0;
+    if (i < 0 || j < 0 || i >= width || j >= rows) return std::numeric_limits<float>::infinity();
     const float q = inv_depth[static_cast<std::size_t>(j) * width + i];
     return q > 0 ? 1.0f / q : std::numeric_limits<float>::infinity();
   }
@@ -57,19 +68,42 @@ struct DepthBuffer {
 // the CPU has AVX2 (their depth tests sixteen pixels at a time where it has AVX-512 and
 // `avx512` allows it); false: one at a time (the same buffer, bit for bit; tests hold the
 // three to each other).
+// `cull`: faces of closed meshes turned away from the viewer are left out (the same buffer,
+// the viewer being outside every closed mesh, but for exact ties at silhouettes).
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
-               DepthBuffer& out, bool vector = true, bool avx512 = true);
+               DepthBuffer& out, bool vector = true, bool avx512 = true, bool cull = false);
 // Buffer pixels a rasterisation may write (inclusive).
 struct RasterClip {
   int x0 = 0, y0 = 0, x1 = std::numeric_limits<int>::max(), y1 = std::numeric_limits<int>::max();
 };
+
+// A triangle on a viewer's image plane (pixels, without the margin), ready to fill.
+struct ScreenTriangle {
+  double u[3], v[3], inv_z[3];
+  std::int32_t id;  // index into SceneTriangles
+  int y0, y1;       // the buffer rows it may cover
+};
+// Triangles [first, end) seen from viewer_T_world through `k`, clipped against the near plane
+// (a triangle crossing it becomes one or two); `cull` as in rasterize. Appended to `out`.
+void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
+                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out);
+// Fills `out` (its rows [row0, row0 + rows) only, and `clip`) with the triangles, in order. A
+// buffer filled band by band holds, bit for bit, what one fill of the whole holds.
+void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, const RasterClip& clip,
+                    bool vector = true, bool avx512 = true);
+// Sizes `out` as the viewer's buffer (k's image with `margin` around it) holding rows
+// [row0, row0 + rows) (clamped to it), cleared: nothing anywhere.
+void clear_band(const Intrinsics& k, int margin, int row0, int rows, DepthBuffer& out);
 // Adds triangles [first, end) to a buffer rasterised from the same viewpoint (the moving
 // arm over the static scene's buffer), only inside `clip`.
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
                     const Intrinsics& k, DepthBuffer& out, const RasterClip& clip = RasterClip{}, bool vector = true,
-                    bool avx512 = true);
+                    bool avx512 = true, bool cull = false);
+// The cells of `d` inside `window` (inclusive), row by row: 1/z, 0 where nothing.
+std::vector<float> beam_window(const DepthBuffer& d, const RasterClip& window);
 // Appends a mesh placed at world_T_mesh, as object `object` with `albedo`.
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& out);
+                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& out,
+                      int outward = 0);
 
 }  // namespace sim

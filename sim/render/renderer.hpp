@@ -18,13 +18,6 @@
 
 namespace sim {
 
-// The image region (inclusive pixel bounds) one spot can light on one object.
-struct SpotBox {
-  int spot = 0;          // index into Cell::spot_hits
-  double reach_px = 0;   // on the projector's plane, how far from the spot centre light reaches
-  int u0 = 0, v0 = 0, u1 = -1, v1 = -1;
-};
-
 // Where the arm's links are in one frame (ArmRobot::world_T_links); null or empty: no arm.
 using LinkPoses = std::vector<Eigen::Isometry3d>;
 
@@ -47,16 +40,17 @@ struct ArmFrameBuffers {
   int dirty_u0 = 0, dirty_v0 = 0, dirty_u1 = -1, dirty_v1 = -1;
   bool scalar = false;  // rasterise without the vector unit (see rasterize)
 };
-// The arm's triangles are added when `with_triangles` (rendering); the spots' hits always.
-FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buffers, bool with_triangles);
+// The arm's triangles are added when `with_triangles` (rendering), the spots' hits on it when
+// `with_hits` (the ground truth).
+FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buffers, bool with_triangles,
+                      bool with_hits);
 
 // Buffers reused from frame to frame (pass the same one to avoid reallocating).
 struct RenderScratch {
   ArmFrameBuffers arm;
-  DepthBuffer camera_depth;
-  std::vector<SpotBox> boxes;
-  std::vector<Eigen::Vector3d> normal_c;  // triangle planes in the camera frame
-  std::vector<double> offset_c;
+  std::vector<ScreenTriangle> screen;  // the frame's triangles on the camera's image plane
+  std::vector<float> triangles;  // each triangle's vectors for this pose (shading.hpp)
+  std::vector<float> arm_beam_depth;  // the arm's projector depth over Cell::beam
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
   bool scalar = false;
   // false: the AVX2 path even where the CPU has AVX-512 (the same bits again)

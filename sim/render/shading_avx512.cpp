@@ -1,0 +1,137 @@
+// shading.hpp's kernel sixteen pixels at a time. Compiled for the AVX-512 subsets of
+// vector_unit.hpp (CMake); called only where the CPU has them.
+#include <immintrin.h>
+
+#include <cstdint>
+
+#include "sim/render/shading.hpp"
+
+namespace sim::shading {
+namespace {
+
+struct Lanes {
+  static constexpr int N = 16;
+  using F = __m512;
+  using I = __m512i;
+  using M = __mmask16;
+  static F set(float x) { return _mm512_set1_ps(x); }
+  static I seti(int x) { return _mm512_set1_epi32(x); }
+  static F load(const float* p) { return _mm512_loadu_ps(p); }
+  static I loadi(const std::int32_t* p) { return _mm512_loadu_si512(p); }
+  static void store(float* p, F a) { _mm512_storeu_ps(p, a); }
+  static void storei(std::int32_t* p, I a) { _mm512_storeu_si512(p, a); }
+  static M mor(M a, M b) { return a | b; }
+  static F add(F a, F b) { return _mm512_add_ps(a, b); }
+  static F sub(F a, F b) { return _mm512_sub_ps(a, b); }
+  static F mul(F a, F b) { return _mm512_mul_ps(a, b); }
+  static F div(F a, F b) { return _mm512_div_ps(a, b); }
+  static F sqrt(F a) { return _mm512_sqrt_ps(a); }
+  static F max(F a, F b) { return _mm512_max_ps(a, b); }  // a > b ? a : b
+  static F min(F a, F b) { return _mm512_min_ps(a, b); }  // a < b ? a : b
+  static M lt(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
+  static M le(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
+  static M gt(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }
+  static M eq(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_EQ_OQ); }
+  static M lei(I a, I b) { return _mm512_cmple_epi32_mask(a, b); }
+  static M eqi(I a, I b) { return _mm512_cmpeq_epi32_mask(a, b); }
+  static M mand(M a, M b) { return a & b; }
+  static M mnot(M a) { return static_cast<M>(~a); }
+  static bool any(M m) { return m != 0; }
+  static bool all(M m) { return m == 0xFFFF; }
+  static F sel(M m, F a, F b) { return _mm512_mask_blend_ps(m, b, a); }
+  static I seli(M m, I a, I b) { return _mm512_mask_blend_epi32(m, b, a); }
+  static F gather(const float* p, I i, M m) { return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), m, i, p, 4); }
+  static I gatheri(const std::int32_t* p, I i, M m) { return _mm512_mask_i32gather_epi32(_mm512_set1_epi32(-1), m, i, p, 4); }
+  // A gather where the lanes' indices fall in up to three runs of 32 (a row of pixels reads
+  // along a row of a buffer, or across into the next): two loads and a permutation per run
+  // instead of sixteen loads. `size`: the buffer's length. The same values as gather.
+  template <class V, class Load, class Permute, class Blend, class Gather>
+  static V near(const void* p, std::size_t size, I i, M m, V none, Load load, Permute permute, Blend blend,
+                Gather fallback) {
+    if (!m) return none;
+    const char* base = static_cast<const char*>(p);
+    const auto run = [&](M lanes, M& covered, V& out) {
+      const int lo = _mm512_mask_reduce_min_epi32(lanes, i);
+      if (lo < 0 || static_cast<std::size_t>(lo) + 32 > size) return false;
+      const __m512i at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
+      covered = _mm512_mask_cmplt_epu32_mask(lanes, at, _mm512_set1_epi32(32));
+      out = blend(covered, out, permute(load(base + 4 * static_cast<std::size_t>(lo)), at,
+                                        load(base + 4 * (static_cast<std::size_t>(lo) + 16))));
+      return true;
+    };
+    V out = none;
+    M rest = m;
+    for (int k = 0; k < 3; ++k) {  // up to three runs; beyond, a gather is cheaper
+      M covered = 0;
+      if (!run(rest, covered, out)) return fallback();
+      rest = static_cast<M>(rest & ~covered);
+      if (!rest) return out;
+    }
+    return fallback();
+  }
+  static F gather_near(const float* p, std::size_t size, I i, M m) {
+    return near<F>(
+        p, size, i, m, _mm512_setzero_ps(), [](const char* a) { return _mm512_loadu_ps(a); },
+        [](F a, I at, F b) { return _mm512_permutex2var_ps(a, at, b); },
+        [](M k, F a, F b) { return _mm512_mask_blend_ps(k, a, b); }, [&] { return gather(p, i, m); });
+  }
+  static I gatheri_near(const std::int32_t* p, std::size_t size, I i, M m) {
+    return near<I>(
+        p, size, i, m, _mm512_set1_epi32(-1), [](const char* a) { return _mm512_loadu_si512(a); },
+        [](I a, I at, I b) { return _mm512_permutex2var_epi32(a, at, b); },
+        [](M k, I a, I b) { return _mm512_mask_blend_epi32(k, a, b); }, [&] { return gatheri(p, i, m); });
+  }
+  static I cvtt(F a) { return _mm512_cvttps_epi32(a); }
+  static F cvt(I a) { return _mm512_cvtepi32_ps(a); }
+  static I addi(I a, I b) { return _mm512_add_epi32(a, b); }
+  static I subi(I a, I b) { return _mm512_sub_epi32(a, b); }
+  static I muli(I a, I b) { return _mm512_mullo_epi32(a, b); }
+  static I mini(I a, I b) { return _mm512_min_epi32(a, b); }
+  static I maxi(I a, I b) { return _mm512_max_epi32(a, b); }
+  static int reduce_max(I a, M m) { return m ? _mm512_mask_reduce_max_epi32(m, a) : -1; }
+  static int lane(I a, int k) {
+    alignas(64) std::int32_t v[16];
+    _mm512_store_si512(v, a);
+    return v[k];
+  }
+  static int first(M m) { return m ? __builtin_ctz(m) : -1; }
+  static F lut16(const float* t, I i) { return _mm512_permutexvar_ps(i, _mm512_loadu_ps(t)); }
+  static F lut32(const float* t, I i) { return _mm512_permutex2var_ps(_mm512_loadu_ps(t), i, _mm512_loadu_ps(t + 16)); }
+  static void store_rgb(std::uint8_t* out, I r, I g, I b) {
+    const __m128i r8 = _mm512_cvtepi32_epi8(r), g8 = _mm512_cvtepi32_epi8(g), b8 = _mm512_cvtepi32_epi8(b);
+    // byte j of the 48 is channel j % 3 of pixel j / 3: three shuffles per 16 bytes
+    static const Masks masks;
+    for (int k = 0; k < 3; ++k) {
+      const __m128i part = _mm_or_si128(_mm_or_si128(_mm_shuffle_epi8(r8, masks.m[k][0]), _mm_shuffle_epi8(g8, masks.m[k][1])),
+                                        _mm_shuffle_epi8(b8, masks.m[k][2]));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + 16 * k), part);
+    }
+  }
+  struct Masks {
+    __m128i m[3][3];
+    Masks() {
+      for (int k = 0; k < 3; ++k)
+        for (int c = 0; c < 3; ++c) {
+          alignas(16) std::int8_t s[16];
+          for (int j = 0; j < 16; ++j) {
+            const int at = 16 * k + j;
+            s[j] = at % 3 == c ? static_cast<std::int8_t>(at / 3) : static_cast<std::int8_t>(-128);
+          }
+          m[k][c] = _mm_load_si128(reinterpret_cast<const __m128i*>(s));
+        }
+    }
+  };
+};
+
+}  // namespace
+}  // namespace sim::shading
+
+#include "sim/render/shading_kernel.hpp"
+
+namespace sim::shading {
+
+void shade_rows_avx512(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch) {
+  shade_rows<Lanes>(f, v0, v1, image, step, scratch);
+}
+
+}  // namespace sim::shading

@@ -1,0 +1,265 @@
+// The per-pixel kernel of shading.hpp, written once over a lane type L (one float, eight, or
+// sixteen): each of shading_{scalar,avx2,avx512}.cpp defines its L and includes this file, so
+// the three paths are the same operations in the same order. Everything here has internal
+// linkage and uses no library template: a function compiled for AVX-512 must never be the copy
+// the linker keeps for a caller on another path.
+//
+// L provides: N; F (floats), I (int32), M (lane masks); set, seti, load, loadi, store; add, sub,
+// mul, div, sqrt, max (a > b ? a : b), min (a < b ? a : b); lt, le, gt, eq (ordered), lei,
+// eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; gather (m ? p[i] : 0), gatheri
+// (m ? p[i] : -1); cvtt (truncation, INT_MIN outside int), cvt; addi, subi, muli, mini, maxi;
+// reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
+// lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "sim/render/shading.hpp"
+
+namespace sim::shading {
+namespace {
+
+inline std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+// floor, as an int (exact for |x| < 2^31; INT_MIN beyond, and for NaN)
+template <class L>
+inline typename L::I floor_int(typename L::F x) {
+  const typename L::I t = L::cvtt(x);
+  // truncation rounded towards zero: one less where that went up
+  return L::subi(t, L::seli(L::gt(L::cvt(t), x), L::seti(1), L::seti(0)));
+}
+
+// Light arriving at the lanes' surface points from the spots within reach, added to r, g, b.
+template <class L>
+inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typename L::F pv, typename L::F sigma,
+                      typename L::F weight, typename L::F& r, typename L::F& g, typename L::F& b) {
+  using F = typename L::F;
+  using I = typename L::I;
+  using M = typename L::M;
+  const F reach = L::add(L::set(f.radius), L::mul(L::set(3.0f), sigma));
+  const F reach2 = L::mul(reach, reach);
+  const F inv_sigma = L::div(L::set(1.0f), sigma);
+  // the grid columns and rows within reach: [lo, hi], empty where not lit
+  const F gx = L::mul(L::sub(pu, L::set(f.grid_x0)), L::set(f.inv_pitch));
+  const F gy = L::mul(L::sub(pv, L::set(f.grid_y0)), L::set(f.inv_pitch));
+  const F span = L::mul(reach, L::set(f.inv_pitch));
+  const I none = L::seti(-1);
+  const I c_lo = L::maxi(L::subi(L::seti(0), floor_int<L>(L::sub(span, gx))), L::seti(0));
+  const I c_hi = L::seli(lit, L::mini(floor_int<L>(L::add(gx, span)), L::seti(f.cols - 1)), none);
+  const I r_lo = L::maxi(L::subi(L::seti(0), floor_int<L>(L::sub(span, gy))), L::seti(0));
+  const I r_hi = L::seli(lit, L::mini(floor_int<L>(L::add(gy, span)), L::seti(f.rows - 1)), none);
+  const int n_c = L::reduce_max(L::subi(c_hi, c_lo), lit) + 1;
+  const int n_r = L::reduce_max(L::subi(r_hi, r_lo), lit) + 1;
+  const F zero = L::set(0.0f);
+  for (int kr = 0; kr < n_r; ++kr) {
+    const I row = L::addi(r_lo, L::seti(kr));
+    const M in_row = L::mand(lit, L::lei(row, r_hi));
+    if (!L::any(in_row)) continue;
+    const F dv = L::sub(pv, L::add(L::set(f.grid_y0), L::mul(L::cvt(row), L::set(f.pitch))));
+    const F dv2 = L::mul(dv, dv);
+    for (int kc = 0; kc < n_c; ++kc) {
+      const I col = L::addi(c_lo, L::seti(kc));
+      M m = L::mand(in_row, L::lei(col, c_hi));
+      if (!L::any(m)) continue;
+      const F du = L::sub(pu, L::add(L::set(f.grid_x0), L::mul(L::cvt(col), L::set(f.pitch))));
+      const F rho2 = L::add(L::mul(du, du), dv2);
+      m = L::mand(m, L::le(rho2, reach2));
+      if (!L::any(m)) continue;
+      // the blurred disc's edge profile at (rho - radius) / sigma: a cubic per segment
+      const F x = L::mul(L::sub(L::sqrt(rho2), L::set(f.radius)), inv_sigma);
+      const F at = L::mul(L::add(x, L::set(kEdgeReach)), L::set(kEdgeSegments / (2 * kEdgeReach)));
+      const M inside = L::mand(L::le(zero, at), L::lt(at, L::set(static_cast<float>(kEdgeSegments))));
+      const I k = L::seli(inside, L::cvtt(at), L::seti(0));
+      const F t = L::sub(at, L::cvt(k));
+      const F cubic = L::add(L::lut32(f.edge[0], k),
+                             L::mul(t, L::add(L::lut32(f.edge[1], k),
+                                              L::mul(t, L::add(L::lut32(f.edge[2], k), L::mul(t, L::lut32(f.edge[3], k)))))));
+      const F profile = L::sel(inside, cubic, L::sel(L::lt(at, zero), L::set(1.0f), zero));
+      const F e = L::sel(m, L::mul(profile, weight), zero);
+      const I symbol = L::gatheri_near(f.spot_symbol, static_cast<std::size_t>(f.rows) * f.cols,
+                                       L::addi(L::muli(row, L::seti(f.cols)), col), m);
+      const I s = L::seli(m, symbol, L::seti(kUnlitSymbol));
+      r = L::add(r, L::mul(e, L::lut16(f.colour_r, s)));
+      g = L::add(g, L::mul(e, L::lut16(f.colour_g, s)));
+      b = L::add(b, L::mul(e, L::lut16(f.colour_b, s)));
+    }
+  }
+}
+
+// Lanes whose point the projector's depth `d` puts in shadow: its nearest surface at `at`
+// (1/z as q) lies before the point (at z) by more than 0.2 % and 2 mm: z q > 1 + 2e-3 + 2e-3 q.
+template <class L>
+inline typename L::M shadowed(const DepthView& d, const float* inv_depth, typename L::I at, typename L::F z,
+                              typename L::M m) {
+  // 0 where not looked up: nothing there
+  const typename L::F q = L::gather_near(inv_depth, static_cast<std::size_t>(d.width) * d.height, at, m);
+  const typename L::F limit = L::add(L::set(1.0f + 2e-3f), L::mul(L::set(2e-3f), q));
+  return L::mand(L::gt(q, L::set(0.0f)), L::gt(L::mul(z, q), limit));
+}
+
+// The row buffers shade_rows works through (kRowArrays x Frame::stride values).
+enum RowArray { kRowTriangle, kRowPu, kRowPv, kRowZp, kRowSigma, kRowWeight, kRowAmbient, kRowLit };
+
+template <class L>
+void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch) {
+  using F = typename L::F;
+  using I = typename L::I;
+  using M = typename L::M;
+  constexpr int N = L::N;
+  const F zero = L::set(0.0f);
+  const I none = L::seti(-1);
+  const std::size_t stride = static_cast<std::size_t>(f.stride);
+  std::int32_t* const tri_row = reinterpret_cast<std::int32_t*>(scratch + kRowTriangle * stride);
+  float* const pu_row = scratch + kRowPu * stride;
+  float* const pv_row = scratch + kRowPv * stride;
+  float* const zp_row = scratch + kRowZp * stride;
+  float* const sigma_row = scratch + kRowSigma * stride;
+  float* const weight_row = scratch + kRowWeight * stride;
+  float* const ambient_row = scratch + kRowAmbient * stride;
+  // per pixel: the projector depth's cell to look up, or -1 (no surface, or beyond the beam);
+  // after the lookups, 0 (lit) or -1
+  std::int32_t* const lit_row = reinterpret_cast<std::int32_t*>(scratch + kRowLit * stride);
+  const DepthView& pd = f.projector_depth;
+  const int chunks = (f.stride + kNoiseChunk - 1) / kNoiseChunk;
+  std::uint32_t offsets_buf[3 * 256];  // widths are bounded at load (Intrinsics: at most 4096)
+  std::uint8_t bytes[3 * 16];
+  for (int v = v0; v < v1; ++v) {
+    const std::size_t first = static_cast<std::size_t>(v) * stride;
+    // 1. the triangle behind each pixel (the z-buffer's band holds every cell these rows see)
+    const I base = L::seti(static_cast<int>(f.cell_base));
+    for (int u = 0; u < f.width; u += N) {
+      const I zu = floor_int<L>(L::add(L::mul(L::load(f.ray_x + first + u), L::set(f.zfx)), L::set(f.zcx)));
+      const I zv = floor_int<L>(L::add(L::mul(L::load(f.ray_y + first + u), L::set(f.zfy)), L::set(f.zcy)));
+      const M in_buffer = L::mand(L::mand(L::lei(L::seti(0), zu), L::lei(zu, L::seti(f.zw - 1))),
+                                  L::mand(L::lei(L::seti(0), zv), L::lei(zv, L::seti(f.zh - 1))));
+      const I cell = L::subi(L::addi(L::muli(zv, L::seti(f.zw)), zu), base);
+      const M seen = L::mand(in_buffer, L::mand(L::lei(L::seti(0), cell), L::lei(cell, L::seti(static_cast<int>(f.cells) - 1))));
+      L::storei(tri_row + u, L::gatheri_near(f.cell_triangle, f.cells, cell, seen));
+    }
+    // 2. the surface point: where it lies on the projector's plane, how blurred, what it returns
+    for (int u = 0; u < f.width; u += N) {
+      const I tri = L::loadi(tri_row + u);
+      const M has = L::lei(L::seti(0), tri);
+      if (!L::any(has)) {
+        L::store(ambient_row + u, zero);
+        L::storei(lit_row + u, none);
+        continue;
+      }
+      // the lanes' triangles: each distinct one broadcast (a row of pixels crosses few)
+      F field[kTriangleFields];
+      for (F& x : field) x = zero;
+      M left = has;
+      for (int pass = 0; pass < 4 && L::any(left); ++pass) {
+        const int t = L::lane(tri, L::first(left));
+        const M same = L::mand(left, L::eqi(tri, L::seti(t)));
+        const float* rec = f.triangles + static_cast<std::size_t>(t) * kTriangleFloats;
+        for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(rec[k]), field[k]);
+        left = L::mand(left, L::mnot(same));
+      }
+      if (L::any(left)) {
+        const I base = L::muli(L::seli(left, tri, L::seti(0)), L::seti(kTriangleFloats));
+        for (int k = 0; k < kTriangleFields; ++k)
+          field[k] = L::sel(left, L::gather(f.triangles, L::addi(base, L::seti(k)), left), field[k]);
+      }
+      const F dx = L::load(f.ray_x + first + u), dy = L::load(f.ray_y + first + u);
+      const F inv_zc = L::add(L::add(L::mul(field[kG0], dx), L::mul(field[kG1], dy)), field[kG2]);
+      const auto row_of = [&](int k) {
+        const float* m = f.m[k];
+        return L::add(L::add(L::add(L::mul(L::set(m[0]), dx), L::mul(L::set(m[1]), dy)), L::set(m[2])),
+                      L::mul(L::set(m[3]), inv_zc));
+      };
+      const F h0 = row_of(0), h1 = row_of(1), h2 = row_of(2);
+      L::store(ambient_row + u, L::sel(has, field[kAmbient], zero));
+      const F zc = L::div(L::set(1.0f), inv_zc);
+      const F zp = L::mul(h2, zc);
+      const M ok = L::mand(has, L::mand(L::gt(inv_zc, L::set(1e-6f)), L::gt(zp, L::set(1e-3f))));
+      if (!L::any(ok)) {
+        L::storei(lit_row + u, none);
+        continue;
+      }
+      const F inv_h2 = L::div(L::set(1.0f), h2);
+      const F pu = L::mul(h0, inv_h2), pv = L::mul(h1, inv_h2);
+      // the projector's defocus at z_p, with the camera pixel's own size on its plane
+      const F outside = L::max(L::max(zero, L::sub(L::set(f.focus_near), zp)), L::sub(zp, L::set(f.focus_far)));
+      const F blur = L::add(L::set(f.focused_blur), L::mul(L::set(f.defocus_per_m), outside));
+      const F pixel = L::mul(L::set(f.pixel_scale), inv_h2);
+      const F sigma = L::add(L::sqrt(L::add(L::mul(blur, blur), L::mul(L::mul(L::set(0.083f), pixel), pixel))),
+                             L::set(1e-6f));
+      // the light returned: K / |L|^3
+      const F lx = L::sub(L::set(f.qx), L::mul(dx, zc));
+      const F ly = L::sub(L::set(f.qy), L::mul(dy, zc));
+      const F lz = L::sub(L::set(f.qz), zc);
+      const F dist2 = L::add(L::add(L::mul(lx, lx), L::mul(ly, ly)), L::mul(lz, lz));
+      L::store(weight_row + u, L::div(field[kReturn], L::mul(dist2, L::sqrt(dist2))));
+      L::store(pu_row + u, pu);
+      L::store(pv_row + u, pv);
+      L::store(zp_row + u, zp);
+      L::store(sigma_row + u, sigma);
+      // the projector's depth cell nearest to (u_p, v_p)
+      const I x = L::addi(floor_int<L>(L::add(pu, L::set(0.5f))), L::seti(pd.offset_x));
+      const I y = L::addi(floor_int<L>(L::add(pv, L::set(0.5f))), L::seti(pd.offset_y));
+      const M inside = L::mand(L::mand(L::lei(L::seti(0), x), L::lei(x, L::seti(pd.width - 1))),
+                               L::mand(L::lei(L::seti(0), y), L::lei(y, L::seti(pd.height - 1))));
+      const I at = L::seli(L::mand(ok, inside), L::addi(L::muli(y, L::seti(pd.width)), x), none);
+      L::storei(lit_row + u, at);
+      // the depth's lines the lookups below will read, on their way into the cache: the lanes'
+      // points lie along a line of the projector's image, its ends name the lines
+      const int at_first = L::lane(at, 0), at_last = L::lane(at, N - 1);
+      if (at_first >= 0) __builtin_prefetch(pd.inv_depth + at_first);
+      if (at_last >= 0) __builtin_prefetch(pd.inv_depth + at_last);
+    }
+    // 3. shadows: again lookups independent of one another
+    for (int u = 0; u < f.width; u += N) {
+      const I at = L::loadi(lit_row + u);
+      const M look = L::lei(L::seti(0), at);
+      if (!L::any(look)) continue;
+      const F zp = L::load(zp_row + u);
+      M dark = shadowed<L>(pd, pd.inv_depth, at, zp, look);
+      if (f.arm_depth.inv_depth) dark = L::mor(dark, shadowed<L>(pd, f.arm_depth.inv_depth, at, zp, look));
+      L::storei(lit_row + u, L::seli(L::mand(look, L::mnot(dark)), L::seti(0), none));
+    }
+    // 4. the spots' light, then the sensor: exposure, read and shot noise, 8-bit quantisation
+    for (int c = 0; c < 3; ++c)
+      for (int k = 0; k < chunks && k < 256; ++k) offsets_buf[c * 256 + k] = noise_offset(f, v, c, k);
+    F known = L::set(-1.0f), known_sd = zero;  // the standard deviation of the last values seen
+    std::uint8_t* row = image + static_cast<std::size_t>(v) * step;
+    for (int u = 0; u < f.width; u += N) {
+      F r = L::load(ambient_row + u), g = r, b = r;
+      const M lit = L::lei(L::seti(0), L::loadi(lit_row + u));
+      if (L::any(lit))
+        add_spots<L>(f, lit, L::load(pu_row + u), L::load(pv_row + u), L::load(sigma_row + u), L::load(weight_row + u),
+                     r, g, b);
+      const F rgb[3] = {r, g, b};
+      I out[3];
+      const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);
+      for (int c = 0; c < 3; ++c) {
+        const F value = L::mul(L::set(f.gain), rgb[c]);
+        F level = value;
+        if (f.noisy) {
+          // the same standard deviation while the values repeat (the ambient on one surface)
+          if (!L::all(L::eq(value, known))) {
+            known_sd = L::sqrt(L::add(L::set(f.read_var), L::mul(L::set(f.shot), L::max(value, zero))));
+            known = value;
+          }
+          const float* noise = f.noise_pool + offsets_buf[c * 256 + u / kNoiseChunk] + noise_at;
+          level = L::add(value, L::mul(known_sd, L::load(noise)));
+        }
+        out[c] = L::cvtt(L::min(L::max(L::add(level, L::set(0.5f)), zero), L::set(255.0f)));
+      }
+      if (u + N <= f.width) {
+        L::store_rgb(row + 3 * u, out[0], out[1], out[2]);
+      } else {
+        L::store_rgb(bytes, out[0], out[1], out[2]);
+        for (int k = 0; k < 3 * (f.width - u); ++k) row[3 * u + k] = bytes[k];
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace sim::shading

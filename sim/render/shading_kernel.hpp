@@ -34,7 +34,41 @@ inline typename L::I floor_int(typename L::F x) {
   return L::subi(t, L::seli(L::gt(L::cvt(t), x), L::seti(1), L::seti(0)));
 }
 
+// The light of spot (row, col) at the lanes `m`'s surface points, if they lie within its reach.
+template <class L>
+inline void add_spot(const Frame& f, typename L::M m, typename L::I row, typename L::I col, typename L::F pu,
+                     typename L::F pv, typename L::F reach2, typename L::F inv_sigma, typename L::F weight,
+                     typename L::F& r, typename L::F& g, typename L::F& b) {
+  using F = typename L::F;
+  using I = typename L::I;
+  const F zero = L::set(0.0f);
+  const F dv = L::sub(pv, L::add(L::set(f.grid_y0), L::mul(L::cvt(row), L::set(f.pitch))));
+  const F du = L::sub(pu, L::add(L::set(f.grid_x0), L::mul(L::cvt(col), L::set(f.pitch))));
+  const F rho2 = L::add(L::mul(du, du), L::mul(dv, dv));
+  m = L::mand(m, L::le(rho2, reach2));
+  if (!L::any(m)) return;
+  // the blurred disc's edge profile at (rho - radius) / sigma: a cubic per segment
+  const F x = L::mul(L::sub(L::sqrt(rho2), L::set(f.radius)), inv_sigma);
+  const F at = L::mul(L::add(x, L::set(kEdgeReach)), L::set(kEdgeSegments / (2 * kEdgeReach)));
+  const typename L::M inside = L::mand(L::le(zero, at), L::lt(at, L::set(static_cast<float>(kEdgeSegments))));
+  const I k = L::seli(inside, L::cvtt(at), L::seti(0));
+  const F t = L::sub(at, L::cvt(k));
+  const F cubic = L::add(L::lut32(f.edge[0], k),
+                         L::mul(t, L::add(L::lut32(f.edge[1], k),
+                                          L::mul(t, L::add(L::lut32(f.edge[2], k), L::mul(t, L::lut32(f.edge[3], k)))))));
+  const F profile = L::sel(inside, cubic, L::sel(L::lt(at, zero), L::set(1.0f), zero));
+  const F e = L::sel(m, L::mul(profile, weight), zero);
+  const I symbol = L::gatheri_near(f.spot_symbol, static_cast<std::size_t>(f.rows) * f.cols,
+                                   L::addi(L::muli(row, L::seti(f.cols)), col), m);
+  const I s = L::seli(m, symbol, L::seti(kUnlitSymbol));
+  r = L::add(r, L::mul(e, L::lut16(f.colour_r, s)));
+  g = L::add(g, L::mul(e, L::lut16(f.colour_g, s)));
+  b = L::add(b, L::mul(e, L::lut16(f.colour_b, s)));
+}
+
 // Light arriving at the lanes' surface points from the spots within reach, added to r, g, b.
+// A spot lights a point when the point lies within its reach (radius + 3 sigma) on the
+// projector's plane; the spots are added row by row, column by column.
 template <class L>
 inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typename L::F pv, typename L::F sigma,
                       typename L::F weight, typename L::F& r, typename L::F& g, typename L::F& b) {
@@ -44,49 +78,36 @@ inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typen
   const F reach = L::add(L::set(f.radius), L::mul(L::set(3.0f), sigma));
   const F reach2 = L::mul(reach, reach);
   const F inv_sigma = L::div(L::set(1.0f), sigma);
-  // the grid columns and rows within reach: [lo, hi], empty where not lit
   const F gx = L::mul(L::sub(pu, L::set(f.grid_x0)), L::set(f.inv_pitch));
   const F gy = L::mul(L::sub(pv, L::set(f.grid_y0)), L::set(f.inv_pitch));
   const F span = L::mul(reach, L::set(f.inv_pitch));
-  const I none = L::seti(-1);
-  const I c_lo = L::maxi(L::subi(L::seti(0), floor_int<L>(L::sub(span, gx))), L::seti(0));
-  const I c_hi = L::seli(lit, L::mini(floor_int<L>(L::add(gx, span)), L::seti(f.cols - 1)), none);
-  const I r_lo = L::maxi(L::subi(L::seti(0), floor_int<L>(L::sub(span, gy))), L::seti(0));
-  const I r_hi = L::seli(lit, L::mini(floor_int<L>(L::add(gy, span)), L::seti(f.rows - 1)), none);
+  // Focused spots reach less than 0.45 of a pitch: only the nearest spot can light a point,
+  // and no rounding can make another one (the general path below finds the same one alone)
+  const I last_col = L::seti(f.cols - 1), last_row = L::seti(f.rows - 1), origin = L::seti(0);
+  if (L::all(L::mor(L::mnot(lit), L::lt(span, L::set(0.45f))))) {
+    const I col = floor_int<L>(L::add(gx, L::set(0.5f))), row = floor_int<L>(L::add(gy, L::set(0.5f)));
+    const M on_grid = L::mand(L::mand(L::lei(origin, col), L::lei(col, last_col)),
+                              L::mand(L::lei(origin, row), L::lei(row, last_row)));
+    add_spot<L>(f, L::mand(lit, on_grid), row, col, pu, pv, reach2, inv_sigma, weight, r, g, b);
+    return;
+  }
+  // the grid columns and rows that may lie within reach, one more each side than the spans
+  // say (their rounding must not drop a spot the distance test takes): [lo, hi]
+  const I none = L::seti(-1), one = L::seti(1);
+  const I c_lo = L::maxi(L::subi(L::subi(origin, floor_int<L>(L::sub(span, gx))), one), origin);
+  const I c_hi = L::seli(lit, L::mini(L::addi(floor_int<L>(L::add(gx, span)), one), last_col), none);
+  const I r_lo = L::maxi(L::subi(L::subi(origin, floor_int<L>(L::sub(span, gy))), one), origin);
+  const I r_hi = L::seli(lit, L::mini(L::addi(floor_int<L>(L::add(gy, span)), one), last_row), none);
   const int n_c = L::reduce_max(L::subi(c_hi, c_lo), lit) + 1;
   const int n_r = L::reduce_max(L::subi(r_hi, r_lo), lit) + 1;
-  const F zero = L::set(0.0f);
   for (int kr = 0; kr < n_r; ++kr) {
     const I row = L::addi(r_lo, L::seti(kr));
     const M in_row = L::mand(lit, L::lei(row, r_hi));
     if (!L::any(in_row)) continue;
-    const F dv = L::sub(pv, L::add(L::set(f.grid_y0), L::mul(L::cvt(row), L::set(f.pitch))));
-    const F dv2 = L::mul(dv, dv);
     for (int kc = 0; kc < n_c; ++kc) {
       const I col = L::addi(c_lo, L::seti(kc));
-      M m = L::mand(in_row, L::lei(col, c_hi));
-      if (!L::any(m)) continue;
-      const F du = L::sub(pu, L::add(L::set(f.grid_x0), L::mul(L::cvt(col), L::set(f.pitch))));
-      const F rho2 = L::add(L::mul(du, du), dv2);
-      m = L::mand(m, L::le(rho2, reach2));
-      if (!L::any(m)) continue;
-      // the blurred disc's edge profile at (rho - radius) / sigma: a cubic per segment
-      const F x = L::mul(L::sub(L::sqrt(rho2), L::set(f.radius)), inv_sigma);
-      const F at = L::mul(L::add(x, L::set(kEdgeReach)), L::set(kEdgeSegments / (2 * kEdgeReach)));
-      const M inside = L::mand(L::le(zero, at), L::lt(at, L::set(static_cast<float>(kEdgeSegments))));
-      const I k = L::seli(inside, L::cvtt(at), L::seti(0));
-      const F t = L::sub(at, L::cvt(k));
-      const F cubic = L::add(L::lut32(f.edge[0], k),
-                             L::mul(t, L::add(L::lut32(f.edge[1], k),
-                                              L::mul(t, L::add(L::lut32(f.edge[2], k), L::mul(t, L::lut32(f.edge[3], k)))))));
-      const F profile = L::sel(inside, cubic, L::sel(L::lt(at, zero), L::set(1.0f), zero));
-      const F e = L::sel(m, L::mul(profile, weight), zero);
-      const I symbol = L::gatheri_near(f.spot_symbol, static_cast<std::size_t>(f.rows) * f.cols,
-                                       L::addi(L::muli(row, L::seti(f.cols)), col), m);
-      const I s = L::seli(m, symbol, L::seti(kUnlitSymbol));
-      r = L::add(r, L::mul(e, L::lut16(f.colour_r, s)));
-      g = L::add(g, L::mul(e, L::lut16(f.colour_g, s)));
-      b = L::add(b, L::mul(e, L::lut16(f.colour_b, s)));
+      const M m = L::mand(in_row, L::lei(col, c_hi));
+      if (L::any(m)) add_spot<L>(f, m, row, col, pu, pv, reach2, inv_sigma, weight, r, g, b);
     }
   }
 }
@@ -175,14 +196,16 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       };
       const F h0 = row_of(0), h1 = row_of(1), h2 = row_of(2);
       L::store(ambient_row + u, L::sel(has, field[kAmbient], zero));
-      const F zc = L::div(L::set(1.0f), inv_zc);
+      // z_c = 1 / s and 1 / h_2 from one division
+      const F both = L::div(L::set(1.0f), L::mul(inv_zc, h2));
+      const F zc = L::mul(both, h2);
       const F zp = L::mul(h2, zc);
       const M ok = L::mand(has, L::mand(L::gt(inv_zc, L::set(1e-6f)), L::gt(zp, L::set(1e-3f))));
       if (!L::any(ok)) {
         L::storei(lit_row + u, none);
         continue;
       }
-      const F inv_h2 = L::div(L::set(1.0f), h2);
+      const F inv_h2 = L::mul(both, inv_zc);
       const F pu = L::mul(h0, inv_h2), pv = L::mul(h1, inv_h2);
       // the projector's defocus at z_p, with the camera pixel's own size on its plane
       const F outside = L::max(L::max(zero, L::sub(L::set(f.focus_near), zp)), L::sub(zp, L::set(f.focus_far)));
@@ -205,13 +228,7 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       const I y = L::addi(floor_int<L>(L::add(pv, L::set(0.5f))), L::seti(pd.offset_y));
       const M inside = L::mand(L::mand(L::lei(L::seti(0), x), L::lei(x, L::seti(pd.width - 1))),
                                L::mand(L::lei(L::seti(0), y), L::lei(y, L::seti(pd.height - 1))));
-      const I at = L::seli(L::mand(ok, inside), L::addi(L::muli(y, L::seti(pd.width)), x), none);
-      L::storei(lit_row + u, at);
-      // the depth's lines the lookups below will read, on their way into the cache: the lanes'
-      // points lie along a line of the projector's image, its ends name the lines
-      const int at_first = L::lane(at, 0), at_last = L::lane(at, N - 1);
-      if (at_first >= 0) __builtin_prefetch(pd.inv_depth + at_first);
-      if (at_last >= 0) __builtin_prefetch(pd.inv_depth + at_last);
+      L::storei(lit_row + u, L::seli(L::mand(ok, inside), L::addi(L::muli(y, L::seti(pd.width)), x), none));
     }
     // 3. shadows: again lookups independent of one another
     for (int u = 0; u < f.width; u += N) {

@@ -30,11 +30,11 @@ struct Affine {
 // NaN, as std::max(lo, v) keeps lo), the same ceil, floor and truncating conversion (an
 // out-of-range value becomes INT_MIN in both). A row outside an edge parallel to the rows is
 // empty (the scalar loop's hi = lo - 1).
-__attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine* const edges[3], int* xa, int* xb) {
+__attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine* const* edges, int n, int* xa, int* xb) {
   const __m256d yv = _mm256_setr_pd(y, y + 1, y + 2, y + 3);
   __m256d lo = _mm256_set1_pd(x0), hi = _mm256_set1_pd(x1);
   __m256d empty = _mm256_setzero_pd();
-  for (int k = 0; k < 3; ++k) {
+  for (int k = 0; k < n; ++k) {
     const Affine& e = *edges[k];
     const __m256d c = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(e.b), yv), _mm256_set1_pd(e.c));
     if (e.a > 1e-15 || e.a < -1e-15) {
@@ -152,16 +152,24 @@ void triangle_rows(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
   y1 = static_cast<int>(hi);
 }
 
-void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, std::int32_t id,
-                   DepthBuffer& out, const RasterClip& clip, VectorUnit unit, std::vector<float>& sums) {
+// A convex polygon of 3 or 4 vertices (a triangle, or a flat quad: two coplanar triangles of a
+// mesh), counter-clockwise or clockwise: the pixels inside every edge, 1/z from the plane of its
+// first three vertices.
+void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& out, const RasterClip& clip,
+                  VectorUnit unit, std::vector<float>& sums) {
+  const ScreenVertex &p0 = p[0], &p1 = p[1], &p2 = p[2];
   const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
   if (std::abs(area) < 1e-12) return;
   const double m = out.margin;
-  const int x0 = std::max(clip.x0, static_cast<int>(std::ceil(std::min({p0.u, p1.u, p2.u}) + m)));
-  const int x1 = std::min({out.width - 1, clip.x1, static_cast<int>(std::floor(std::max({p0.u, p1.u, p2.u}) + m))});
-  const int y0 = std::max({clip.y0, out.row0, static_cast<int>(std::ceil(std::min({p0.v, p1.v, p2.v}) + m))});
-  const int y1 = std::min({out.height - 1, out.row0 + out.rows - 1, clip.y1,
-                           static_cast<int>(std::floor(std::max({p0.v, p1.v, p2.v}) + m))});
+  double u_lo = p0.u, u_hi = p0.u, v_lo = p0.v, v_hi = p0.v;
+  for (int i = 1; i < n; ++i) {
+    u_lo = std::min(u_lo, p[i].u), u_hi = std::max(u_hi, p[i].u);
+    v_lo = std::min(v_lo, p[i].v), v_hi = std::max(v_hi, p[i].v);
+  }
+  const int x0 = std::max(clip.x0, static_cast<int>(std::ceil(u_lo + m)));
+  const int x1 = std::min({out.width - 1, clip.x1, static_cast<int>(std::floor(u_hi + m))});
+  const int y0 = std::max({clip.y0, out.row0, static_cast<int>(std::ceil(v_lo + m))});
+  const int y1 = std::min({out.height - 1, out.row0 + out.rows - 1, clip.y1, static_cast<int>(std::floor(v_hi + m))});
   if (x0 > x1 || y0 > y1) return;
   const double inv_area = 1.0 / area;
   const auto edge = [&](const ScreenVertex& s, const ScreenVertex& e) {
@@ -169,11 +177,17 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
     const double a = -(e.v - s.v) * inv_area, b = (e.u - s.u) * inv_area;
     return Affine{a, b, -(a * (s.u + m) + b * (s.v + m))};
   };
+  // the first triangle's barycentric weights give 1/z; the polygon's edges bound it
   const Affine w0 = edge(p1, p2), w1 = edge(p2, p0), w2 = edge(p0, p1);
   const Affine iz{w0.a * p0.inv_z + w1.a * p1.inv_z + w2.a * p2.inv_z,
                   w0.b * p0.inv_z + w1.b * p1.inv_z + w2.b * p2.inv_z,
                   w0.c * p0.inv_z + w1.c * p1.inv_z + w2.c * p2.inv_z};
-  const Affine* edges[3] = {&w0, &w1, &w2};
+  Affine quad_edges[4];
+  const Affine* edges[4] = {&w0, &w1, &w2, nullptr};
+  if (n == 4) {
+    for (int i = 0; i < 4; ++i) quad_edges[i] = edge(p[i], p[(i + 1) % 4]);
+    for (int i = 0; i < 4; ++i) edges[i] = &quad_edges[i];
+  }
   const auto fill_span = [&](int y, int xa, int xb) {
     float q = static_cast<float>(iz.at(xa, y));
     const float dq = static_cast<float>(iz.a);
@@ -191,7 +205,7 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
     alignas(16) int xa[4], xb[4];
     alignas(16) float q0[4];
     for (int y = y0; y <= y1; y += 4) {
-      spans4(y, x0, x1, edges, xa, xb);
+      spans4(y, x0, x1, edges, n, xa, xb);
       for (int r = 0; r < 4; ++r) {
         if (y + r > y1) xb[r] = xa[r] - 1;  // past the triangle's last row
         q0[r] = xa[r] <= xb[r] ? static_cast<float>(iz.at(xa[r], y + r)) : 0.f;
@@ -205,7 +219,8 @@ void fill_triangle(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenV
     // the span of this row inside all three edges, solved per edge (a x + b y + c >= 0), so
     // the loop below visits only covered pixels (thin triangles leave most of their box empty)
     double lo = x0, hi = x1;
-    for (const Affine* e : edges) {
+    for (int k = 0; k < n; ++k) {
+      const Affine* e = edges[k];
       const double c = e->b * y + e->c;
       if (e->a > 1e-15) lo = std::max(lo, -(c + 1e-9) / e->a);
       else if (e->a < -1e-15) hi = std::min(hi, -(c + 1e-9) / e->a);
@@ -238,6 +253,7 @@ int closed_orientation(const std::vector<Eigen::Vector3d>& vertices, const std::
 
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
                       const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t, int outward) {
+  const std::array<int, 3>* previous = nullptr;  // the last triangle kept
   for (const auto& tri : triangles) {
     const Eigen::Vector3d a = world_T_mesh * vertices[tri[0]];
     const Eigen::Vector3d b = world_T_mesh * vertices[tri[1]];
@@ -252,6 +268,18 @@ void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::v
     t.object.push_back(object);
     t.albedo.push_back(albedo);
     t.outward.push_back(static_cast<std::int8_t>(outward));
+    const auto i = static_cast<std::int32_t>(t.a.size() - 1);
+    std::int32_t plane = i;
+    if (previous) {
+      int shared = 0;
+      for (int a : tri)
+        for (int b : *previous) shared += a == b;
+      const std::size_t p = static_cast<std::size_t>(i - 1);
+      if (shared == 2 && t.normal_w[p].dot(t.normal_w.back()) > 1 - 1e-12 && std::abs(t.offset[p] - t.offset.back()) < 1e-12)
+        plane = t.plane_of[p];
+    }
+    t.plane_of.push_back(plane);
+    previous = &tri;
   }
 }
 
@@ -294,25 +322,74 @@ void clear_band(const Intrinsics& k, int margin, int row0, int rows, DepthBuffer
 }
 
 void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out) {
+                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out, bool by_plane) {
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
   };
-  const auto add = [&](const ScreenVertex& a, const ScreenVertex& b, const ScreenVertex& c, std::int32_t id) {
-    ScreenTriangle t{{a.u, b.u, c.u}, {a.v, b.v, c.v}, {a.inv_z, b.inv_z, c.inv_z}, id, 0, 0};
-    triangle_rows(a, b, c, margin, t.y0, t.y1);
+  const auto add = [&](const ScreenVertex* p, int n, std::int32_t id) {
+    ScreenTriangle t{};
+    for (int i = 0; i < n; ++i) t.u[i] = p[i].u, t.v[i] = p[i].v, t.inv_z[i] = p[i].inv_z;
+    t.n = n;
+    t.id = id;
+    double lo = p[0].v, hi = p[0].v;
+    for (int i = 1; i < n; ++i) lo = std::min(lo, p[i].v), hi = std::max(hi, p[i].v);
+    const ScreenVertex a{0, lo, 0}, b{0, hi, 0};
+    triangle_rows(a, b, b, margin, t.y0, t.y1);
     if (t.y0 <= t.y1) out.push_back(t);
   };
   const Eigen::Vector3d viewer = viewer_T_world.inverse().translation();
   cull = cull && tris.outward.size() == tris.a.size();
+  by_plane = by_plane && tris.plane_of.size() == tris.a.size();
+  const auto culled = [&](std::size_t i) {
+    return cull && tris.outward[i] != 0 && tris.outward[i] * tris.normal_w[i].dot(viewer - tris.a[i]) < 0;
+  };
   for (std::size_t i = first; i < tris.a.size(); ++i) {
-    if (cull && tris.outward[i] != 0 && tris.outward[i] * tris.normal_w[i].dot(viewer - tris.a[i]) < 0) continue;
+    if (culled(i)) continue;
     const Eigen::Vector3d v[3] = {viewer_T_world * tris.a[i], viewer_T_world * tris.b[i], viewer_T_world * tris.c[i]};
     const int behind = (v[0].z() < kNear) + (v[1].z() < kNear) + (v[2].z() < kNear);
     if (behind == 3) continue;
-    const auto id = static_cast<std::int32_t>(i);
+    const auto id = by_plane ? tris.plane_of[i] : static_cast<std::int32_t>(i);
     if (behind == 0) {
-      add(to_screen(v[0]), to_screen(v[1]), to_screen(v[2]), id);
+      const ScreenVertex s[3] = {to_screen(v[0]), to_screen(v[1]), to_screen(v[2])};
+      // the next triangle, the other half of a flat quad: one polygon
+      const std::size_t j = i + 1;
+      if (by_plane && j < tris.a.size() && tris.plane_of[j] == id && !culled(j)) {
+        const Eigen::Vector3d* w[3] = {&tris.a[j], &tris.b[j], &tris.c[j]};
+        const Eigen::Vector3d* mine[3] = {&tris.a[i], &tris.b[i], &tris.c[i]};
+        int extra = -1, shared = 0;
+        for (int q = 0; q < 3; ++q) {
+          const bool in = *w[q] == *mine[0] || *w[q] == *mine[1] || *w[q] == *mine[2];
+          shared += in;
+          if (!in) extra = q;
+        }
+        const Eigen::Vector3d d = viewer_T_world * *w[extra < 0 ? 0 : extra];
+        if (shared == 2 && d.z() >= kNear) {
+          // the quad: the new vertex between the shared edge's ends, in this triangle's order
+          for (int e = 0; e < 3; ++e) {
+            const Eigen::Vector3d& from = *mine[e];
+            const Eigen::Vector3d& to = *mine[(e + 1) % 3];
+            const bool edge_shared = (from == *w[0] || from == *w[1] || from == *w[2]) && (to == *w[0] || to == *w[1] || to == *w[2]);
+            if (!edge_shared) continue;
+            const ScreenVertex q[4] = {s[e], to_screen(d), s[(e + 1) % 3], s[(e + 2) % 3]};
+            // convex, turning one way at every corner, and not degenerate
+            double turn_sign = 0;
+            bool convex = true;
+            for (int c = 0; c < 4 && convex; ++c) {
+              const ScreenVertex &o = q[c], &p1 = q[(c + 1) % 4], &p2 = q[(c + 2) % 4];
+              const double cross = (p1.u - o.u) * (p2.v - p1.v) - (p1.v - o.v) * (p2.u - p1.u);
+              if (std::abs(cross) < 1e-9 || (turn_sign != 0 && (cross > 0) != (turn_sign > 0))) convex = false;
+              turn_sign = cross;
+            }
+            if (convex) {
+              add(q, 4, id);
+              ++i;  // the other half is in the quad
+            }
+            break;
+          }
+          if (i == j) continue;
+        }
+      }
+      add(s, 3, id);
       continue;
     }
     // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
@@ -325,7 +402,10 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
       if (pin) poly[count++] = p;
       if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
     }
-    for (int f = 1; f + 1 < count; ++f) add(to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1]), id);
+    for (int f = 1; f + 1 < count; ++f) {
+      const ScreenVertex s[3] = {to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1])};
+      add(s, 3, id);
+    }
   }
 }
 
@@ -336,8 +416,9 @@ void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, c
   thread_local std::vector<float> sums;  // fill_spans4's running sums
   for (const ScreenTriangle& t : tris) {
     if (t.y1 < lo || t.y0 > hi) continue;
-    fill_triangle({t.u[0], t.v[0], t.inv_z[0]}, {t.u[1], t.v[1], t.inv_z[1]}, {t.u[2], t.v[2], t.inv_z[2]}, t.id, out,
-                  clip, unit, sums);
+    ScreenVertex p[4];
+    for (int i = 0; i < t.n; ++i) p[i] = {t.u[i], t.v[i], t.inv_z[i]};
+    fill_polygon(p, t.n, t.id, out, clip, unit, sums);
   }
 }
 

@@ -26,6 +26,9 @@ struct SceneTriangles {
   // mesh. A closed mesh's faces turned away from a viewer outside it are hidden by its own
   // faces turned towards it: rasterize() leaves them out where asked.
   std::vector<std::int8_t> outward;
+  // the first of a run of triangles of one mesh, each sharing an edge with the one before and
+  // lying in its plane (a quad's two halves, a flat wall's tiles): the same surface to shade
+  std::vector<std::int32_t> plane_of;
 };
 
 // +1 when the mesh is closed (every edge shared by exactly two faces, in opposite directions)
@@ -70,6 +73,9 @@ struct DepthBuffer {
 // three to each other).
 // `cull`: faces of closed meshes turned away from the viewer are left out (the same buffer,
 // the viewer being outside every closed mesh, but for exact ties at silhouettes).
+// project_triangles' `by_plane`: each triangle fills its SceneTriangles::plane_of id, and two
+// consecutive triangles of one plane that share an edge and make a convex quad on screen are
+// filled as that quad (half the spans for a tessellated surface's strips).
 void rasterize(const SceneTriangles& tris, const Eigen::Isometry3d& viewer_T_world, const Intrinsics& k, int margin,
                DepthBuffer& out, bool vector = true, bool avx512 = true, bool cull = false);
 // Buffer pixels a rasterisation may write (inclusive).
@@ -77,16 +83,19 @@ struct RasterClip {
   int x0 = 0, y0 = 0, x1 = std::numeric_limits<int>::max(), y1 = std::numeric_limits<int>::max();
 };
 
-// A triangle on a viewer's image plane (pixels, without the margin), ready to fill.
+// A triangle on a viewer's image plane (pixels, without the margin), ready to fill; or a flat
+// convex quad, two triangles of one plane sharing an edge (n = 4).
 struct ScreenTriangle {
-  double u[3], v[3], inv_z[3];
-  std::int32_t id;  // index into SceneTriangles
+  double u[4], v[4], inv_z[4];
+  int n;            // vertices: 3 or 4
+  std::int32_t id;  // index into SceneTriangles (by_plane: its plane_of)
   int y0, y1;       // the buffer rows it may cover
 };
 // Triangles [first, end) seen from viewer_T_world through `k`, clipped against the near plane
 // (a triangle crossing it becomes one or two); `cull` as in rasterize. Appended to `out`.
 void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out);
+                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out,
+                       bool by_plane = false);
 // Fills `out` (its rows [row0, row0 + rows) only, and `clip`) with the triangles, in order. A
 // buffer filled band by band holds, bit for bit, what one fill of the whole holds.
 void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, const RasterClip& clip,

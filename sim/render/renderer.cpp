@@ -40,6 +40,7 @@ SceneTriangles& posed_triangles(const Cell& cell, const LinkPoses& links, ArmFra
   t.object.resize(first);
   t.albedo.resize(first);
   t.outward.resize(first);
+  t.plane_of.resize(first);
   for (std::size_t i = 0; i < arm.size(); ++i) {
     const auto l = static_cast<std::size_t>(arm.link(i));
     if (l >= links.size()) continue;
@@ -230,7 +231,9 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   const FrameScene scene = pose_scene(cell, links, s.arm, true, false);
   const SceneTriangles& tris = *scene.triangles;
   s.screen.clear();
-  project_triangles(tris, 0, world_T_camera.inverse(), k, cell.camera_margin_px, true, s.screen);
+  // the z-buffer names each pixel's plane (SceneTriangles::plane_of): a row of pixels crosses
+  // fewer of them than of triangles, and the kernel handles each distinct one in turn
+  project_triangles(tris, 0, world_T_camera.inverse(), k, cell.camera_margin_px, true, s.screen, true);
   prepare_triangles(cell, tris, world_T_camera, cam, s.triangles);
 
   const Cell::Lens& lens = cell.lens;

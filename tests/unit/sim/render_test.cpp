@@ -251,6 +251,24 @@ TEST(Rasterizer, TheVectorPathFillsTheSameBufferAsTheScalarOne) {
       // filled band by band (as render_image does), the same buffer, bit for bit
       std::vector<ScreenTriangle> screen;
       project_triangles(*scene.triangles, 0, view, k, 5, false, screen);
+      // the flat quads by plane (render_image's camera), the vector paths and the scalar one alike
+      std::vector<ScreenTriangle> quads;
+      project_triangles(*scene.triangles, 0, view, k, 5, true, quads, true);
+      DepthBuffer q_scalar, q_vector;
+      clear_band(k, 5, 0, k.height + 10, q_scalar);
+      clear_band(k, 5, 0, k.height + 10, q_vector);
+      fill_triangles(quads, q_scalar, RasterClip{}, false);
+      fill_triangles(quads, q_vector, RasterClip{}, true);
+      ASSERT_EQ(std::memcmp(q_scalar.inv_depth.data(), q_vector.inv_depth.data(), q_scalar.inv_depth.size() * sizeof(float)), 0) << name;
+      ASSERT_EQ(q_scalar.triangle, q_vector.triangle) << name;
+      // and they cover what the triangles cover, each cell naming its triangle's plane
+      std::size_t moved = 0, covered = 0;
+      for (std::size_t i = 0; i < q_scalar.triangle.size(); ++i) {
+        covered += sca.triangle[i] >= 0;
+        const int plane = sca.triangle[i] < 0 ? -1 : scene.triangles->plane_of[static_cast<std::size_t>(sca.triangle[i])];
+        moved += q_scalar.triangle[i] != plane && &view != &views.back();
+      }
+      EXPECT_LE(moved, covered / 500) << name << ": " << moved << " of " << covered << " cells";
       const int rows = k.height + 10;
       for (int row0 = 0; row0 < rows; row0 += 37) {
         DepthBuffer band;

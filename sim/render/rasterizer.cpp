@@ -139,9 +139,10 @@ __attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const 
   }
 }
 
-// The rows a triangle may cover in a buffer with margin m (before any clip).
-void triangle_rows(const ScreenVertex& p0, const ScreenVertex& p1, const ScreenVertex& p2, double m, int& y0, int& y1) {
-  const double lo = std::ceil(std::min({p0.v, p1.v, p2.v}) + m), hi = std::floor(std::max({p0.v, p1.v, p2.v}) + m);
+// The rows a polygon spanning image rows [v_lo, v_hi] may cover in a buffer with margin m
+// (before any clip).
+void polygon_rows(double v_lo, double v_hi, double m, int& y0, int& y1) {
+  const double lo = std::ceil(v_lo + m), hi = std::floor(v_hi + m);
   // beyond any buffer (or NaN): no rows (the casts below would be undefined)
   if (!(lo > -1e9 && hi < 1e9)) {
     y0 = 1;
@@ -333,8 +334,7 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
     t.id = id;
     double lo = p[0].v, hi = p[0].v;
     for (int i = 1; i < n; ++i) lo = std::min(lo, p[i].v), hi = std::max(hi, p[i].v);
-    const ScreenVertex a{0, lo, 0}, b{0, hi, 0};
-    triangle_rows(a, b, b, margin, t.y0, t.y1);
+    polygon_rows(lo, hi, margin, t.y0, t.y1);
     if (t.y0 <= t.y1) out.push_back(t);
   };
   const Eigen::Vector3d viewer = viewer_T_world.inverse().translation();

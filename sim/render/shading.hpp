@@ -36,6 +36,7 @@ constexpr int kTriangleFloats = 8;
 constexpr int kSymbolLut = 16;       // colour tables' entries; kUnlitSymbol has colour 0
 constexpr int kUnlitSymbol = 15;
 constexpr int kNoiseChunk = 64;      // pixels per noise run
+constexpr int kMaxSpotsAway = 8;     // a point takes the light of spots at most this many pitches away
 constexpr int kEdgeSegments = 32;
 constexpr float kEdgeReach = 4.0f;   // 0.5 erfc(4 / sqrt 2) = 3e-5: nothing beyond
 

@@ -92,12 +92,19 @@ inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typen
     return;
   }
   // the grid columns and rows that may lie within reach, one more each side than the spans
-  // say (their rounding must not drop a spot the distance test takes): [lo, hi]
-  const I none = L::seti(-1), one = L::seti(1);
-  const I c_lo = L::maxi(L::subi(L::subi(origin, floor_int<L>(L::sub(span, gx))), one), origin);
-  const I c_hi = L::seli(lit, L::mini(L::addi(floor_int<L>(L::add(gx, span)), one), last_col), none);
-  const I r_lo = L::maxi(L::subi(L::subi(origin, floor_int<L>(L::sub(span, gy))), one), origin);
-  const I r_hi = L::seli(lit, L::mini(L::addi(floor_int<L>(L::add(gy, span)), one), last_row), none);
+  // say (their rounding must not drop a spot the distance test takes): [lo, hi]; and at most
+  // kMaxSpotsAway pitches from the point, however blurred (a scenario's blur is bounded only
+  // loosely: its spots wash into one another long before, and the work per pixel stays bounded)
+  const I none = L::seti(-1), one = L::seti(1), away = L::seti(kMaxSpotsAway);
+  const I c_mid = floor_int<L>(gx), r_mid = floor_int<L>(gy);
+  const I c_lo = L::maxi(L::maxi(L::subi(L::subi(origin, floor_int<L>(L::sub(span, gx))), one), origin),
+                         L::subi(c_mid, away));
+  const I c_hi = L::seli(lit, L::mini(L::mini(L::addi(floor_int<L>(L::add(gx, span)), one), last_col), L::addi(c_mid, away)),
+                         none);
+  const I r_lo = L::maxi(L::maxi(L::subi(L::subi(origin, floor_int<L>(L::sub(span, gy))), one), origin),
+                         L::subi(r_mid, away));
+  const I r_hi = L::seli(lit, L::mini(L::mini(L::addi(floor_int<L>(L::add(gy, span)), one), last_row), L::addi(r_mid, away)),
+                         none);
   const int n_c = L::reduce_max(L::subi(c_hi, c_lo), lit) + 1;
   const int n_r = L::reduce_max(L::subi(r_hi, r_lo), lit) + 1;
   for (int kr = 0; kr < n_r; ++kr) {

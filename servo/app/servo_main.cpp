@@ -262,6 +262,16 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
       j["spots"] = nlohmann::json::array();
       for (const auto& d : r.decoded) j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}});
       j["detected"] = r.detected.size();
+      // every segmented blob, in the order the decoder numbers them, with its links (E, S, W, N:
+      // the blob each one reaches, -1 for none): why a spot was or was not named
+      j["blobs"] = nlohmann::json::array();
+      for (std::size_t b = 0; b < r.detected.size(); ++b) {
+        const vision::Spot& s = r.detected[b];
+        const auto& next = b < r.graph.next.size() ? r.graph.next[b] : std::array<int, 4>{-1, -1, -1, -1};
+        j["blobs"].push_back({{"u", s.u}, {"v", s.v}, {"colour", s.colour}, {"area_px", s.area_px},
+                              {"strength", s.strength}, {"truncated", s.truncated},
+                              {"links", {next[0], next[1], next[2], next[3]}}});
+      }
       j["decoded"] = r.decoded.size();
       j["time_ms"] = ms;
       std::ofstream f(json_file);

@@ -245,10 +245,12 @@ constexpr double kBorderReachPx = 1.5;
 void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, int W, int H, Segmentation& out) {
   const std::vector<std::array<double, 3>> palette = palette_directions(p.colours);
   out.spots.reserve(blobs.size() + 1);
+  std::vector<Spot> slivers;
   for (const Blob& b : blobs) {
     const int w = b.x1 - b.x0 + 1, h = b.y1 - b.y0 + 1;
     const double elongation = static_cast<double>(std::max(w, h)) / std::min(w, h);
-    if (b.area < p.min_area_px || b.area > p.max_area_px || elongation > p.max_elongation ||
+    const bool sliver = elongation > p.max_elongation;
+    if (b.area < p.min_area_px || b.area > p.max_area_px || elongation > std::max(p.max_elongation, p.max_sliver_elongation) ||
         b.area < p.min_fill * w * h) {
       ++out.rejected;
       continue;
@@ -285,8 +287,10 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, int W
     const auto cut = [](double towards, double away) { return towards < away - kBorderCutPx || towards < kBorderReachPx; };
     spot.truncated = (b.x0 == 0 && cut(left, right)) || (b.x1 == W - 1 && cut(right, left)) ||
                      (b.y0 == 0 && cut(top, bottom)) || (b.y1 == H - 1 && cut(bottom, top));
-    out.spots.push_back(spot);
+    spot.sliver = sliver;
+    (sliver ? slivers : out.spots).push_back(spot);
   }
+  out.spots.insert(out.spots.end(), slivers.begin(), slivers.end());
 }
 
 }  // namespace

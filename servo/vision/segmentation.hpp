@@ -24,12 +24,15 @@ struct SegmentationParams {
   int min_area_px = 4;
   int max_area_px = 2500;
   double max_elongation = 6.0;   // bounding-box aspect ratio (curved surfaces stretch spots)
+  // up to this: a sliver (Spot::sliver), listed after the spots. At a silhouette the surface
+  // turns away and the last line of spots is seen edge-on, 1-2 px wide.
+  double max_sliver_elongation = 12.0;
   double min_fill = 0.25;        // area / bounding-box area
   double min_colour_match = 0.85;  // cosine between the blob's chroma and its palette colour
 };
 
 struct Segmentation {
-  std::vector<Spot> spots;
+  std::vector<Spot> spots;  // the slivers last
   int threshold = 0;
   int rejected = 0;  // blobs that were not spots (size, shape, colour)
 };

@@ -15,6 +15,9 @@ struct Spot {
   int area_px = 0;
   float strength = 0;    // mean chroma above the threshold
   bool truncated = false;  // cut by the image border: its centroid is biased
+  // narrower than a spot may be (SegmentationParams::max_elongation): a spot seen edge-on
+  // beside a silhouette. Only the edge runs (decoder step 8) use slivers.
+  bool sliver = false;
 };
 
 // A decoded spot: its identity in the pattern and where it is in the image.

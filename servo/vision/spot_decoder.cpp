@@ -1169,6 +1169,139 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
   return decoded;
 }
 
+namespace {
+// Where a run's candidate may lie from its source, along the source's step: the steps shrink
+// towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
+// most 0.3 of a step aside
+constexpr double kRunNearest = 0.3, kRunFarthest = 1.15, kRunAside = 0.3;
+// how much two neighbouring candidates' offset may differ from their sources' (fraction of
+// the sources' step): the run follows the identified line beside it
+constexpr double kRunFollow = 0.35;
+// consecutive candidates a run needs: each has the colour the pattern has there by chance one
+// time in three, so a run of 4 is one in 81 before the epipolar line and the positions
+constexpr int kRunLength = 4;
+}  // namespace
+
+std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
+                                        const EpipolarCheck& check, const pattern::MArray& pattern,
+                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here) {
+  const std::size_t n = spots.size();
+  if (named_here) named_here->assign(n, 0);
+  if (decoded.empty() || n < 2) return decoded;
+  IdMap ids(pattern, n, decoded);
+  const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
+  std::vector<double> lengths;
+  for (std::size_t s = 0; s < n; ++s)
+    for (const int k : {kEast, kSouth})
+      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
+  if (lengths.empty()) return decoded;
+  const SpatialGrid near(spots, std::max(2.0, median(lengths)));
+  // per pattern cell, in direction k: the blob found beyond the identified spot one step back
+  const std::size_t cells = static_cast<std::size_t>(pattern.rows) * pattern.cols;
+  std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
+  std::vector<DecodedSpot> added;
+  for (int k = 0; k < 4; ++k) {
+    const int dr = kIdStep[k][0], dc = kIdStep[k][1];
+    std::vector<int> candidate(cells, -1);
+    for (const DecodedSpot& from : decoded) {
+      const int r = from.row + dr, c = from.col + dc;
+      if (!ids.inside(r, c) || ids.taken(r, c)) continue;
+      const int back = spot_at(from.row - dr, from.col - dc);
+      if (back < 0) continue;
+      const Spot& s = spots[from.spot];
+      const double vu = s.u - spots[back].u, vv = s.v - spots[back].v, step2 = vu * vu + vv * vv;
+      if (step2 < 4.0) continue;
+      int found = -1;
+      double best = 1e300;
+      near.around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
+        const double du = spots[j].u - s.u, dv = spots[j].v - s.v;
+        const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
+        if (along < kRunNearest || along > kRunFarthest || aside > kRunAside) return;
+        const double d2 = du * du + dv * dv;
+        if (d2 < best) best = d2, found = j;
+      });
+      if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || spots[found].colour != pattern.at(r, c) ||
+          spots[found].strength < kGrowFaintest || spots[found].strength < kAlike * s.strength ||
+          spots[found].area_px > kGrowLargest * s.area_px || !check.confirms(found, {r, c}))
+        continue;
+      candidate[static_cast<std::size_t>(r) * pattern.cols + c] = found;
+    }
+    // runs across k: consecutive ids (r + i pr, c + i pc), each with a candidate, whose offsets
+    // follow their sources'
+    const int pr = dc, pc = dr;  // the axis across k
+    const auto cand = [&](int r, int c) {
+      return ids.inside(r, c) ? candidate[static_cast<std::size_t>(r) * pattern.cols + c] : -1;
+    };
+    const auto follows = [&](int r, int c) {  // (r, c) and (r + pr, c + pc) both candidates
+      const int a = cand(r, c), b = cand(r + pr, c + pc);
+      const int sa = spot_at(r - dr, c - dc), sb = spot_at(r + pr - dr, c + pc - dc);
+      if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
+      const double su = spots[sb].u - spots[sa].u, sv = spots[sb].v - spots[sa].v;
+      const double eu = spots[b].u - spots[a].u - su, ev = spots[b].v - spots[a].v - sv;
+      return eu * eu + ev * ev <= kRunFollow * kRunFollow * (su * su + sv * sv);
+    };
+    for (int r = 0; r < pattern.rows; ++r)
+      for (int c = 0; c < pattern.cols; ++c) {
+        // a run starts where the one before does not continue into it
+        if (cand(r, c) < 0 || (ids.inside(r - pr, c - pc) && follows(r - pr, c - pc))) continue;
+        int length = 1;
+        while (follows(r + (length - 1) * pr, c + (length - 1) * pc)) ++length;
+        if (length < kRunLength) continue;
+        // no other placement of the whole run fits it as well: in the crowded columns at a
+        // silhouette the lattice shears, and the next column's spots, one row over, can sit
+        // where this run's ids are predicted (their colours and epipolar lines then fit the
+        // shifted ids, each of them)
+        bool another = false;
+        for (int orow = -1; orow <= 1 && !another; ++orow)
+          for (int ocol = -1; ocol <= 1 && !another; ++ocol) {
+            if (orow == 0 && ocol == 0) continue;
+            int fit = 0;
+            for (int i = 0; i < length; ++i) {
+              const int rr = r + i * pr + orow, cc = c + i * pc + ocol, j = cand(r + i * pr, c + i * pc);
+              fit += ids.inside(rr, cc) && !ids.taken(rr, cc) && pattern.at(rr, cc) == spots[j].colour &&
+                     check.confirms(j, {rr, cc});
+            }
+            another = fit == length;
+          }
+        if (another) continue;
+        for (int i = 0; i < length; ++i) {
+          const int rr = r + i * pr, cc = c + i * pc, j = cand(rr, cc);
+          const int cell = rr * pattern.cols + cc;
+          claimed_by[j] = claimed_by[j] == -1 || claimed_by[j] == cell ? cell : -2;
+          added.push_back({rr, cc, spots[j].u, spots[j].v, j});
+        }
+      }
+  }
+  // a blob two runs claim for two ids, or an id two runs give two blobs, is not named
+  std::vector<int> cell_claims(cells, 0);
+  for (const DecodedSpot& a : added)
+    if (claimed_by[a.spot] >= 0) ++cell_claims[static_cast<std::size_t>(a.row) * pattern.cols + a.col];
+  for (const DecodedSpot& a : added) {
+    const std::size_t cell = static_cast<std::size_t>(a.row) * pattern.cols + a.col;
+    if (claimed_by[a.spot] < 0 || ids.taken(a.row, a.col) || ids.index_of(a.spot) >= 0) continue;
+    if (cell_claims[cell] > 1) {
+      // the same blob for the same cell from two directions is one claim
+      bool same = true;
+      for (const DecodedSpot& b : added)
+        if (b.row == a.row && b.col == a.col && b.spot != a.spot) same = false;
+      if (!same) continue;
+    }
+    decoded.push_back(a);
+    ids.add(a, static_cast<int>(decoded.size()) - 1);
+    if (named_here) (*named_here)[a.spot] = 1;
+  }
+  // their links to the line beside them, where both ends had none
+  for (const DecodedSpot& d : decoded)
+    for (int k = 0; k < 4; ++k) {
+      const int j = spot_at(d.row + kIdStep[k][0], d.col + kIdStep[k][1]);
+      if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
+        graph.next[d.spot][k] = j;
+        graph.next[j][(k + 2) % 4] = d.spot;
+      }
+    }
+  return decoded;
+}
+
 SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
     : table_(std::move(table)), options_(options) {
   options_.segmentation.colours = table_.array().colours;
@@ -1183,9 +1316,14 @@ SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;
   r.detected = std::move(spots);
+  // the slivers wait for step 8: the steps before see the spots only
+  const auto first_sliver = std::stable_partition(r.detected.begin(), r.detected.end(), [](const Spot& s) { return !s.sliver; });
+  std::vector<Spot> slivers(first_sliver, r.detected.end());
+  r.detected.erase(first_sliver, r.detected.end());
   AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links);
   Neighbourhoods hoods = check_graph_consistency(graph);
-  const int n = static_cast<int>(r.detected.size());
+  int n = static_cast<int>(r.detected.size());
+  std::vector<char> edge_run;  // the spots an edge run named (step 8)
   std::optional<EpipolarCheck> epipolar;
   if (geometry) epipolar.emplace(*geometry, r.detected);
   if (options_.mend_links) {
@@ -1214,6 +1352,19 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     if (e.grow) {
       r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources);
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+      if (e.edge_runs) {
+        // the slivers join the spots, unlinked
+        for (const Spot& x : slivers) {
+          r.detected.push_back(x);
+          graph.next.push_back({-1, -1, -1, -1});
+          Window w{-1, -1, -1, -1, -1, -1, -1, -1, -1};
+          w[4] = n++;
+          hoods.window.push_back(w);
+          epipolar->xy.push_back(geometry->normalise(x.u, x.v));
+        }
+        r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run);
+        r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+      }
       // the grown region's new links and sources carry propagation further (once: a second
       // growth named spots whose links then condemned right ones, 1.2 points fewer on the ham)
       if (e.propagate) {
@@ -1234,7 +1385,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   // where its centre is: it is not reported. Nor is a fragment, a blob far smaller than the
   // spots linked to it: a spot cut by a depth edge or the object's silhouette
   std::erase_if(r.decoded, [&](const DecodedSpot& d) {
-    return r.detected[d.spot].truncated || is_fragment(r.detected, graph, d.spot);
+    return r.detected[d.spot].truncated ||
+           (is_fragment(r.detected, graph, d.spot) && !(d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot]));
   });
   r.graph = std::move(graph);
   r.hoods = std::move(hoods);

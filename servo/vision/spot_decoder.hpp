@@ -149,6 +149,19 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
                                       const EpipolarCheck& check, const pattern::MArray& pattern,
                                       std::vector<DecodedSpot> decoded, int min_sources = 3);
 
+// Step 8, beyond the paper. Runs along an edge: beyond an identified line of spots (a column
+// before the cylinder's silhouette), the next line is foreshortened to slivers, closer than a
+// step and a third of a spot's area, which step 7 refuses one at a time (a speck or the wash of
+// the surface behind looks alike). Here they are taken as a run: from each identified spot, the
+// blob ahead along its step (0.3 to 1.15 of it, 0.3 aside) with the pattern's colour there, on
+// its epipolar line, not fainter than 0.4 of it; 4 or more such blobs for consecutive ids along
+// the edge, each offset from the next as their sources are, are named. The spots named here
+// are kept by the fragment test (`named_here`): their centroids are where their centres are
+// (0.2-0.5 px on the cylinder), the sliver being the whole spot seen edge-on.
+std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
+                                        const EpipolarCheck& check, const pattern::MArray& pattern,
+                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here = nullptr);
+
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
                                        const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
@@ -181,6 +194,7 @@ struct EpipolarOptions {
   // lattice names nearly all it named (-0.4 points on the cylinder, -0.1 on the ham).
   bool propagate = false;
   bool grow = true;        // step 7
+  bool edge_runs = true;   // step 8 (after step 7)
   // A spot with exactly two votes, both from exact windows (no repaired reading among its
   // votes), is named too, where `min_votes` asks for three: a spot next to a window cut by a
   // missing link, the image border or an edge has only two. With the epipolar check and without

@@ -371,7 +371,7 @@ struct RenderCommand {
 struct DecodeSweepCommand {
   std::string scenario, dir, projector;
   cellsim::SweepOptions sweep;
-  bool tolerant = false, propagate = false, no_grow = false, no_two_votes = false;
+  bool tolerant = false, propagate = false, no_grow = false, no_two_votes = false, no_edge_runs = false;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
     c->add_option("scenario", scenario, "scenario YAML file")->required();
@@ -404,6 +404,8 @@ struct DecodeSweepCommand {
     c->add_flag("--no-two-votes", no_two_votes,
                 "with --projector: a spot needs --min-votes windows even when its two votes are both exact");
     c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing");
+    c->add_flag("--no-edge-runs", no_edge_runs,
+                "with --projector: do not name the runs of foreshortened spots beyond an identified line (step 8)");
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")
@@ -420,6 +422,7 @@ struct DecodeSweepCommand {
     sweep.decoder.epipolar.propagate = propagate;
     sweep.decoder.epipolar.two_exact_votes = !no_two_votes;
     sweep.decoder.epipolar.grow = !no_grow;
+    sweep.decoder.epipolar.edge_runs = !no_edge_runs;
     if (!projector.empty()) sweep.projector = servo::load_projector_calibration(projector);
     return run_decode_sweep(scenario, sweep);
   }

@@ -1180,6 +1180,10 @@ constexpr double kRunFollow = 0.35;
 // consecutive candidates a run needs: each has the colour the pattern has there by chance one
 // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
 constexpr int kRunLength = 4;
+// a line beyond is foreshortened: its spots no larger than their sources (a larger blob there is
+// the wash of a surface behind, out of focus), and a run bridges one missing id at most
+constexpr double kRunLargest = 1.2;
+constexpr int kRunGaps = 1;
 }  // namespace
 
 std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
@@ -1222,55 +1226,70 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
       });
       if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || spots[found].colour != pattern.at(r, c) ||
           spots[found].strength < kGrowFaintest || spots[found].strength < kAlike * s.strength ||
-          spots[found].area_px > kGrowLargest * s.area_px || !check.confirms(found, {r, c}))
+          spots[found].area_px > kRunLargest * s.area_px || !check.confirms(found, {r, c}))
         continue;
       candidate[static_cast<std::size_t>(r) * pattern.cols + c] = found;
     }
-    // runs across k: consecutive ids (r + i pr, c + i pc), each with a candidate, whose offsets
-    // follow their sources'
-    const int pr = dc, pc = dr;  // the axis across k
+    // runs across k: ids along the line across k, each with a candidate, one missing at most
+    // between two, each candidate offset from the one before as their sources are
+    const int pr = std::abs(dc), pc = std::abs(dr);  // the axis across k
     const auto cand = [&](int r, int c) {
       return ids.inside(r, c) ? candidate[static_cast<std::size_t>(r) * pattern.cols + c] : -1;
     };
-    const auto follows = [&](int r, int c) {  // (r, c) and (r + pr, c + pc) both candidates
-      const int a = cand(r, c), b = cand(r + pr, c + pc);
-      const int sa = spot_at(r - dr, c - dc), sb = spot_at(r + pr - dr, c + pc - dc);
+    const auto follows = [&](const pattern::SpotId& x, const pattern::SpotId& y) {
+      const int a = cand(x.row, x.col), b = cand(y.row, y.col);
+      const int sa = spot_at(x.row - dr, x.col - dc), sb = spot_at(y.row - dr, y.col - dc);
       if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
       const double su = spots[sb].u - spots[sa].u, sv = spots[sb].v - spots[sa].v;
       const double eu = spots[b].u - spots[a].u - su, ev = spots[b].v - spots[a].v - sv;
       return eu * eu + ev * ev <= kRunFollow * kRunFollow * (su * su + sv * sv);
     };
-    for (int r = 0; r < pattern.rows; ++r)
-      for (int c = 0; c < pattern.cols; ++c) {
-        // a run starts where the one before does not continue into it
-        if (cand(r, c) < 0 || (ids.inside(r - pr, c - pc) && follows(r - pr, c - pc))) continue;
-        int length = 1;
-        while (follows(r + (length - 1) * pr, c + (length - 1) * pc)) ++length;
-        if (length < kRunLength) continue;
-        // no other placement of the whole run fits it as well: in the crowded columns at a
-        // silhouette the lattice shears, and the next column's spots, one row over, can sit
-        // where this run's ids are predicted (their colours and epipolar lines then fit the
-        // shifted ids, each of them)
-        bool another = false;
-        for (int orow = -1; orow <= 1 && !another; ++orow)
-          for (int ocol = -1; ocol <= 1 && !another; ++ocol) {
-            if (orow == 0 && ocol == 0) continue;
-            int fit = 0;
-            for (int i = 0; i < length; ++i) {
-              const int rr = r + i * pr + orow, cc = c + i * pc + ocol, j = cand(r + i * pr, c + i * pc);
-              fit += ids.inside(rr, cc) && !ids.taken(rr, cc) && pattern.at(rr, cc) == spots[j].colour &&
-                     check.confirms(j, {rr, cc});
-            }
-            another = fit == length;
+    const auto take_run = [&](const std::vector<pattern::SpotId>& run) {
+      if (static_cast<int>(run.size()) < kRunLength) return;
+      // no other placement of the whole run fits it as well, taken ids or not: in the crowded
+      // columns at a silhouette the lattice shears, and at a depth edge the surface behind goes
+      // on, so that the next line's spots, one over, can sit where this run's ids are predicted
+      // (their colours and epipolar lines then fit the shifted ids, each of them)
+      for (int orow = -1; orow <= 1; ++orow)
+        for (int ocol = -1; ocol <= 1; ++ocol) {
+          if (orow == 0 && ocol == 0) continue;
+          std::size_t fit = 0;
+          for (const pattern::SpotId& x : run) {
+            const int rr = x.row + orow, cc = x.col + ocol, j = cand(x.row, x.col);
+            fit += ids.inside(rr, cc) && pattern.at(rr, cc) == spots[j].colour && check.confirms(j, {rr, cc});
           }
-        if (another) continue;
-        for (int i = 0; i < length; ++i) {
-          const int rr = r + i * pr, cc = c + i * pc, j = cand(rr, cc);
-          const int cell = rr * pattern.cols + cc;
-          claimed_by[j] = claimed_by[j] == -1 || claimed_by[j] == cell ? cell : -2;
-          added.push_back({rr, cc, spots[j].u, spots[j].v, j});
+          if (fit == run.size()) return;
         }
+      for (const pattern::SpotId& x : run) {
+        const int j = cand(x.row, x.col);
+        const int cell = x.row * pattern.cols + x.col;
+        claimed_by[j] = claimed_by[j] == -1 || claimed_by[j] == cell ? cell : -2;
+        added.push_back({x.row, x.col, spots[j].u, spots[j].v, j});
       }
+    };
+    const int lines = pr == 0 ? pattern.rows : pattern.cols, along = pr == 0 ? pattern.cols : pattern.rows;
+    std::vector<pattern::SpotId> run;
+    for (int line = 0; line < lines; ++line) {
+      run.clear();
+      int last = -10, gaps = 0;
+      for (int i = 0; i < along; ++i) {
+        const pattern::SpotId x = pr == 0 ? pattern::SpotId{line, i} : pattern::SpotId{i, line};
+        if (cand(x.row, x.col) < 0) continue;
+        // a gap is an id no spot has, its source beside the run's
+        const pattern::SpotId gap = pr == 0 ? pattern::SpotId{line, i - 1} : pattern::SpotId{i - 1, line};
+        const bool bridged = i - last == 1 || (i - last == 2 && gaps < kRunGaps && !ids.taken(gap.row, gap.col) &&
+                                               spot_at(gap.row - dr, gap.col - dc) >= 0);
+        if (!run.empty() && (!bridged || !follows(run.back(), x))) {
+          take_run(run);
+          run.clear();
+          gaps = 0;
+        }
+        if (!run.empty() && i - last == 2) ++gaps;
+        run.push_back(x);
+        last = i;
+      }
+      take_run(run);
+    }
   }
   // a blob two runs claim for two ids, or an id two runs give two blobs, is not named
   std::vector<int> cell_claims(cells, 0);

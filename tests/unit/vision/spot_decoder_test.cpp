@@ -312,6 +312,30 @@ TEST(Segmentation, ASpotGrazingTheBorderKeepsItsCentroidASpotCutByItIsTruncated)
   EXPECT_TRUE(at(65.0, 58.7).truncated);
 }
 
+// A spot seen edge-on at a silhouette: 1 px wide, 9 px tall (elongation 9) is a sliver, listed
+// after the spots; 15 px tall (15) is no spot at all; 1 x 5 (5) is a spot.
+TEST(Segmentation, ASpotSeenEdgeOnIsASliverListedLastALongerStreakIsNone) {
+  cv::Mat rgb(60, 80, CV_8UC3, cv::Scalar(0, 0, 0));
+  const auto streak = [&](int x, int y0, int y1) {
+    for (int y = y0; y <= y1; ++y) rgb.at<cv::Vec3b>(y, x) = cv::Vec3b(200, 0, 0);
+  };
+  streak(10, 5, 13);   // the sliver
+  paint_spot(rgb, 40.0, 30.0);
+  streak(60, 10, 24);  // a streak
+  streak(70, 40, 44);
+  const Segmentation seg = segment_spots(rgb);
+  ASSERT_EQ(seg.spots.size(), 3u);
+  EXPECT_FALSE(seg.spots[0].sliver);
+  EXPECT_FALSE(seg.spots[1].sliver);
+  EXPECT_TRUE(seg.spots[2].sliver);
+  EXPECT_NEAR(seg.spots[2].u, 10.0, 1e-9);
+  EXPECT_NEAR(seg.spots[2].v, 9.0, 1e-9);
+  EXPECT_EQ(seg.rejected, 1);
+  // the decoder without a calibration sets slivers aside: they never reach its graph
+  const SpotDecoder decoder(table());
+  EXPECT_EQ(decoder.decode(rgb).detected.size(), 2u);
+}
+
 TEST(DecodingConsistency, TwoExactVotesNameASpotWhenAskedRepairedOrDisagreeingOnesDoNot) {
   const std::vector<Spot> spots(6);
   const pattern::SpotId a{4, 4}, b{4, 5}, c{4, 6}, d{4, 7}, e{4, 8};

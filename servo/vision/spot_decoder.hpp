@@ -10,6 +10,8 @@
 //                                  default: EpipolarOptions::propagate)
 //   7. grow_lattice:               and to the spots where the identified lattice predicts
 //                                  them, links or none
+//   8. name_edge_runs:             the foreshortened line beyond an identified one (slivers at
+//                                  a silhouette), named as a run
 // SpotDecoder runs them in order.
 #pragma once
 

@@ -1109,6 +1109,9 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || !alike(spots[from.spot], spots[found]) ||
               spots[found].area_px > kGrowLargest * spots[from.spot].area_px)
             continue;
+          // a claim the blob cannot carry (another colour, off the id's epipolar line) is no
+          // claim: across a depth edge a source's steps reach onto the other surface's spots
+          if (!(pattern.at(r, c) == spots[found].colour && check.confirms(found, {r, c}))) continue;
           claims[i].push_back({found, {r, c}, dr == 0 || dc == 0});
         }
       for (const Claim& claim : claims[i]) {

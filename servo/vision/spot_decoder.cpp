@@ -1017,6 +1017,16 @@ constexpr int kGrowMajority = 2;
 // behind's spot, never one within 0.12. +0.3 points of the ham's readable spots, +0.5 of the
 // cylinder's, the same wrong ids in 32 calibrated sweeps of 1000 poses.
 constexpr double kGrowTightSlack = 0.12;
+// Or when the row or column neighbour's step lands on the blob's line (within 0.08 of a step
+// aside) at 0.85-1.2 of its length, the corner's within kGrowSlack: towards a silhouette the
+// surface turns away and the last step shrinks or stretches along itself (the ham's first and
+// last columns), and the corner's prediction, two steps, drifts by 0.2-0.4. Along a row the
+// epipolar line cannot tell a column from another, so the blob of the surface behind can lie on
+// the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the step,
+// 0.45 as strong as its sources. A spot named one short is at least half as strong as them.
+// +0.2 points of the ham's readable spots, the same wrong ids in 32 calibrated sweeps.
+constexpr double kGrowOnLineAside = 0.08, kGrowOnLineShortest = 0.85, kGrowOnLineLongest = 1.2;
+constexpr double kGrowOneShortDimmest = 0.5;
 }  // namespace
 
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
@@ -1056,6 +1066,9 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
     int sources = 0, direct = 0;
     double strength = 0, area = 0;  // the sources' sums
     double off = 0;                 // the farthest a source's prediction lies, in its steps
+    // the row or column neighbour's claim: how far along its step the blob lies (1: where
+    // predicted) and how far aside; and the farthest a corner's prediction lies (in steps)
+    double along = 0, aside = 0, corner_off = 0;
   };
   struct Proposal {
     Claims first, second;
@@ -1071,7 +1084,8 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
     int spot;
     pattern::SpotId id;
     bool direct;
-    double off;  // from the prediction, in steps
+    double off;           // from the prediction, in steps
+    double along, aside;  // the blob's offset from the source, in the predicted displacement
   };
   std::vector<std::vector<Claim>> claims;
   std::vector<char> active;
@@ -1121,7 +1135,11 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           // a claim the blob cannot carry (another colour, off the id's epipolar line) is no
           // claim: across a depth edge a source's steps reach onto the other surface's spots
           if (!(pattern.at(r, c) == spots[found].colour && check.confirms(found, {r, c}))) continue;
-          claims[i].push_back({found, {r, c}, dr == 0 || dc == 0, std::sqrt(best / step2)});
+          const double xu = pu - spots[from.spot].u, xv = pv - spots[from.spot].v;
+          const double bu = spots[found].u - spots[from.spot].u, bv = spots[found].v - spots[from.spot].v;
+          const double x2 = xu * xu + xv * xv;
+          claims[i].push_back({found, {r, c}, dr == 0 || dc == 0, std::sqrt(best / step2), (bu * xu + bv * xv) / x2,
+                               std::abs(bu * xv - bv * xu) / x2});
         }
       for (const Claim& claim : claims[i]) {
         Proposal& p = proposals[claim.spot];
@@ -1136,6 +1154,10 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
         ++to->sources;
         to->direct += claim.direct;
         to->off = std::max(to->off, claim.off);
+        if (claim.direct)
+          to->along = claim.along, to->aside = claim.aside;
+        else
+          to->corner_off = std::max(to->corner_off, claim.off);
         to->strength += spots[from.spot].strength, to->area += spots[from.spot].area_px;
       }
     }
@@ -1147,12 +1169,15 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
         continue;
       const Claims& p = pr.first;
       if (p.direct < 1) continue;
-      const bool one_short = p.sources >= 2 && p.sources + 1 == min_sources && p.off <= kGrowTightSlack;
+      const bool on_line = p.direct == 1 && p.aside <= kGrowOnLineAside && p.along >= kGrowOnLineShortest &&
+                           p.along <= kGrowOnLineLongest && p.corner_off <= kGrowSlack;
+      const bool one_short = p.sources < min_sources && p.sources >= 2 && p.sources + 1 == min_sources &&
+                             (p.off <= kGrowTightSlack || on_line);
       if (p.sources < min_sources && !one_short) continue;
       if (p.direct == 1 || one_short) {
         const Spot& x = spots[j];
         const double strength = p.strength / p.sources, area = p.area / p.sources;
-        if (x.strength < kGrowDimmest * strength || x.area_px < kGrowAreaBelow * area ||
+        if (x.strength < (one_short ? kGrowOneShortDimmest : kGrowDimmest) * strength || x.area_px < kGrowAreaBelow * area ||
             x.area_px > kGrowAreaAbove * area || x.area_px < kGrowSmallestPx || x.strength < kGrowFaintest)
           continue;
       }

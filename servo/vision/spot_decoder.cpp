@@ -1027,6 +1027,13 @@ constexpr double kGrowTightSlack = 0.12;
 // +0.2 points of the ham's readable spots, the same wrong ids in 32 calibrated sweeps.
 constexpr double kGrowOnLineAside = 0.08, kGrowOnLineShortest = 0.85, kGrowOnLineLongest = 1.2;
 constexpr double kGrowOneShortDimmest = 0.5;
+// A spot the lattice pins (three sources or more, two of them row or column neighbours, each
+// within kGrowTightSlack) needs no uniqueness among the ids around it: along a row the epipolar
+// lines coincide, so a row's neighbour of the same colour fits as well as the id itself one time
+// in three, and such spots were refused however many sources agreed (the table at the
+// pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots, 64.8 -> 65.4 %
+// of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
+constexpr int kGrowPinnedSources = 3;
 }  // namespace
 
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
@@ -1182,8 +1189,14 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           continue;
       }
       const int r = p.id.row, c = p.id.col;
+      // the lattice itself names the blob when three sources, two of them row or column
+      // neighbours, all land within kGrowTightSlack of it: then an id beside that the blob could
+      // also carry (its colour, on the same epipolar line, a row's neighbour mostly) would need
+      // every one of them off by a whole step
+      const bool pinned = p.sources >= kGrowPinnedSources && p.direct >= 2 && p.off <= kGrowTightSlack;
       if (ids.taken(r, c) ||
-          !only_fitting_id(spots, static_cast<int>(j), p.id, check, pattern, [&](int rr, int cc) { return ids.taken(rr, cc); }))
+          (!pinned && !only_fitting_id(spots, static_cast<int>(j), p.id, check, pattern,
+                                       [&](int rr, int cc) { return ids.taken(rr, cc); })))
         continue;
       decoded.push_back({r, c, spots[j].u, spots[j].v, static_cast<int>(j)});
       ids.add(decoded.back(), static_cast<int>(decoded.size()) - 1);

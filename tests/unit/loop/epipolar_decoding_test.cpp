@@ -317,6 +317,64 @@ TEST(EpipolarDecoding, TwoSourcesNameASpotOnlyWhereBothPredictionsLandOnIt) {
   for (const auto& d : grown) EXPECT_EQ(truth.at(d.spot), (pattern::SpotId{d.row, d.col})) << "spot " << d.spot;
 }
 
+// Along a row the epipolar lines coincide: the id beside a spot, when it has the spot's colour,
+// fits the blob as well as the spot's own id. Three sources or more, two of them row or column
+// neighbours, all within 0.12 of a step, pin the spot: it is named though the id beside it fits
+// too. Moved 0.2 of a step aside (still within the lattice's slack) it is not pinned, and the
+// id beside it leaves it unnamed.
+TEST(EpipolarDecoding, ALatticePinnedSpotIsNamedThoughTheIdBesideItFitsToo) {
+  const Frame f = render("plane", false);
+  const pattern::MArray& pat = f.cell->projector->pattern();
+  const std::vector<vision::Spot> spots =
+      vision::SpotDecoder(pattern::WindowTable(pat, {3, 3})).decode(f.rgb).detected;
+  std::map<std::pair<int, int>, int> spot_of;
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    if (const auto id = truth_at(f, spots[s].u, spots[s].v)) spot_of[{id->row, id->col}] = static_cast<int>(s);
+  // on the plane the rows' lines lie 3 px apart and more: a tolerance of 20 px makes the ids
+  // beside fit as they do where the lines coincide (the ham's rows, the table seen obliquely)
+  const vision::EpipolarGeometry g(intrinsics_of(*f.cell), calibration_of(*f.cell), f.wTc, 20.0);
+  const vision::EpipolarCheck all(g, spots);
+  // a spot (r, c) whose east neighbour's id has its colour and whose line passes it as well
+  int row = -1, col = -1;
+  for (int r = 4; r < 16 && row < 0; ++r)
+    for (int c = 4; c < 15 && row < 0; ++c) {
+      const auto it = spot_of.find({r, c});
+      if (it == spot_of.end()) continue;
+      for (int dr = -1; dr <= 1; ++dr)
+        if (pat.at(r, c) == pat.at(r + dr, c + 1) && all.confirms(it->second, {r + dr, c + 1})) row = r, col = c;
+    }
+  ASSERT_GE(row, 0) << "no spot with a same-coloured id east of it on its line";
+  // the block west of it and the spots north and south of it, seeded; the spot, alone beside them
+  const auto grow_alone = [&](const std::function<void(vision::Spot&)>& change) {
+    std::vector<vision::Spot> few;
+    std::vector<vision::DecodedSpot> seeds;
+    for (int r = row - 1; r <= row + 1; ++r)
+      for (int c = col - 3; c <= col; ++c) {
+        if (r == row && c == col) continue;
+        few.push_back(spots[static_cast<std::size_t>(spot_of.at({r, c}))]);
+        seeds.push_back({r, c, few.back().u, few.back().v, static_cast<int>(few.size()) - 1});
+      }
+    few.push_back(spots[static_cast<std::size_t>(spot_of.at({row, col}))]);
+    change(few.back());
+    const int x = static_cast<int>(few.size()) - 1;
+    vision::AdjacencyGraph graph = vision::build_adjacency(few);
+    const vision::EpipolarCheck check(g, few);
+    const auto grown = vision::grow_lattice(few, graph, check, pat, seeds, 3);
+    int named = 0;
+    for (const auto& d : grown)
+      if (d.spot == x) {
+        EXPECT_EQ((pattern::SpotId{d.row, d.col}), (pattern::SpotId{row, col}));
+        ++named;
+      }
+    return named == 1;
+  };
+  EXPECT_TRUE(grow_alone([](vision::Spot&) {}));
+  const vision::Spot& west = spots[static_cast<std::size_t>(spot_of.at({row, col - 1}))];
+  const double step = std::hypot(spots[static_cast<std::size_t>(spot_of.at({row, col}))].u - west.u,
+                                 spots[static_cast<std::size_t>(spot_of.at({row, col}))].v - west.v);
+  EXPECT_FALSE(grow_alone([&](vision::Spot& x) { x.v += 0.2 * step; }));
+}
+
 // A 2 x 2 block below the cut row is seeded one column off (a misread patch): its sources claim
 // the cut row's spots one column over, against the three or more right sources above. The
 // spots at the block's corners have one dissenting source and are outvoted at once; those above

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <tuple>
 
 namespace vision {
@@ -1034,6 +1035,30 @@ constexpr double kGrowOneShortDimmest = 0.5;
 // pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots, 64.8 -> 65.4 %
 // of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
 constexpr int kGrowPinnedSources = 3;
+
+// The spots on a grid whose cells are a lattice step wide (the median length of the graph's
+// links); none without a link.
+std::optional<SpatialGrid> lattice_grid(const std::vector<Spot>& spots, const AdjacencyGraph& graph) {
+  std::vector<double> lengths;
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    for (const int k : {kEast, kSouth})
+      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
+  if (lengths.empty()) return std::nullopt;
+  return SpatialGrid(spots, std::max(2.0, median(lengths)));
+}
+
+// Links two identified spots whose ids are neighbours, where both ends had none that way.
+template <class SpotAt>
+void link_identified_neighbours(const std::vector<DecodedSpot>& decoded, SpotAt&& spot_at, AdjacencyGraph& graph) {
+  for (const DecodedSpot& d : decoded)
+    for (int k = 0; k < 4; ++k) {
+      const int j = spot_at(d.row + kIdStep[k][0], d.col + kIdStep[k][1]);
+      if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
+        graph.next[d.spot][k] = j;
+        graph.next[j][(k + 2) % 4] = d.spot;
+      }
+    }
+}
 }  // namespace
 
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
@@ -1043,13 +1068,8 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
   if (decoded.empty() || n < 2) return decoded;
   IdMap ids(pattern, n, decoded);
   const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
-  // the grid's cells a lattice step wide: the median length of the graph's links
-  std::vector<double> lengths;
-  for (std::size_t s = 0; s < n; ++s)
-    for (const int k : {kEast, kSouth})
-      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
-  if (lengths.empty()) return decoded;
-  const SpatialGrid near(spots, std::max(2.0, median(lengths)));
+  const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
+  if (!near) return decoded;
   // The lattice step (dr, dc) at the identified spot (r, c), from identified spots only: ahead
   // of it, behind it, or beside it (the next row or column), the nearest first.
   const auto lattice_step = [&](int r, int c, int dr, int dc, double& vu, double& vv) {
@@ -1132,7 +1152,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           if (!known) continue;
           int found = -1;
           double best = kGrowSlack * kGrowSlack * step2;
-          near.around(pu, pv, 1, [&](int j) {
+          near->around(pu, pv, 1, [&](int j) {
             const double du = spots[j].u - pu, dv = spots[j].v - pv;
             if (du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
           });
@@ -1211,14 +1231,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
             active[ids.index_of(x)] = 1;
   }
   // the links the lattice found, where both ends had none in that direction
-  for (const DecodedSpot& d : decoded)
-    for (int k = 0; k < 4; ++k) {
-      const int j = spot_at(d.row + kIdStep[k][0], d.col + kIdStep[k][1]);
-      if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
-        graph.next[d.spot][k] = j;
-        graph.next[j][(k + 2) % 4] = d.spot;
-      }
-    }
+  link_identified_neighbours(decoded, spot_at, graph);
   return decoded;
 }
 
@@ -1247,12 +1260,8 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
   if (decoded.empty() || n < 2) return decoded;
   IdMap ids(pattern, n, decoded);
   const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
-  std::vector<double> lengths;
-  for (std::size_t s = 0; s < n; ++s)
-    for (const int k : {kEast, kSouth})
-      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
-  if (lengths.empty()) return decoded;
-  const SpatialGrid near(spots, std::max(2.0, median(lengths)));
+  const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
+  if (!near) return decoded;
   // per pattern cell, in direction k: the blob found beyond the identified spot one step back
   const std::size_t cells = static_cast<std::size_t>(pattern.rows) * pattern.cols;
   std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
@@ -1270,7 +1279,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
       if (step2 < 4.0) continue;
       int found = -1;
       double best = 1e300;
-      near.around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
+      near->around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
         const double du = spots[j].u - s.u, dv = spots[j].v - s.v;
         const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
         if (along < kRunNearest || along > kRunFarthest || aside > kRunAside) return;
@@ -1363,14 +1372,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
     if (named_here) (*named_here)[a.spot] = 1;
   }
   // their links to the line beside them, where both ends had none
-  for (const DecodedSpot& d : decoded)
-    for (int k = 0; k < 4; ++k) {
-      const int j = spot_at(d.row + kIdStep[k][0], d.col + kIdStep[k][1]);
-      if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
-        graph.next[d.spot][k] = j;
-        graph.next[j][(k + 2) % 4] = d.spot;
-      }
-    }
+  link_identified_neighbours(decoded, spot_at, graph);
   return decoded;
 }
 

@@ -1198,8 +1198,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
       if (p.direct < 1) continue;
       const bool on_line = p.direct == 1 && p.aside <= kGrowOnLineAside && p.along >= kGrowOnLineShortest &&
                            p.along <= kGrowOnLineLongest && p.corner_off <= kGrowSlack;
-      const bool one_short = p.sources < min_sources && p.sources >= 2 && p.sources + 1 == min_sources &&
-                             (p.off <= kGrowTightSlack || on_line);
+      const bool one_short = p.sources >= 2 && p.sources + 1 == min_sources && (p.off <= kGrowTightSlack || on_line);
       if (p.sources < min_sources && !one_short) continue;
       if (p.direct == 1 || one_short) {
         const Spot& x = spots[j];

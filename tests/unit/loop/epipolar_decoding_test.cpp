@@ -262,7 +262,7 @@ TEST(EpipolarDecoding, TheGrownLatticeNamesSpotsWhoseLinksAreMissingAndNoneWrong
 // At a silhouette only two identified spots may touch the next one: a row or column neighbour
 // and a corner. One source fewer than asked names it when both predictions land within 0.12 of
 // a step of the blob, or when it lies on the neighbour's step line at 0.85-1.2 of the step (the
-// last step foreshortened), and it looks like them. Farther along or aside (still within the
+// last step foreshortened or stretched), and it looks like them. Farther along or aside (still within the
 // three-source slack), half their size or 0.45 as strong, it stays unnamed. From a 2 x 2 block
 // the plane then grows whole.
 TEST(EpipolarDecoding, TwoSourcesNameASpotOnlyWhereBothPredictionsLandOnIt) {
@@ -299,9 +299,11 @@ TEST(EpipolarDecoding, TwoSourcesNameASpotOnlyWhereBothPredictionsLandOnIt) {
   EXPECT_TRUE(grow_alone([](vision::Spot&) {}));
   const vision::Spot& east = spots[static_cast<std::size_t>(spot_of.at({10, 10}))];
   const double step_u = east.u - spots[static_cast<std::size_t>(spot_of.at({10, 9}))].u;
-  EXPECT_TRUE(grow_alone([&](vision::Spot& x) { x.u += 0.14 * step_u; }));   // foreshortened
+  // on the step's line, 1.16 of the step: beyond the tight slack, within 0.85-1.2 (the middle
+  // of the band this frame names, -0.19 to +0.15 of a step, with the same margin either side)
+  EXPECT_TRUE(grow_alone([&](vision::Spot& x) { x.u -= 0.16 * step_u; }));
   EXPECT_FALSE(grow_alone([&](vision::Spot& x) { x.u -= 0.3 * step_u; }));  // stretched too far
-  EXPECT_FALSE(grow_alone([&](vision::Spot& x) { x.v += 0.14 * step_u; }));  // aside
+  EXPECT_FALSE(grow_alone([&](vision::Spot& x) { x.v += 0.2 * step_u; }));  // aside
   EXPECT_FALSE(grow_alone([](vision::Spot& x) { x.area_px /= 2; }));
   EXPECT_FALSE(grow_alone([](vision::Spot& x) { x.strength *= 0.45F; }));
   // all the spots: from the block over the plane, none wrong

@@ -1,5 +1,6 @@
 #include "servo/app/servo_replay.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -25,7 +26,6 @@ namespace {
 // One twist, recorded or replayed, with the servo's words on it.
 struct TwistAt {
   Stamp stamp;
-  std::uint64_t log_ns = 0;  // recorded: when the recorder received it
   control::Vector6d twist = control::Vector6d::Zero();
   int state = 0;
   double error_norm = 0;
@@ -67,7 +67,7 @@ class Replay {
     machine_ = std::make_unique<ServoStateMachine>(make_pipeline(o.pattern, o.config, o.reference),
                                                    ServoTiming{o.lost_ms / 1e3, o.autostart});
     const ServoReply ready = machine_->ready();
-    ready_ = TwistAt{ready.stamp, 0, ready.twist, static_cast<int>(ready.state), 0, 0};
+    ready_ = TwistAt{ready.stamp, ready.twist, static_cast<int>(ready.state), 0, 0};
   }
 
   void on_message(const mcap::Channel& c, const mcap::MessageView& m) {
@@ -77,7 +77,7 @@ class Replay {
     const std::string& file = o_.recording.string();
     if (is_topic(c.topic, cell_dds::kImageTopic)) {
       const auto img = decode<sensor_msgs::msg::dds_::Image_PubSubType>(c, m, file);
-      if (images_++ == 0) first_image_ns_ = m.log_time_ns;
+      ++images_;
       const ServoReply r = machine_->on_image(image_view(img), now);
       if (r.answer) replayed(r);
     } else if (is_topic(c.topic, cell_dds::kCameraInfoTopic)) {
@@ -94,7 +94,6 @@ class Replay {
       const auto t = decode<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(c, m, file);
       TwistAt r;
       r.stamp = to_stamp(t.header().stamp());
-      r.log_ns = m.log_time_ns;
       const auto& l = t.twist().linear();
       const auto& a = t.twist().angular();
       r.twist << l.x(), l.y(), l.z(), a.x(), a.y(), a.z();
@@ -107,11 +106,16 @@ class Replay {
     res.images = images_;
     // replayed twists by stamp, in order (a republished frame is answered again)
     std::map<std::pair<std::int32_t, std::uint32_t>, std::deque<TwistAt>> by_stamp;
-    // the servo's "ready" twist is in the recording when the recorder heard it before any
-    // frame was answered (cellsim started first)
-    if (!recorded_.empty() && (images_ == 0 || recorded_.front().log_ns < first_image_ns_))
-      by_stamp[{ready_.stamp.sec, ready_.stamp.nanosec}].push_back(ready_);
     for (const auto& r : replayed_) by_stamp[{r.stamp.sec, r.stamp.nanosec}].push_back(r);
+    // The servo's "ready" twist is in the recording only when the recorder had matched the
+    // servo's writer as it started, and it may be heard before or after the first frame
+    // went out (the two processes race). So it is counted, not timed: the recording holds it
+    // when it holds one twist more with the ready stamp than the replay answered frames with.
+    auto& at_ready = by_stamp[{ready_.stamp.sec, ready_.stamp.nanosec}];
+    const auto recorded_at_ready = std::count_if(recorded_.begin(), recorded_.end(), [&](const TwistAt& r) {
+      return r.stamp.sec == ready_.stamp.sec && r.stamp.nanosec == ready_.stamp.nanosec;
+    });
+    if (recorded_at_ready > static_cast<long>(at_ready.size())) at_ready.push_front(ready_);
     std::ofstream csv;
     if (!o_.output.empty()) {
       std::filesystem::create_directories(o_.output);
@@ -157,14 +161,13 @@ class Replay {
 
  private:
   void replayed(const ServoReply& r) {
-    replayed_.push_back({r.stamp, 0, r.twist, static_cast<int>(r.state), r.error_norm, r.decoded});
+    replayed_.push_back({r.stamp, r.twist, static_cast<int>(r.state), r.error_norm, r.decoded});
   }
 
   const ReplayOptions& o_;
   std::unique_ptr<ServoStateMachine> machine_;
   std::optional<std::uint64_t> t0_;
   long images_ = 0;
-  std::uint64_t first_image_ns_ = 0;
   TwistAt ready_;
   std::vector<TwistAt> recorded_, replayed_;
 };

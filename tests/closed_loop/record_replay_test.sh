@@ -41,8 +41,18 @@ grep -q "servo replay: .*every one identical bit for bit; 0 recorded twists not 
 [ -s "$run/replay/replay.csv" ] && [ -s "$run/replay/replay.png" ] || fail "no replay.csv and replay.png"
 grep 'servo replay: .*compared' "$tmp/demo.log"
 
-# another configuration commands otherwise, on the same frames
+# the two services race at start-up: the servo's "ready" twist may be heard before the first
+# frame, after it, or not at all. The recording with it heard after the first frame (moved
+# there, or added) replays bit for bit too.
+out=$(node "$src/tests/interop/mcap/ready_after_first_frame.mjs" "$build/mcap-check" "$mcap" "$tmp/ready_late.mcap") ||
+  fail "ready_after_first_frame.mjs: $out"
 pattern="$src/servo/pattern/data/marray_20x20_k3_w3.txt"
+out=$("$bin/servo" replay "$tmp/ready_late.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical) ||
+  fail "a recording with the ready twist heard after the first frame does not replay bit for bit: $out"
+grep -q "0 recorded twists not answered, 0 replayed twists not recorded" <<<"$out" || fail "ready twist heard late: $out"
+echo "replay: the ready twist heard after the first frame: $out"
+
+# another configuration commands otherwise, on the same frames
 out=$("$bin/servo" replay "$mcap" --pattern "$pattern" --z-hat 0.6 --robust huber -o "$tmp/other" --no-plot) ||
   fail "servo replay --z-hat 0.6: $out"
 grep -q "compared: [0-9]* differ, max |difference| [0-9.e-]*" <<<"$out" || fail "a replay with --z-hat 0.6 differs in nothing: $out"

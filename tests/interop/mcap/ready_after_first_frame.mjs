@@ -1,0 +1,81 @@
+// Rewrites a recorded bin/demo run as the other order of a race the two services run at
+// start-up: the servo's "ready" twist (stamp 0, zero twist), sent as the servo starts, heard
+// by cellsim's recorder only after the first frame went out. A recording that holds it
+// elsewhere has it moved; one without it (the servo started first, before the recorder
+// listened) gets one, made from the first recorded twist's bytes with its stamp and twist
+// zeroed. `servo replay --expect-identical` must reproduce that recording too.
+//
+//   node ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap
+import { createRequire } from "node:module";
+import { readFileSync, writeFileSync } from "node:fs";
+import path from "node:path";
+
+const [modulesDir, input, output] = process.argv.slice(2);
+if (!modulesDir || !input || !output) {
+  console.error("usage: ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap");
+  process.exit(2);
+}
+const require = createRequire(path.resolve(modulesDir, "package.json"));
+const { McapStreamReader, McapWriter } = require("@mcap/core");
+function fail(what) {
+  console.error(`ready_after_first_frame: ${input}: ${what}`);
+  process.exit(1);
+}
+
+const stream = new McapStreamReader({ validateCrcs: true });
+stream.append(new Uint8Array(readFileSync(input)));
+let header;
+const schemas = [], channels = [], messages = [];
+for (let r; (r = stream.nextRecord()); ) {
+  if (r.type === "Header") header = r;
+  else if (r.type === "Schema") schemas.push(r);
+  else if (r.type === "Channel") channels.push(r);
+  else if (r.type === "Message") messages.push(r);
+}
+if (!header) fail("no header");
+const topicOf = new Map(channels.map((c) => [c.id, c.topic]));
+const isTwist = (m) => topicOf.get(m.channelId).endsWith("/servo/cmd_twist");
+const isImage = (m) => topicOf.get(m.channelId).endsWith("/camera/image_raw");
+// a TwistStamped and an Image in CDR: 4 bytes of encapsulation, then the stamp (sec, nanosec);
+// the twist's 6 doubles are its last 48 bytes
+const stampIsZero = (m) => m.data.subarray(4, 12).every((b) => b === 0);
+
+if (!messages.some(isImage)) fail("no image");
+const firstTwist = messages.findIndex(isTwist);
+if (firstTwist < 0) fail("no twist");
+// the first frame may carry stamp 0 too: the ready twist is the one stamp-0 twist more than
+// stamp-0 frames
+const zeroTwists = messages.filter((m) => isTwist(m) && stampIsZero(m)).length;
+const zeroImages = messages.filter((m) => isImage(m) && stampIsZero(m)).length;
+const synthesised = zeroTwists <= zeroImages;
+let ready;
+if (!synthesised) {
+  [ready] = messages.splice(messages.findIndex((m) => isTwist(m) && stampIsZero(m)), 1);
+} else {
+  const data = new Uint8Array(messages[firstTwist].data);
+  data.fill(0, 4, 12);
+  data.fill(0, data.length - 48);
+  ready = { ...messages[firstTwist], data, sequence: 0 };
+}
+const at = messages.findIndex(isImage) + 1;
+ready = { ...ready, logTime: messages[at - 1].logTime + 1n, publishTime: messages[at - 1].logTime + 1n };
+messages.splice(at, 0, ready);
+
+const parts = [];
+let size = 0n;
+const writable = {
+  write: async (b) => { parts.push(new Uint8Array(b)); size += BigInt(b.length); },
+  position: () => size,
+};
+const writer = new McapWriter({ writable, useChunks: true });
+await writer.start({ profile: header.profile, library: "ready_after_first_frame.mjs" });
+const schemaIds = new Map(), channelIds = new Map();
+for (const s of schemas) schemaIds.set(s.id, await writer.registerSchema({ name: s.name, encoding: s.encoding, data: s.data }));
+for (const c of channels)
+  channelIds.set(c.id, await writer.registerChannel({
+    topic: c.topic, messageEncoding: c.messageEncoding, schemaId: schemaIds.get(c.schemaId) ?? 0, metadata: c.metadata,
+  }));
+for (const m of messages) await writer.addMessage({ ...m, channelId: channelIds.get(m.channelId) });
+await writer.end();
+writeFileSync(output, Buffer.concat(parts));
+console.log(`ready twist ${synthesised ? "added" : "moved"} after the first frame (message ${at} of ${messages.length})`);

@@ -214,6 +214,18 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       }
       const F inv_h2 = L::mul(both, inv_zc);
       const F pu = L::mul(h0, inv_h2), pv = L::mul(h1, inv_h2);
+      // the projector's depth cell nearest to (u_p, v_p): beyond its window no spot reaches,
+      // and a point there takes the ambient light alone (most of a frame: the walls beside
+      // the beam), so its blur and returned light are not needed
+      const I x = L::addi(floor_int<L>(L::add(pu, L::set(0.5f))), L::seti(pd.offset_x));
+      const I y = L::addi(floor_int<L>(L::add(pv, L::set(0.5f))), L::seti(pd.offset_y));
+      const M inside = L::mand(L::mand(L::lei(L::seti(0), x), L::lei(x, L::seti(pd.width - 1))),
+                               L::mand(L::lei(L::seti(0), y), L::lei(y, L::seti(pd.height - 1))));
+      const M beam = L::mand(ok, inside);
+      if (!L::any(beam)) {
+        L::storei(lit_row + u, none);
+        continue;
+      }
       // the projector's defocus at z_p, with the camera pixel's own size on its plane
       const F outside = L::max(L::max(zero, L::sub(L::set(f.focus_near), zp)), L::sub(zp, L::set(f.focus_far)));
       const F blur = L::add(L::set(f.focused_blur), L::mul(L::set(f.defocus_per_m), outside));
@@ -230,12 +242,7 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       L::store(pv_row + u, pv);
       L::store(zp_row + u, zp);
       L::store(sigma_row + u, sigma);
-      // the projector's depth cell nearest to (u_p, v_p)
-      const I x = L::addi(floor_int<L>(L::add(pu, L::set(0.5f))), L::seti(pd.offset_x));
-      const I y = L::addi(floor_int<L>(L::add(pv, L::set(0.5f))), L::seti(pd.offset_y));
-      const M inside = L::mand(L::mand(L::lei(L::seti(0), x), L::lei(x, L::seti(pd.width - 1))),
-                               L::mand(L::lei(L::seti(0), y), L::lei(y, L::seti(pd.height - 1))));
-      L::storei(lit_row + u, L::seli(L::mand(ok, inside), L::addi(L::muli(y, L::seti(pd.width)), x), none));
+      L::storei(lit_row + u, L::seli(beam, L::addi(L::muli(y, L::seti(pd.width)), x), none));
     }
     // 3. shadows: again lookups independent of one another
     for (int u = 0; u < f.width; u += N) {

@@ -124,9 +124,31 @@ __attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int
 __attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const int* xa, const int* xb,
                                                                      const float* q0, float dq, std::int32_t id,
                                                                      DepthBuffer& out, std::vector<float>& sums) {
-  const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
-  if (len == 0) return;
   const __m512i ids = _mm512_set1_epi32(id);
+  int longest = 0;
+  for (int r = 0; r < 4; ++r) longest = std::max(longest, xb[r] - xa[r] + 1);
+  if (longest <= 0) return;
+  if (longest <= 16) {
+    // short spans (a tessellated surface's strips, 2-4 px): each row's running sums in one
+    // vector, lane k after k additions of dq (the same additions, one rounding each), with no
+    // buffer of sums in between
+    const __m512 step = _mm512_set1_ps(dq);
+    for (int r = 0; r < 4; ++r) {
+      const int n = xb[r] - xa[r] + 1;
+      if (n <= 0) continue;
+      __m512 qv = _mm512_set1_ps(q0[r]);
+      for (int j = 1; j < n; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
+      const std::size_t first = static_cast<std::size_t>(y + r - out.row0) * out.width + xa[r];
+      float* inv_depth = &out.inv_depth[first];
+      const __mmask16 in = static_cast<__mmask16>((1u << n) - 1);
+      const __m512 dv = _mm512_maskz_loadu_ps(in, inv_depth);
+      const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
+      _mm512_mask_storeu_ps(inv_depth, nearer, qv);
+      _mm512_mask_storeu_epi32(&out.triangle[first], nearer, ids);
+    }
+    return;
+  }
+  const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
   for (int r = 0; r < 4; ++r) {
     const auto [sum, inv_depth, tri, n] = row_span(r, y, xa, xb, len, sums, out);
     for (int x = 0; x < n; x += 16) {

@@ -90,18 +90,28 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   lens.zcy = static_cast<float>(k.cy + m + 0.5);
   lens.zrow_lo.assign(static_cast<std::size_t>(k.height), zh);
   lens.zrow_hi.assign(static_cast<std::size_t>(k.height), -1);
+  lens.zcell.assign(padded, -1);
   for (int v = 0; v < k.height; ++v)
     for (int u = 0; u < k.width; ++u) {
       const std::size_t px = static_cast<std::size_t>(v) * k.width + u, at = static_cast<std::size_t>(v) * lens.stride + u;
       lens.ray_x[at] = rays[2 * px];
       lens.ray_y[at] = rays[2 * px + 1];
-      // the kernel's cell: the same single-precision multiply and add, then floor
+      // the single-precision multiply and add of the ray, then floor
       const float x = lens.ray_x[at] * lens.zfx + lens.zcx, y = lens.ray_y[at] * lens.zfy + lens.zcy;
       if (!(x >= 0 && x < zw && y >= 0 && y < zh)) continue;
       const int row = static_cast<int>(std::floor(y));
+      lens.zcell[at] = row * zw + static_cast<int>(std::floor(x));
       lens.zrow_lo[static_cast<std::size_t>(v)] = std::min(lens.zrow_lo[static_cast<std::size_t>(v)], row);
       lens.zrow_hi[static_cast<std::size_t>(v)] = std::max(lens.zrow_hi[static_cast<std::size_t>(v)], row);
     }
+  // sixteen pixels of a row look up cells of one or two z-buffer rows: usually one run
+  lens.zrun.assign(padded / 16, -1);
+  for (std::size_t g = 0; g < lens.zrun.size(); ++g) {
+    int lo = std::numeric_limits<int>::max(), hi = -1;
+    for (std::size_t j = 16 * g; j < 16 * g + 16; ++j)
+      if (lens.zcell[j] >= 0) lo = std::min(lo, lens.zcell[j]), hi = std::max(hi, lens.zcell[j]);
+    if (hi >= 0 && hi - lo < 32) lens.zrun[g] = lo;
+  }
   const pattern::MArray& pat = cell->projector->pattern();
   cell->spot_symbol.assign(pat.cells.size(), shading::kUnlitSymbol);
   for (int r = 0; r < pat.rows; ++r)

@@ -42,6 +42,10 @@ struct Cell {
     std::vector<float> ray_x, ray_y;
     float zfx = 0, zcx = 0, zfy = 0, zcy = 0;
     std::vector<int> zrow_lo, zrow_hi;  // per image row, the z-buffer rows its pixels look up (lo > hi: none)
+    // per pixel (stride x height), the z-buffer cell its ray looks up, -1: none (the kernel's
+    // floor(x zfx + zcx), floor(y zfy + zcy), computed once); per 16 pixels of a row
+    // (stride / 16 x height), the least of their cells when all lie within 32 of it, else -1
+    std::vector<std::int32_t> zcell, zrun;
   } lens;
   // each spot's pattern symbol, row-major; shading::kUnlitSymbol where the projector leaves it dark
   std::vector<std::int32_t> spot_symbol;

@@ -200,19 +200,20 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
   const Eigen::Vector3d C = world_T_camera.translation();
   const Eigen::Vector3d P = ps.world_T_projector.translation();
   const double focus_mid = 0.5 * (ps.focus_near_m + ps.focus_far_m);
-  out.assign(tris.normal_w.size() * shading::kTriangleFloats, 0.0f);
-  for (std::size_t i = 0; i < tris.normal_w.size(); ++i) {
-    float* rec = &out[i * shading::kTriangleFloats];
-    rec[shading::kAmbient] = static_cast<float>(cam.ambient) * tris.albedo[i];
+  const std::size_t n = tris.normal_w.size();
+  out.assign(n * shading::kTriangleFields, 0.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto rec = [&](int field) -> float& { return out[field * n + i]; };
+    rec(shading::kAmbient) = static_cast<float>(cam.ambient) * tris.albedo[i];
     const Eigen::Vector3d n_c = R.transpose() * tris.normal_w[i];
     const double o_c = tris.offset[i] - tris.normal_w[i].dot(C);  // plane n_c . X = o_c, camera frame
     // a plane through the camera's centre is seen edge-on: its ambient, no spot (G = 0)
     if (!(std::abs(o_c) > 1e-9)) continue;
     const Eigen::Vector3d g = n_c / o_c;
-    for (int k = 0; k < 3; ++k) rec[shading::kG0 + k] = static_cast<float>(g[k]);
+    for (int k = 0; k < 3; ++k) rec(shading::kG0 + k) = static_cast<float>(g[k]);
     // |n.L| is the projector's distance from the plane: the same for every point of it
     const double facing = std::abs(tris.normal_w[i].dot(P) - tris.offset[i]);
-    rec[shading::kReturn] = static_cast<float>(tris.albedo[i] * ps.brightness * facing * focus_mid * focus_mid);
+    rec(shading::kReturn) = static_cast<float>(tris.albedo[i] * ps.brightness * facing * focus_mid * focus_mid);
   }
 }
 
@@ -241,15 +242,12 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   f.width = k.width;
   f.height = k.height;
   f.stride = cell.lens.stride;
-  f.zfx = lens.zfx;
-  f.zcx = lens.zcx;
-  f.zfy = lens.zfy;
-  f.zcy = lens.zcy;
-  f.zw = k.width + 2 * cell.camera_margin_px;
-  f.zh = k.height + 2 * cell.camera_margin_px;
+  f.zcell = lens.zcell.data();
+  f.zrun = lens.zrun.data();
   f.ray_x = cell.lens.ray_x.data();
   f.ray_y = cell.lens.ray_y.data();
   f.triangles = s.triangles.data();
+  f.triangle_count = tris.normal_w.size();
   f.projector_depth = beam_view(cell, cell.beam_depth);
   if (scene.arm_projector_depth) {
     // the arm's depth over the same window: one cell index serves both

@@ -25,14 +25,15 @@
 
 namespace sim::shading {
 
-// A triangle's prepared numbers, kTriangleFloats floats each.
+// A triangle's prepared numbers: field k of triangle t at triangles[k * triangle_count + t]
+// (field by field: the lanes of a tessellated surface read neighbouring planes' numbers with
+// one permutation per field).
 enum TriangleField {
   kG0, kG1, kG2,  // s = G . d = 1 / z_c
   kAmbient,       // ambient light it returns (ambient x albedo)
   kReturn,        // K above
   kTriangleFields
 };
-constexpr int kTriangleFloats = 8;
 constexpr int kSymbolLut = 16;       // colour tables' entries; kUnlitSymbol has colour 0
 constexpr int kUnlitSymbol = 15;
 constexpr int kNoiseChunk = 64;      // pixels per noise run
@@ -54,16 +55,18 @@ struct Frame {
   int stride = 0;                      // width rounded up to a multiple of 16
   const float* ray_x = nullptr;        // stride x height: the pixel's ray (x, y, 1), camera frame
   const float* ray_y = nullptr;        // (NaN in the padding)
-  // the z-buffer cell a ray looks up: column floor(x zfx + zcx), row floor(y zfy + zcy), of
-  // zw x zh cells (Cell::Lens computes its bands' rows with the same operations)
-  float zfx = 0, zcx = 0, zfy = 0, zcy = 0;
-  int zw = 0, zh = 0;
+  // the z-buffer cell a ray looks up (column floor(x zfx + zcx), row floor(y zfy + zcy), of
+  // zw x zh cells), per pixel, -1: none; per 16 pixels, the least of their cells when all lie
+  // within 32 of it, else -1 (Cell::Lens)
+  const std::int32_t* zcell = nullptr;
+  const std::int32_t* zrun = nullptr;
   // the z-buffer: triangle per cell (-1: none), from cell `cell_base` of the whole buffer on
   // (a band of it), `cells` of them
   const std::int32_t* cell_triangle = nullptr;
   std::int64_t cell_base = 0;
   std::size_t cells = 0;
-  const float* triangles = nullptr;    // kTriangleFloats per triangle
+  const float* triangles = nullptr;    // kTriangleFields x triangle_count, field by field
+  std::size_t triangle_count = 0;
   // the projector
   DepthView projector_depth, arm_depth;  // arm_depth.inv_depth null: no arm in the beam
   float focused_blur = 0, defocus_per_m = 0, focus_near = 0, focus_far = 0;

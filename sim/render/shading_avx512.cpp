@@ -81,6 +81,15 @@ struct Lanes {
         [](I a, I at, I b) { return _mm512_permutex2var_epi32(a, at, b); },
         [](M k, I a, I b) { return _mm512_mask_blend_epi32(k, a, b); }, [&] { return gatheri(p, i, m); });
   }
+  // gatheri where the lanes' indices (those in m) are known to lie in [lo, lo + 32) (lo < 0:
+  // not known): two loads and a permutation, without looking for the run
+  static I gatheri_run(const std::int32_t* p, std::size_t size, I i, M m, std::int64_t lo) {
+    if (lo < 0 || static_cast<std::uint64_t>(lo) + 32 > size) return gatheri_near(p, size, i, m);
+    const __m512i at = _mm512_sub_epi32(i, _mm512_set1_epi32(static_cast<int>(lo)));
+    if (_mm512_mask_cmplt_epu32_mask(m, at, _mm512_set1_epi32(32)) != m) return gatheri_near(p, size, i, m);
+    const __m512i v = _mm512_permutex2var_epi32(_mm512_loadu_si512(p + lo), at, _mm512_loadu_si512(p + lo + 16));
+    return _mm512_mask_blend_epi32(m, _mm512_set1_epi32(-1), v);
+  }
   static I cvtt(F a) { return _mm512_cvttps_epi32(a); }
   static F cvt(I a) { return _mm512_cvtepi32_ps(a); }
   static I addi(I a, I b) { return _mm512_add_epi32(a, b); }

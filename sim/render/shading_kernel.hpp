@@ -7,7 +7,9 @@
 // L provides: N; F (floats), I (int32), M (lane masks); set, seti, load, loadi, store; add, sub,
 // mul, div, sqrt, max (a > b ? a : b), min (a < b ? a : b); lt, le, gt, eq (ordered), lei,
 // eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; gather (m ? p[i] : 0), gatheri
-// (m ? p[i] : -1); cvtt (truncation, INT_MIN outside int), cvt; addi, subi, muli, mini, maxi;
+// (m ? p[i] : -1), the same where the indices lie close together (gather_near, gatheri_near) or
+// in a run known to the caller (gatheri_run); cvtt (truncation, INT_MIN outside int), cvt;
+// addi, subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
 // lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved).
 #pragma once
@@ -130,6 +132,11 @@ inline typename L::M shadowed(const DepthView& d, const float* inv_depth, typena
   return L::mand(L::gt(q, L::set(0.0f)), L::gt(L::mul(z, q), limit));
 }
 
+// Distinct triangles broadcast to the lanes before the rest are read by gather_near: where
+// that is a permutation (AVX-512), after the first; where it is a gather, after four.
+template <class L>
+constexpr int kBroadcasts = L::N >= 16 ? 1 : 4;
+
 // The row buffers shade_rows works through (kRowArrays x Frame::stride values).
 enum RowArray { kRowTriangle, kRowPu, kRowPv, kRowZp, kRowSigma, kRowWeight, kRowAmbient, kRowLit };
 
@@ -161,13 +168,13 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
     // 1. the triangle behind each pixel (the z-buffer's band holds every cell these rows see)
     const I base = L::seti(static_cast<int>(f.cell_base));
     for (int u = 0; u < f.width; u += N) {
-      const I zu = floor_int<L>(L::add(L::mul(L::load(f.ray_x + first + u), L::set(f.zfx)), L::set(f.zcx)));
-      const I zv = floor_int<L>(L::add(L::mul(L::load(f.ray_y + first + u), L::set(f.zfy)), L::set(f.zcy)));
-      const M in_buffer = L::mand(L::mand(L::lei(L::seti(0), zu), L::lei(zu, L::seti(f.zw - 1))),
-                                  L::mand(L::lei(L::seti(0), zv), L::lei(zv, L::seti(f.zh - 1))));
-      const I cell = L::subi(L::addi(L::muli(zv, L::seti(f.zw)), zu), base);
-      const M seen = L::mand(in_buffer, L::mand(L::lei(L::seti(0), cell), L::lei(cell, L::seti(static_cast<int>(f.cells) - 1))));
-      L::storei(tri_row + u, L::gatheri_near(f.cell_triangle, f.cells, cell, seen));
+      const I at = L::loadi(f.zcell + first + u);
+      const I cell = L::subi(at, base);
+      const M seen = L::mand(L::mand(L::lei(L::seti(0), at), L::lei(L::seti(0), cell)),
+                             L::lei(cell, L::seti(static_cast<int>(f.cells) - 1)));
+      const int run = f.zrun[(first + u) / 16];
+      L::storei(tri_row + u, L::gatheri_run(f.cell_triangle, f.cells, cell, seen,
+                                            run < 0 ? -1 : run - static_cast<std::int64_t>(f.cell_base)));
     }
     // 2. the surface point: where it lies on the projector's plane, how blurred, what it returns
     for (int u = 0; u < f.width; u += N) {
@@ -178,22 +185,21 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         L::storei(lit_row + u, none);
         continue;
       }
-      // the lanes' triangles: each distinct one broadcast (a row of pixels crosses few)
+      // the lanes' triangles: each distinct one broadcast (a row of pixels crosses few), up
+      // to kBroadcasts of them; the rest read field by field (neighbouring planes of a
+      // tessellated surface lie in one run of ids: a permutation, not a gather, per field)
       F field[kTriangleFields];
       for (F& x : field) x = zero;
       M left = has;
-      for (int pass = 0; pass < 4 && L::any(left); ++pass) {
+      for (int pass = 0; pass < kBroadcasts<L> && L::any(left); ++pass) {
         const int t = L::lane(tri, L::first(left));
         const M same = L::mand(left, L::eqi(tri, L::seti(t)));
-        const float* rec = f.triangles + static_cast<std::size_t>(t) * kTriangleFloats;
-        for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(rec[k]), field[k]);
+        for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * f.triangle_count + t]), field[k]);
         left = L::mand(left, L::mnot(same));
       }
-      if (L::any(left)) {
-        const I base = L::muli(L::seli(left, tri, L::seti(0)), L::seti(kTriangleFloats));
+      if (L::any(left))
         for (int k = 0; k < kTriangleFields; ++k)
-          field[k] = L::sel(left, L::gather(f.triangles, L::addi(base, L::seti(k)), left), field[k]);
-      }
+          field[k] = L::sel(left, L::gather_near(f.triangles + k * f.triangle_count, f.triangle_count, tri, left), field[k]);
       const F dx = L::load(f.ray_x + first + u), dy = L::load(f.ray_y + first + u);
       const F inv_zc = L::add(L::add(L::mul(field[kG0], dx), L::mul(field[kG1], dy)), field[kG2]);
       const auto row_of = [&](int k) {

@@ -201,9 +201,14 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
   const Eigen::Vector3d P = ps.world_T_projector.translation();
   const double focus_mid = 0.5 * (ps.focus_near_m + ps.focus_far_m);
   const std::size_t n = tris.normal_w.size();
-  out.assign(n * shading::kTriangleFields, 0.0f);
+  const std::size_t stride = shading::triangle_stride(n);
+  out.assign(stride * shading::kTriangleFields, 0.0f);
+  // the z-buffer names each pixel's plane (its first triangle, SceneTriangles::plane_of): only
+  // those are ever read
+  const bool by_plane = tris.plane_of.size() == n;
   for (std::size_t i = 0; i < n; ++i) {
-    const auto rec = [&](int field) -> float& { return out[field * n + i]; };
+    if (by_plane && tris.plane_of[i] != static_cast<std::int32_t>(i)) continue;
+    const auto rec = [&](int field) -> float& { return out[field * stride + i]; };
     rec(shading::kAmbient) = static_cast<float>(cam.ambient) * tris.albedo[i];
     const Eigen::Vector3d n_c = R.transpose() * tris.normal_w[i];
     const double o_c = tris.offset[i] - tris.normal_w[i].dot(C);  // plane n_c . X = o_c, camera frame

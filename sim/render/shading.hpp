@@ -25,15 +25,18 @@
 
 namespace sim::shading {
 
-// A triangle's prepared numbers: field k of triangle t at triangles[k * triangle_count + t]
-// (field by field: the lanes of a tessellated surface read neighbouring planes' numbers with
-// one permutation per field).
+// A triangle's prepared numbers: field k of triangle t at triangles[k * triangle_stride(n) + t],
+// n triangles (field by field, each padded: the lanes of a tessellated surface read
+// neighbouring planes' numbers with two loads and one permutation per field).
 enum TriangleField {
   kG0, kG1, kG2,  // s = G . d = 1 / z_c
   kAmbient,       // ambient light it returns (ambient x albedo)
   kReturn,        // K above
   kTriangleFields
 };
+// a field's length for n triangles: 32 beyond the last, so that a run of 32 from any triangle
+// can be loaded
+constexpr std::size_t triangle_stride(std::size_t n) { return n + 32; }
 constexpr int kSymbolLut = 16;       // colour tables' entries; kUnlitSymbol has colour 0
 constexpr int kUnlitSymbol = 15;
 constexpr int kNoiseChunk = 64;      // pixels per noise run
@@ -65,7 +68,7 @@ struct Frame {
   const std::int32_t* cell_triangle = nullptr;
   std::int64_t cell_base = 0;
   std::size_t cells = 0;
-  const float* triangles = nullptr;    // kTriangleFields x triangle_count, field by field
+  const float* triangles = nullptr;    // kTriangleFields x triangle_stride(triangle_count)
   std::size_t triangle_count = 0;
   // the projector
   DepthView projector_depth, arm_depth;  // arm_depth.inv_depth null: no arm in the beam

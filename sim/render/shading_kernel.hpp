@@ -8,7 +8,8 @@
 // mul, div, sqrt, max (a > b ? a : b), min (a < b ? a : b); lt, le, gt, eq (ordered), lei,
 // eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; gather (m ? p[i] : 0), gatheri
 // (m ? p[i] : -1), the same where the indices lie close together (gather_near, gatheri_near) or
-// in a run known to the caller (gatheri_run); cvtt (truncation, INT_MIN outside int), cvt;
+// in a run known to the caller (gatheri_run); gather_fields (kTriangleFields arrays, `stride`
+// apart, each at least 32 past `size`: out[k] = m ? p[k stride + i] : out[k]); cvtt (truncation, INT_MIN outside int), cvt;
 // addi, subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
 // lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved).
@@ -160,6 +161,7 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
   // after the lookups, 0 (lit) or -1
   std::int32_t* const lit_row = reinterpret_cast<std::int32_t*>(scratch + kRowLit * stride);
   const DepthView& pd = f.projector_depth;
+  const std::size_t fields = triangle_stride(f.triangle_count);
   const int chunks = (f.stride + kNoiseChunk - 1) / kNoiseChunk;
   std::uint32_t offsets_buf[3 * 256];  // widths are bounded at load (Intrinsics: at most 4096)
   std::uint8_t bytes[3 * 16];
@@ -194,12 +196,10 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       for (int pass = 0; pass < kBroadcasts<L> && L::any(left); ++pass) {
         const int t = L::lane(tri, L::first(left));
         const M same = L::mand(left, L::eqi(tri, L::seti(t)));
-        for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * f.triangle_count + t]), field[k]);
+        for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * fields + t]), field[k]);
         left = L::mand(left, L::mnot(same));
       }
-      if (L::any(left))
-        for (int k = 0; k < kTriangleFields; ++k)
-          field[k] = L::sel(left, L::gather_near(f.triangles + k * f.triangle_count, f.triangle_count, tri, left), field[k]);
+      if (L::any(left)) L::gather_fields(f.triangles, f.triangle_count, fields, tri, left, field);
       const F dx = L::load(f.ray_x + first + u), dy = L::load(f.ray_y + first + u);
       const F inv_zc = L::add(L::add(L::mul(field[kG0], dx), L::mul(field[kG1], dy)), field[kG2]);
       const auto row_of = [&](int k) {

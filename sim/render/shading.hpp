@@ -101,7 +101,4 @@ void shade_rows_scalar(const Frame& f, int v0, int v1, std::uint8_t* image, std:
 void shade_rows_avx2(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch);
 void shade_rows_avx512(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch);
 
-// The noise run of (row, channel, chunk of kNoiseChunk pixels): an offset into the pool.
-std::uint32_t noise_offset(const Frame& f, int v, int channel, int chunk);
-
 }  // namespace sim::shading

@@ -29,6 +29,15 @@ inline std::uint64_t mix64(std::uint64_t z) {
   return z ^ (z >> 31);
 }
 
+// The noise run of (row, channel, chunk of kNoiseChunk pixels): an offset into the pool. Inline
+// in each path, so that a row's offsets are computed several at a time.
+inline std::uint32_t noise_offset(const Frame& f, int v, int channel, int chunk) {
+  const std::uint64_t key = (static_cast<std::uint64_t>(v) * 3 + static_cast<std::uint64_t>(channel)) * 65536u +
+                            static_cast<std::uint64_t>(chunk) + 1;
+  // the hash's top 32 bits scaled to [0, span) (a multiply, not a division)
+  return static_cast<std::uint32_t>(((mix64(f.noise_seed ^ (0x9E3779B97F4A7C15ull * key)) >> 32) * f.noise_span) >> 32);
+}
+
 // floor, as an int (exact for |x| < 2^31; INT_MIN beyond, and for NaN)
 template <class L>
 inline typename L::I floor_int(typename L::F x) {

@@ -77,13 +77,6 @@ struct Lanes {
 
 namespace sim::shading {
 
-std::uint32_t noise_offset(const Frame& f, int v, int channel, int chunk) {
-  const std::uint64_t key = (static_cast<std::uint64_t>(v) * 3 + static_cast<std::uint64_t>(channel)) * 65536u +
-                            static_cast<std::uint64_t>(chunk) + 1;
-  // the hash's top 32 bits scaled to [0, span) (a multiply, not a division)
-  return static_cast<std::uint32_t>(((mix64(f.noise_seed ^ (0x9E3779B97F4A7C15ull * key)) >> 32) * f.noise_span) >> 32);
-}
-
 void shade_rows_scalar(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch) {
   shade_rows<Lanes>(f, v0, v1, image, step, scratch);
 }

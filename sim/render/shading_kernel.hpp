@@ -130,7 +130,7 @@ inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typen
   }
 }
 
-// Lanes whose point the projector's depth `d` puts in shadow: its nearest surface at `at`
+// Lanes whose point the projector's depth `inv_depth` puts in shadow: its nearest surface at `at`
 // (1/z as q) lies before the point (at z) by more than 0.2 % and 2 mm: z q > 1 + 2e-3 + 2e-3 q.
 template <class L>
 inline typename L::M shadowed(const float* inv_depth, typename L::I at, typename L::F z, typename L::M m) {

@@ -90,19 +90,17 @@ struct Lanes {
     const __m512i v = _mm512_permutex2var_epi32(_mm512_loadu_si512(p + lo), at, _mm512_loadu_si512(p + lo + 16));
     return _mm512_mask_blend_epi32(m, _mm512_set1_epi32(-1), v);
   }
-  // the lanes of a tessellated surface name a few neighbouring planes: one run of 32 found
-  // once, then two loads and a permutation per field (the arrays run 32 past `size`)
-  static void gather_fields(const float* p, std::size_t size, std::size_t stride, I i, M m, F* out) {
+  // the lanes of a tessellated surface name a few neighbouring planes: one run of 32, then two
+  // loads and a permutation per field
+  static bool permute_fields(const float* p, std::size_t stride, I i, M m, F* out) {
     const int lo = _mm512_mask_reduce_min_epi32(m, i), hi = _mm512_mask_reduce_max_epi32(m, i);
-    if (lo < 0 || hi - lo >= 32 || static_cast<std::size_t>(hi) >= size) {
-      for (int k = 0; k < kTriangleFields; ++k) out[k] = sel(m, gather_near(p + k * stride, size, i, m), out[k]);
-      return;
-    }
+    if (lo < 0 || hi - lo >= 32) return false;
     const __m512i at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
     for (int k = 0; k < kTriangleFields; ++k) {
       const float* q = p + k * stride + lo;
       out[k] = _mm512_mask_blend_ps(m, out[k], _mm512_permutex2var_ps(_mm512_loadu_ps(q), at, _mm512_loadu_ps(q + 16)));
     }
+    return true;
   }
   static I cvtt(F a) { return _mm512_cvttps_epi32(a); }
   static F cvt(I a) { return _mm512_cvtepi32_ps(a); }

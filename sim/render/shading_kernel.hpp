@@ -8,8 +8,9 @@
 // mul, div, sqrt, max (a > b ? a : b), min (a < b ? a : b); lt, le, gt, eq (ordered), lei,
 // eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; gather (m ? p[i] : 0), gatheri
 // (m ? p[i] : -1), the same where the indices lie close together (gather_near, gatheri_near) or
-// in a run known to the caller (gatheri_run); gather_fields (kTriangleFields arrays, `stride`
-// apart, each at least 32 past `size`: out[k] = m ? p[k stride + i] : out[k]); cvtt (truncation, INT_MIN outside int), cvt;
+// in a run known to the caller (gatheri_run); permute_fields (where m's indices lie in one run
+// of 32 and the unit permutes: out[k] = m ? p[k stride + i] : out[k] for kTriangleFields arrays
+// `stride` apart, each readable 32 past the last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt;
 // addi, subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
 // lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved).
@@ -142,11 +143,6 @@ inline typename L::M shadowed(const float* inv_depth, typename L::I at, typename
   return L::mand(L::gt(q, L::set(0.0f)), L::gt(L::mul(z, q), limit));
 }
 
-// Distinct triangles broadcast to the lanes before the rest are read by gather_near: where
-// that is a permutation (AVX-512), after the first; where it is a gather, after four.
-template <class L>
-constexpr int kBroadcasts = L::N >= 16 ? 1 : 4;
-
 // The row buffers shade_rows works through (kRowArrays x Frame::stride values).
 enum RowArray { kRowTriangle, kRowPu, kRowPv, kRowZp, kRowSigma, kRowWeight, kRowAmbient, kRowLit };
 
@@ -196,19 +192,26 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         L::storei(lit_row + u, none);
         continue;
       }
-      // the lanes' triangles: each distinct one broadcast (a row of pixels crosses few), up
-      // to kBroadcasts of them; the rest read field by field (neighbouring planes of a
-      // tessellated surface lie in one run of ids: a permutation, not a gather, per field)
+      // the lanes' triangles: the first lane's broadcast (a wall covers whole rows); the
+      // others, on a tessellated surface, a few neighbouring planes whose ids lie in one run
+      // (two loads and a permutation per field, where the unit has them); else each distinct
+      // one broadcast (a row of pixels crosses few), up to four, then gathers
       F field[kTriangleFields];
       for (F& x : field) x = zero;
       M left = has;
-      for (int pass = 0; pass < kBroadcasts<L> && L::any(left); ++pass) {
+      const auto broadcast = [&] {
         const int t = L::lane(tri, L::first(left));
         const M same = L::mand(left, L::eqi(tri, L::seti(t)));
         for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * fields + t]), field[k]);
         left = L::mand(left, L::mnot(same));
+      };
+      broadcast();
+      if (L::any(left) && !L::permute_fields(f.triangles, fields, tri, left, field)) {
+        for (int pass = 1; pass < 4 && L::any(left); ++pass) broadcast();
+        if (L::any(left))
+          for (int k = 0; k < kTriangleFields; ++k)
+            field[k] = L::sel(left, L::gather(f.triangles + k * fields, tri, left), field[k]);
       }
-      if (L::any(left)) L::gather_fields(f.triangles, f.triangle_count, fields, tri, left, field);
       const F dx = L::load(f.ray_x + first + u), dy = L::load(f.ray_y + first + u);
       const F inv_zc = L::add(L::add(L::mul(field[kG0], dx), L::mul(field[kG1], dy)), field[kG2]);
       const auto row_of = [&](int k) {

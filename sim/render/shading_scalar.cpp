@@ -47,9 +47,7 @@ struct Lanes {
   static F gather_near(const float* p, std::size_t, I i, M m) { return gather(p, i, m); }
   static I gatheri_near(const std::int32_t* p, std::size_t, I i, M m) { return gatheri(p, i, m); }
   static I gatheri_run(const std::int32_t* p, std::size_t, I i, M m, std::int64_t) { return gatheri(p, i, m); }
-  static void gather_fields(const float* p, std::size_t size, std::size_t stride, I i, M m, F* out) {
-    for (int k = 0; k < kTriangleFields; ++k) out[k] = sel(m, gather_near(p + k * stride, size, i, m), out[k]);
-  }
+  static bool permute_fields(const float*, std::size_t, I, M, F*) { return false; }
   static I cvtt(F a) { return _mm_cvttss_si32(_mm_set_ss(a)); }
   static F cvt(I a) { return static_cast<float>(a); }
   // wrapping, as the vector units' integer lanes do

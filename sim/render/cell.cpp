@@ -13,6 +13,91 @@
 
 namespace sim {
 
+namespace {
+
+// Cell::never_shadowed. A plane P qualifies when, at every cell c of the beam window, P's 1/z
+// over c's +-0.51 px box (the kernel looks up the cell nearest to a point's projector
+// coordinates, computed in single precision) stays above 0, and the stored 1/z at c (the
+// nearest surface, as the kernel reads it) no more than 0.1 % above its least (1/z is affine
+// on the image, so least at a corner). Then any point X of P's plane that the kernel looks up
+// has z_X q_c <= 1.001, where it darkens only above 1.002 + 0.002 q_c: skipping the lookup
+// gives the same bytes, whatever the camera's pose. Only the planes that are the nearest
+// surface somewhere in the window can qualify (a wall facing the projector, with nothing
+// before it); each is checked row by row against the upper hull of the row's 1/z.
+std::vector<std::uint8_t> never_shadowed_planes(const SceneTriangles& tris, const Projector& proj, const DepthBuffer& d,
+                                                const RasterClip& w) {
+  const std::size_t n = tris.a.size();
+  std::vector<std::uint8_t> out(n, 0);
+  if (tris.plane_of.size() != n || w.x0 > w.x1 || w.y0 > w.y1 || d.margin != 0 ||
+      d.triangle.size() != d.inv_depth.size())
+    return out;
+  const Eigen::Isometry3d p_T_w = proj.projector_T_world();
+  const Intrinsics& k = proj.spec().intrinsics;
+  constexpr double kBox = 0.51, kSlack = 1e-3;
+  std::vector<std::uint8_t> candidate(n, 0);
+  for (int y = w.y0; y <= w.y1; ++y)
+    for (int x = w.x0; x <= w.x1; ++x) {
+      const std::int32_t t = d.triangle[static_cast<std::size_t>(y) * d.width + x];
+      if (t >= 0 && static_cast<std::size_t>(t) < n) candidate[static_cast<std::size_t>(tris.plane_of[t])] = 1;
+    }
+  // Per row of the window, the upper hull of (x, q_x / (1 + kSlack)): a plane's condition on a
+  // row, a x + row >= q_x / (1 + kSlack) for every x, holds when it holds at the hull's vertex
+  // that maximises q_x / (1 + kSlack) - a x (where the hull's edges' slopes pass a).
+  const int rows = w.y1 - w.y0 + 1;
+  std::vector<std::vector<int>> hull_x(static_cast<std::size_t>(rows));
+  std::vector<std::vector<double>> hull_q(static_cast<std::size_t>(rows));
+  for (int y = w.y0; y <= w.y1; ++y) {
+    auto& hx = hull_x[static_cast<std::size_t>(y - w.y0)];
+    auto& hq = hull_q[static_cast<std::size_t>(y - w.y0)];
+    for (int x = w.x0; x <= w.x1; ++x) {
+      const double q = d.inv_depth[static_cast<std::size_t>(y) * d.width + x] / (1 + kSlack);
+      // drop the last vertex while it lies on or below the line from the one before to this
+      while (hx.size() >= 2) {
+        const std::size_t m = hx.size();
+        const double cross = (hx[m - 1] - hx[m - 2]) * (q - hq[m - 2]) - (hq[m - 1] - hq[m - 2]) * (x - hx[m - 2]);
+        if (cross < 0) break;
+        hx.pop_back();
+        hq.pop_back();
+      }
+      hx.push_back(x);
+      hq.push_back(q);
+    }
+  }
+  const auto passes = [&](std::size_t plane) {
+    const Eigen::Vector3d n_p = p_T_w.linear() * tris.normal_w[plane];
+    const double o_p = tris.offset[plane] + n_p.dot(p_T_w.translation());  // n_p . X_p = o_p
+    if (!(std::abs(o_p) > 1e-9)) return false;
+    // 1/z of the plane on the projector's image: a x + b y + c
+    const double a = n_p.x() / (k.fx * o_p), b = n_p.y() / (k.fy * o_p);
+    const double c = (n_p.z() - n_p.x() * k.cx / k.fx - n_p.y() * k.cy / k.fy) / o_p;
+    const double reach = kBox * (std::abs(a) + std::abs(b));
+    // above 0 over the window: at its corners (affine)
+    for (const int y : {w.y0, w.y1})
+      for (const int x : {w.x0, w.x1})
+        if (!(a * x + b * y + c - reach > 0)) return false;
+    for (int y = w.y0; y <= w.y1; ++y) {
+      const auto& hx = hull_x[static_cast<std::size_t>(y - w.y0)];
+      const auto& hq = hull_q[static_cast<std::size_t>(y - w.y0)];
+      // the first vertex whose next edge's slope is at most a
+      std::size_t lo = 0, hi = hx.size() - 1;
+      while (lo < hi) {
+        const std::size_t mid = (lo + hi) / 2;
+        if (hq[mid + 1] - hq[mid] <= a * (hx[mid + 1] - hx[mid])) hi = mid;
+        else lo = mid + 1;
+      }
+      if (!(a * hx[lo] + b * y + c - reach >= hq[lo])) return false;
+    }
+    return true;
+  };
+  std::vector<std::uint8_t> plane_ok(n, 0);
+  for (std::size_t p = 0; p < n; ++p)
+    if (candidate[p]) plane_ok[p] = passes(p);
+  for (std::size_t i = 0; i < n; ++i) out[i] = plane_ok[static_cast<std::size_t>(tris.plane_of[i])];
+  return out;
+}
+
+}  // namespace
+
 std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   auto cell = std::make_unique<Cell>();
   cell->scenario = scenario;
@@ -60,6 +145,7 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
     w.x1 = std::min(d.width - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin);
     w.y1 = std::min(d.height - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin);
     cell->beam_depth = beam_window(d, w);
+    cell->never_shadowed = never_shadowed_planes(cell->triangles, *cell->projector, d, w);
   }
 
   // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it

@@ -28,6 +28,11 @@ struct Cell {
   // depth only there (a copy, `beam_depth`, small enough to stay in the core's cache).
   RasterClip beam;
   std::vector<float> beam_depth;
+  // Per static triangle, 1 where its plane is never in the static scene's shadow: at every
+  // cell of beam_depth, the nearest surface lies no more than 0.1 % before the plane, wherever
+  // in the cell's +-0.51 px box a point of the plane falls. The shading kernel's test could not
+  // darken a point of it, so the renderer skips that lookup (see never_shadowed_planes).
+  std::vector<std::uint8_t> never_shadowed;
   std::vector<SpotHit> spot_hits;
   double farthest_spot_m = 0;  // the farthest centre hit from the projector (bounds the blur)
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees

@@ -194,7 +194,7 @@ shading::DepthView beam_view(const Cell& cell, const std::vector<float>& window)
 
 // Each triangle's numbers of shading.hpp, for this camera pose (double precision, then float).
 void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen::Isometry3d& world_T_camera,
-                       const CameraSpec& cam, std::vector<float>& out) {
+                       const CameraSpec& cam, bool skip_unshadowed, std::vector<float>& out) {
   const ProjectorSpec& ps = cell.projector->spec();
   const Eigen::Matrix3d R = world_T_camera.linear();
   const Eigen::Vector3d C = world_T_camera.translation();
@@ -219,6 +219,8 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
     // |n.L| is the projector's distance from the plane: the same for every point of it
     const double facing = std::abs(tris.normal_w[i].dot(P) - tris.offset[i]);
     rec(shading::kReturn) = static_cast<float>(tris.albedo[i] * ps.brightness * facing * focus_mid * focus_mid);
+    // the static scene's planes (the arm's come after them) never in its shadow: -K
+    if (skip_unshadowed && i < cell.never_shadowed.size() && cell.never_shadowed[i]) rec(shading::kReturn) *= -1;
   }
 }
 
@@ -240,7 +242,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   // the z-buffer names each pixel's plane (SceneTriangles::plane_of): a row of pixels crosses
   // fewer of them than of triangles, and the kernel handles each distinct one in turn
   project_triangles(tris, 0, world_T_camera.inverse(), k, cell.camera_margin_px, true, s.screen, true);
-  prepare_triangles(cell, tris, world_T_camera, cam, s.triangles);
+  prepare_triangles(cell, tris, world_T_camera, cam, s.skip_unshadowed, s.triangles);
 
   const Cell::Lens& lens = cell.lens;
   shading::Frame f;

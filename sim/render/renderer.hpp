@@ -55,6 +55,9 @@ struct RenderScratch {
   bool scalar = false;
   // false: the AVX2 path even where the CPU has AVX-512 (the same bits again)
   bool avx512 = true;
+  // false: the projector's depth looked up for every lit point, also where Cell::unshadowed
+  // says no shadow can fall (the same bits: tests hold the two to each other)
+  bool skip_unshadowed = true;
   // 0: the rows are shared out over OpenCV's thread pool (as many threads as cv::setNumThreads
   // allows); 1: all on the calling thread (a campaign's runs, one thread each)
   int threads = 0;

@@ -31,7 +31,7 @@ namespace sim::shading {
 enum TriangleField {
   kG0, kG1, kG2,  // s = G . d = 1 / z_c
   kAmbient,       // ambient light it returns (ambient x albedo)
-  kReturn,        // K above
+  kReturn,        // K above; -K where the plane is never in the static scene's shadow
   kTriangleFields
 };
 // a field's length for n triangles: 32 beyond the last, so that a run of 32 from any triangle

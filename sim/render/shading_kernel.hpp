@@ -143,6 +143,10 @@ inline typename L::M shadowed(const float* inv_depth, typename L::I at, typename
   return L::mand(L::gt(q, L::set(0.0f)), L::gt(L::mul(z, q), limit));
 }
 
+// Added to a projector depth cell (fewer than 2^30) where the point's plane is never in the
+// static scene's shadow: the static lookup is skipped there.
+constexpr int kFreeCell = 1 << 30;
+
 // The row buffers shade_rows works through (kRowArrays x Frame::stride values).
 enum RowArray { kRowTriangle, kRowPu, kRowPv, kRowZp, kRowSigma, kRowWeight, kRowAmbient, kRowLit };
 
@@ -162,8 +166,9 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
   float* const sigma_row = scratch + kRowSigma * stride;
   float* const weight_row = scratch + kRowWeight * stride;
   float* const ambient_row = scratch + kRowAmbient * stride;
-  // per pixel: the projector depth's cell to look up, or -1 (no surface, or beyond the beam);
-  // after the lookups, 0 (lit) or -1
+  // per pixel: the projector depth's cell to look up (plus kFreeCell where the static scene
+  // casts no shadow on the point's plane), or -1 (no surface, or beyond the beam); after the
+  // lookups, 0 (lit) or -1
   std::int32_t* const lit_row = reinterpret_cast<std::int32_t*>(scratch + kRowLit * stride);
   const DepthView& pd = f.projector_depth;
   const std::size_t fields = triangle_stride(f.triangle_count);
@@ -255,20 +260,27 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       const F ly = L::sub(L::set(f.qy), L::mul(dy, zc));
       const F lz = L::sub(L::set(f.qz), zc);
       const F dist2 = L::add(L::add(L::mul(lx, lx), L::mul(ly, ly)), L::mul(lz, lz));
-      L::store(weight_row + u, L::div(field[kReturn], L::mul(dist2, L::sqrt(dist2))));
+      // K < 0: the plane is never in the static scene's shadow (Cell::never_shadowed), |K| its K
+      const M free = L::lt(field[kReturn], zero);
+      const F k_return = L::max(field[kReturn], L::sub(zero, field[kReturn]));
+      L::store(weight_row + u, L::div(k_return, L::mul(dist2, L::sqrt(dist2))));
       L::store(pu_row + u, pu);
       L::store(pv_row + u, pv);
       L::store(zp_row + u, zp);
       L::store(sigma_row + u, sigma);
-      L::storei(lit_row + u, L::seli(beam, L::addi(L::muli(y, L::seti(pd.width)), x), none));
+      const I at = L::addi(L::muli(y, L::seti(pd.width)), x);
+      L::storei(lit_row + u, L::seli(beam, L::seli(free, L::addi(at, L::seti(kFreeCell)), at), none));
     }
     // 3. shadows: again lookups independent of one another
     for (int u = 0; u < f.width; u += N) {
-      const I at = L::loadi(lit_row + u);
-      const M look = L::lei(L::seti(0), at);
+      const I marked = L::loadi(lit_row + u);
+      const M look = L::lei(L::seti(0), marked);
       if (!L::any(look)) continue;
+      const M free = L::lei(L::seti(kFreeCell), marked);
+      const I at = L::seli(free, L::subi(marked, L::seti(kFreeCell)), marked);
+      const M check = L::mand(look, L::mnot(free));
       const F zp = L::load(zp_row + u);
-      M dark = shadowed<L>(pd.inv_depth, at, zp, look);
+      M dark = L::any(check) ? shadowed<L>(pd.inv_depth, at, zp, check) : check;
       if (f.arm_depth.inv_depth) dark = L::mor(dark, shadowed<L>(f.arm_depth.inv_depth, at, zp, look));
       L::storei(lit_row + u, L::seli(L::mand(look, L::mnot(dark)), L::seti(0), none));
     }

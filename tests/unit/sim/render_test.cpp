@@ -8,6 +8,7 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <set>
 #include <random>
 
 #include "sim/geometry/se3.hpp"
@@ -385,6 +386,85 @@ TEST(Render, EveryVectorUnitAndThreadCountGivesTheScalarPathsBytes) {
       }
   });
   std::printf("%d frames equal to the scalar path's, byte for byte\n", frames);
+}
+
+// Cell::never_shadowed lets the kernel skip the shadow lookup on planes that nothing in the
+// static scene can darken. Skipping it must change no byte, on any frame: every render case,
+// and poses much farther out (surfaces seen at grazing angles, the arm anywhere), on the
+// scalar path and the widest vector unit.
+TEST(Render, SkippingTheLookupWhereNoShadowCanFallChangesNoByte) {
+  int frames = 0;
+  const auto same = [&](const Cell& cell, const Eigen::Isometry3d& camera, const LinkPoses& links,
+                        const CameraSpec* sensor, std::uint64_t seed, const std::string& what) {
+    for (const bool scalar : {false, true}) {
+      RenderScratch full, skip;
+      full.skip_unshadowed = false;
+      full.scalar = skip.scalar = scalar;
+      full.threads = skip.threads = 1;
+      const cv::Mat want = render_image(cell, camera, seed, &full, sensor, &links);
+      const cv::Mat got = render_image(cell, camera, seed, &skip, sensor, &links);
+      ASSERT_EQ(cv::norm(got, want, cv::NORM_INF), 0)
+          << what << (scalar ? " (scalar)" : "") << ": " << cv::countNonZero(cv::Mat(got != want).reshape(1))
+          << " bytes differ";
+      ++frames;
+    }
+  };
+  for_each_render_case([&](const RenderCase& c) {
+    same(**c.cell, c.camera, c.links, c.sensor, c.seed, c.scenario + " pose '" + c.pose + "'");
+  });
+  for (const char* name : {"plane", "cylinder", "ham", "cylinder_occlusion", "fig5"}) {
+    const auto cell = build_cell(load_scenario(kScenarios + name + ".yaml"));
+    const auto robot = make_robot(*cell);
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> cm(-40, 40), deg(-35, 35);
+    int posed = 0;
+    for (int attempt = 0; attempt < 60 && posed < 6; ++attempt) {
+      char pose[128];
+      std::snprintf(pose, sizeof pose, "%.3f %.3f %.3f %.3f %.3f %.3f", cm(rng), cm(rng), cm(rng), deg(rng), deg(rng),
+                    deg(rng));
+      try {
+        robot->reset(resolve_pose(cell->scenario, pose));
+      } catch (const std::exception&) {
+        continue;  // beyond the arm's reach, or in collision: another pose
+      }
+      same(*cell, robot->world_T_camera(), robot->world_T_links(), nullptr, 100 + posed, std::string(name) + " " + pose);
+      ++posed;
+    }
+    EXPECT_EQ(posed, 6) << name;
+  }
+  std::printf("%d frames the same with and without the skipped lookups\n", frames);
+}
+
+// Which planes qualify, among the triangles the projector sees inside the beam window (only
+// those are ever looked up): the plane scenario's wall (nothing before it); on the cylinder,
+// some of the cylinder's faces (those turned to the projector) and none of the wall behind it,
+// in whose shadow the cylinder stands.
+TEST(Render, OnlyPlanesNothingCanShadowSkipTheLookup) {
+  const auto count = [](const Cell& cell, const std::string& object) {
+    std::set<std::int32_t> seen;
+    const DepthBuffer& d = cell.projector_depth;
+    for (int y = cell.beam.y0; y <= cell.beam.y1; ++y)
+      for (int x = cell.beam.x0; x <= cell.beam.x1; ++x) seen.insert(d.triangle[static_cast<std::size_t>(y) * d.width + x]);
+    std::size_t flagged = 0, all = 0;
+    for (const std::int32_t i : seen)
+      if (i >= 0 && cell.object_names[static_cast<std::size_t>(cell.triangles.object[i])] == object) {
+        ++all;
+        flagged += cell.never_shadowed.at(static_cast<std::size_t>(i));
+      }
+    return std::make_pair(flagged, all);
+  };
+  const auto plane = build_cell(load_scenario(kScenarios + "plane.yaml"));
+  const auto wall = count(*plane, "wall");
+  EXPECT_GT(wall.second, 0u);
+  EXPECT_EQ(wall.first, wall.second);
+  const auto cylinder = build_cell(load_scenario(kScenarios + "cylinder.yaml"));
+  const auto faces = count(*cylinder, "elliptic_cylinder"), back = count(*cylinder, "back_wall");
+  EXPECT_GT(faces.first, faces.second / 4);
+  EXPECT_LT(faces.first, faces.second);  // not those the projector sees nearly edge-on
+  std::printf("plane: %zu of the wall's %zu triangles in the beam qualify; cylinder: %zu of %zu, back wall %zu of %zu\n",
+              wall.first, wall.second, faces.first, faces.second, back.first, back.second);
+  EXPECT_GT(back.second, 0u);
+  EXPECT_EQ(back.first, 0u);
 }
 
 // Issue 22 redefined the images in single precision, with spots found on the projector's grid

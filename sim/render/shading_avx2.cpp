@@ -47,8 +47,6 @@ struct Lanes {
   static I gatheri(const std::int32_t* p, I i, M m) {
     return _mm256_mask_i32gather_epi32(_mm256_set1_epi32(-1), reinterpret_cast<const int*>(p), i, m, 4);
   }
-  static F gather_near(const float* p, std::size_t, I i, M m) { return gather(p, i, m); }
-  static I gatheri_near(const std::int32_t* p, std::size_t, I i, M m) { return gatheri(p, i, m); }
   static I gatheri_run(const std::int32_t* p, std::size_t, I i, M m, std::int64_t) { return gatheri(p, i, m); }
   static bool permute_fields(const float*, std::size_t, I, M, F*) { return false; }
   static I cvtt(F a) { return _mm256_cvttps_epi32(a); }

@@ -42,51 +42,12 @@ struct Lanes {
   static I seli(M m, I a, I b) { return _mm512_mask_blend_epi32(m, b, a); }
   static F gather(const float* p, I i, M m) { return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), m, i, p, 4); }
   static I gatheri(const std::int32_t* p, I i, M m) { return _mm512_mask_i32gather_epi32(_mm512_set1_epi32(-1), m, i, p, 4); }
-  // A gather where the lanes' indices fall in up to three runs of 32 (a row of pixels reads
-  // along a row of a buffer, or across into the next): two loads and a permutation per run
-  // instead of sixteen loads. `size`: the buffer's length. The same values as gather.
-  template <class V, class Load, class Permute, class Blend, class Gather>
-  static V near(const void* p, std::size_t size, I i, M m, V none, Load load, Permute permute, Blend blend,
-                Gather fallback) {
-    if (!m) return none;
-    const char* base = static_cast<const char*>(p);
-    const auto run = [&](M lanes, M& covered, V& out) {
-      const int lo = _mm512_mask_reduce_min_epi32(lanes, i);
-      if (lo < 0 || static_cast<std::size_t>(lo) + 32 > size) return false;
-      const __m512i at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
-      covered = _mm512_mask_cmplt_epu32_mask(lanes, at, _mm512_set1_epi32(32));
-      out = blend(covered, out, permute(load(base + 4 * static_cast<std::size_t>(lo)), at,
-                                        load(base + 4 * (static_cast<std::size_t>(lo) + 16))));
-      return true;
-    };
-    V out = none;
-    M rest = m;
-    for (int k = 0; k < 3; ++k) {  // up to three runs; beyond, a gather is cheaper
-      M covered = 0;
-      if (!run(rest, covered, out)) return fallback();
-      rest = static_cast<M>(rest & ~covered);
-      if (!rest) return out;
-    }
-    return fallback();
-  }
-  static F gather_near(const float* p, std::size_t size, I i, M m) {
-    return near<F>(
-        p, size, i, m, _mm512_setzero_ps(), [](const char* a) { return _mm512_loadu_ps(a); },
-        [](F a, I at, F b) { return _mm512_permutex2var_ps(a, at, b); },
-        [](M k, F a, F b) { return _mm512_mask_blend_ps(k, a, b); }, [&] { return gather(p, i, m); });
-  }
-  static I gatheri_near(const std::int32_t* p, std::size_t size, I i, M m) {
-    return near<I>(
-        p, size, i, m, _mm512_set1_epi32(-1), [](const char* a) { return _mm512_loadu_si512(a); },
-        [](I a, I at, I b) { return _mm512_permutex2var_epi32(a, at, b); },
-        [](M k, I a, I b) { return _mm512_mask_blend_epi32(k, a, b); }, [&] { return gatheri(p, i, m); });
-  }
   // gatheri where the lanes' indices (those in m) are known to lie in [lo, lo + 32) (lo < 0:
-  // not known): two loads and a permutation, without looking for the run
+  // not known): two loads and a permutation (a pixel's cells, a lens's rows of 16)
   static I gatheri_run(const std::int32_t* p, std::size_t size, I i, M m, std::int64_t lo) {
-    if (lo < 0 || static_cast<std::uint64_t>(lo) + 32 > size) return gatheri_near(p, size, i, m);
+    if (lo < 0 || static_cast<std::uint64_t>(lo) + 32 > size) return gatheri(p, i, m);
     const __m512i at = _mm512_sub_epi32(i, _mm512_set1_epi32(static_cast<int>(lo)));
-    if (_mm512_mask_cmplt_epu32_mask(m, at, _mm512_set1_epi32(32)) != m) return gatheri_near(p, size, i, m);
+    if (_mm512_mask_cmplt_epu32_mask(m, at, _mm512_set1_epi32(32)) != m) return gatheri(p, i, m);
     const __m512i v = _mm512_permutex2var_epi32(_mm512_loadu_si512(p + lo), at, _mm512_loadu_si512(p + lo + 16));
     return _mm512_mask_blend_epi32(m, _mm512_set1_epi32(-1), v);
   }

@@ -7,11 +7,11 @@
 // L provides: N; F (floats), I (int32), M (lane masks); set, seti, load, loadi, store; add, sub,
 // mul, div, sqrt, max (a > b ? a : b), min (a < b ? a : b); lt, le, gt, eq (ordered), lei,
 // eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; gather (m ? p[i] : 0), gatheri
-// (m ? p[i] : -1), the same where the indices lie close together (gather_near, gatheri_near) or
-// in a run known to the caller (gatheri_run); permute_fields (where m's indices lie in one run
-// of 32 and the unit permutes: out[k] = m ? p[k stride + i] : out[k] for kTriangleFields arrays
-// `stride` apart, each readable 32 past the last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt;
-// addi, subi, muli, mini, maxi;
+// (m ? p[i] : -1), gatheri_run (the same, the indices in a run of 32 the caller knows);
+// permute_fields (where m's indices lie in one run of 32 and the unit permutes: out[k] =
+// m ? p[k stride + i] : out[k] for kTriangleFields arrays `stride` apart, each readable 32 past
+// the last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt; addi,
+// subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
 // lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved).
 #pragma once
@@ -135,9 +135,9 @@ inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typen
 // (1/z as q) lies before the point (at z) by more than 0.2 % and 2 mm: z q > 1 + 2e-3 + 2e-3 q.
 template <class L>
 inline typename L::M shadowed(const float* inv_depth, typename L::I at, typename L::F z, typename L::M m) {
-  // 0 where not looked up: nothing there. A gather, not gather_near: the lanes' cells spread
-  // over 1 to 4+ runs about equally on a curved surface, and the branches that look for the
-  // runs cost more than they save (measured: the cylinder's frame 4-8 % faster, the plane's the same)
+  // 0 where not looked up: nothing there. A gather, not a search for runs of 32: the lanes'
+  // cells spread over 1 to 4+ runs about equally on a curved surface, and the branches that
+  // looked for the runs cost more than they saved (the cylinder's frame 4-8 %)
   const typename L::F q = L::gather(inv_depth, at, m);
   const typename L::F limit = L::add(L::set(1.0f + 2e-3f), L::mul(L::set(2e-3f), q));
   return L::mand(L::gt(q, L::set(0.0f)), L::gt(L::mul(z, q), limit));

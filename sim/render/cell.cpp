@@ -170,10 +170,9 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   const std::size_t padded = static_cast<std::size_t>(lens.stride) * k.height;
   lens.ray_x.assign(padded, std::numeric_limits<float>::quiet_NaN());
   lens.ray_y.assign(padded, std::numeric_limits<float>::quiet_NaN());
-  lens.zfx = static_cast<float>(k.fx);
-  lens.zcx = static_cast<float>(k.cx + m + 0.5);
-  lens.zfy = static_cast<float>(k.fy);
-  lens.zcy = static_cast<float>(k.cy + m + 0.5);
+  // the ray to its z-buffer cell: a single-precision multiply and add, then floor
+  const float zfx = static_cast<float>(k.fx), zcx = static_cast<float>(k.cx + m + 0.5);
+  const float zfy = static_cast<float>(k.fy), zcy = static_cast<float>(k.cy + m + 0.5);
   lens.zrow_lo.assign(static_cast<std::size_t>(k.height), zh);
   lens.zrow_hi.assign(static_cast<std::size_t>(k.height), -1);
   lens.zcell.assign(padded, -1);
@@ -182,8 +181,7 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
       const std::size_t px = static_cast<std::size_t>(v) * k.width + u, at = static_cast<std::size_t>(v) * lens.stride + u;
       lens.ray_x[at] = rays[2 * px];
       lens.ray_y[at] = rays[2 * px + 1];
-      // the single-precision multiply and add of the ray, then floor
-      const float x = lens.ray_x[at] * lens.zfx + lens.zcx, y = lens.ray_y[at] * lens.zfy + lens.zcy;
+      const float x = lens.ray_x[at] * zfx + zcx, y = lens.ray_y[at] * zfy + zcy;
       if (!(x >= 0 && x < zw && y >= 0 && y < zh)) continue;
       const int row = static_cast<int>(std::floor(y));
       lens.zcell[at] = row * zw + static_cast<int>(std::floor(x));

@@ -36,20 +36,20 @@ struct Cell {
   std::vector<SpotHit> spot_hits;
   double farthest_spot_m = 0;  // the farthest centre hit from the projector (bounds the blur)
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees
-  // for each camera pixel, the z-buffer cell its ray passes through (-1: none): the lens is
-  // fixed, so this is computed once instead of per pixel and frame
+  // for each camera pixel, the z-buffer cell its ray passes through (-1: none), in double
+  // precision: the previous renderer's (tests/support/previous_renderer), kept as the baseline;
+  // the renderer reads Lens::zcell
   std::vector<std::int32_t> pixel_to_zbuffer;
   // the rays laid out for the shading kernel (shading.hpp): rows padded to `stride` pixels (a
-  // multiple of 16), x and y apart, NaN in the padding; the z-buffer cell of a ray is column
-  // floor(x zfx + zcx), row floor(y zfy + zcy) in single precision (the kernel's operations)
+  // multiple of 16), x and y apart, NaN in the padding
   struct Lens {
     int stride = 0;
     std::vector<float> ray_x, ray_y;
-    float zfx = 0, zcx = 0, zfy = 0, zcy = 0;
     std::vector<int> zrow_lo, zrow_hi;  // per image row, the z-buffer rows its pixels look up (lo > hi: none)
-    // per pixel (stride x height), the z-buffer cell its ray looks up, -1: none (the kernel's
-    // floor(x zfx + zcx), floor(y zfy + zcy), computed once); per 16 pixels of a row
-    // (stride / 16 x height), the least of their cells when all lie within 32 of it, else -1
+    // per pixel (stride x height), the z-buffer cell its ray looks up, -1: none: column
+    // floor(x fx + cx'), row floor(y fy + cy') in single precision, computed once; per 16
+    // pixels of a row (stride / 16 x height), the least of their cells when all lie within 32
+    // of it, else -1
     std::vector<std::int32_t> zcell, zrun;
   } lens;
   // each spot's pattern symbol, row-major; shading::kUnlitSymbol where the projector leaves it dark

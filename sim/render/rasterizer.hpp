@@ -50,7 +50,7 @@ struct DepthBuffer {
 
   // Nearest pixel. Runs per pixel: truncation of a shifted value is floor() for anything
   // above -kShift, where std::floor and std::lround are libm calls on baseline x86-64.
-  // (Camera pixels look their cell up in Cell::pixel_to_zbuffer, computed once with it.)
+  // (Camera pixels look their cell up in Cell::Lens::zcell, computed once per lens.)
   static constexpr double kShift = 1 << 20;
   static int nearest(double x) {
     // beyond +-1e9 (or NaN) no pixel is meant; the cast of such a value is undefined behaviour

@@ -58,9 +58,8 @@ struct Frame {
   int stride = 0;                      // width rounded up to a multiple of 16
   const float* ray_x = nullptr;        // stride x height: the pixel's ray (x, y, 1), camera frame
   const float* ray_y = nullptr;        // (NaN in the padding)
-  // the z-buffer cell a ray looks up (column floor(x zfx + zcx), row floor(y zfy + zcy), of
-  // zw x zh cells), per pixel, -1: none; per 16 pixels, the least of their cells when all lie
-  // within 32 of it, else -1 (Cell::Lens)
+  // the z-buffer cell each pixel's ray looks up, -1: none; per 16 pixels, the least of their
+  // cells when all lie within 32 of it, else -1 (Cell::Lens::zcell, zrun)
   const std::int32_t* zcell = nullptr;
   const std::int32_t* zrun = nullptr;
   // the z-buffer: triangle per cell (-1: none), from cell `cell_base` of the whole buffer on

@@ -47,6 +47,12 @@ struct Lanes {
   static I gatheri(const std::int32_t* p, I i, M m) {
     return _mm256_mask_i32gather_epi32(_mm256_set1_epi32(-1), reinterpret_cast<const int*>(p), i, m, 4);
   }
+  static void prefetch(const float* p, I i, M m) {
+    alignas(32) std::int32_t at[N];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(at), i);
+    for (unsigned b = static_cast<unsigned>(bits(m)); b != 0; b &= b - 1)
+      _mm_prefetch(reinterpret_cast<const char*>(p + at[__builtin_ctz(b)]), _MM_HINT_T0);
+  }
   static I gatheri_run(const std::int32_t* p, std::size_t, I i, M m, std::int64_t) { return gatheri(p, i, m); }
   static bool permute_fields(const float*, std::size_t, I, M, F*) { return false; }
   static I cvtt(F a) { return _mm256_cvttps_epi32(a); }

@@ -42,6 +42,12 @@ struct Lanes {
   static I seli(M m, I a, I b) { return _mm512_mask_blend_epi32(m, b, a); }
   static F gather(const float* p, I i, M m) { return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), m, i, p, 4); }
   static I gatheri(const std::int32_t* p, I i, M m) { return _mm512_mask_i32gather_epi32(_mm512_set1_epi32(-1), m, i, p, 4); }
+  // asks the cache for p[i] in the lanes of m, without waiting
+  static void prefetch(const float* p, I i, M m) {
+    alignas(64) std::int32_t at[N];
+    _mm512_store_si512(at, i);
+    for (unsigned b = m; b != 0; b &= b - 1) _mm_prefetch(reinterpret_cast<const char*>(p + at[__builtin_ctz(b)]), _MM_HINT_T0);
+  }
   // gatheri where the lanes' indices (those in m) are known to lie in [lo, lo + 32) (lo < 0:
   // not known): two loads and a permutation (a pixel's cells, a lens's rows of 16)
   static I gatheri_run(const std::int32_t* p, std::size_t size, I i, M m, std::int64_t lo) {

@@ -6,7 +6,8 @@
 //
 // L provides: N; F (floats), I (int32), M (lane masks); set, seti, load, loadi, store; add, sub,
 // mul, div, sqrt, max (a > b ? a : b), min (a < b ? a : b); lt, le, gt, eq (ordered), lei,
-// eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; gather (m ? p[i] : 0), gatheri
+// eqi; mand, mor, mnot, any, all; storei; sel (m ? a : b), seli; prefetch (p[i] of the lanes
+// in m asked of the cache, nothing waits); gather (m ? p[i] : 0), gatheri
 // (m ? p[i] : -1), gatheri_run (the same, the indices in a run of 32 the caller knows);
 // permute_fields (where m's indices lie in one run of 32 and the unit permutes: out[k] =
 // m ? p[k stride + i] : out[k] for kTriangleFields arrays `stride` apart, each readable 32 past
@@ -269,6 +270,11 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       L::store(zp_row + u, zp);
       L::store(sigma_row + u, sigma);
       const I at = L::addi(L::muli(y, L::seti(pd.width)), x);
+      // step 3 looks these cells up a row later: asked for now, they arrive meanwhile (the
+      // lookups of a curved surface's shadowed points wander over the projector's depth, and
+      // waiting for them was a fifth of the cylinder's frame)
+      L::prefetch(pd.inv_depth, at, L::mand(beam, L::mnot(free)));
+      if (f.arm_depth.inv_depth) L::prefetch(f.arm_depth.inv_depth, at, beam);
       L::storei(lit_row + u, L::seli(beam, L::seli(free, L::addi(at, L::seti(kFreeCell)), at), none));
     }
     // 3. shadows: again lookups independent of one another

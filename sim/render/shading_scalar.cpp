@@ -44,6 +44,7 @@ struct Lanes {
   static F gather(const float* p, I i, M m) { return m ? p[i] : 0.0f; }
   static I gatheri(const std::int32_t* p, I i, M m) { return m ? p[i] : -1; }
   // the vector units' conversions: INT_MIN for what does not fit (a C++ cast would be undefined)
+  static void prefetch(const float*, I, M) {}  // one lookup at a time: nothing to overlap
   static I gatheri_run(const std::int32_t* p, std::size_t, I i, M m, std::int64_t) { return gatheri(p, i, m); }
   static bool permute_fields(const float*, std::size_t, I, M, F*) { return false; }
   static I cvtt(F a) { return _mm_cvttss_si32(_mm_set_ss(a)); }

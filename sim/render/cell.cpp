@@ -24,6 +24,29 @@ namespace {
 // gives the same bytes, whatever the camera's pose. Only the planes that are the nearest
 // surface somewhere in the window can qualify (a wall facing the projector, with nothing
 // before it); each is checked row by row against the upper hull of the row's 1/z.
+// Cell::beam_gap: each triangle's image box on the projector's plane against beam_pixels.
+std::vector<float> beam_gaps(const SceneTriangles& tris, const Projector& proj, const RasterClip& w, int margin) {
+  std::vector<float> gap(tris.a.size(), 0.0f);
+  if (w.x0 > w.x1 || w.y0 > w.y1) return gap;
+  const Eigen::AlignedBox2d window = beam_pixels(w, margin);
+  const Eigen::Isometry3d p_T_w = proj.projector_T_world();
+  const Intrinsics& k = proj.spec().intrinsics;
+  for (std::size_t i = 0; i < tris.a.size(); ++i) {
+    Eigen::AlignedBox2d box;
+    bool behind = false;
+    for (const Eigen::Vector3d* v : {&tris.a[i], &tris.b[i], &tris.c[i]}) {
+      const Eigen::Vector3d x = p_T_w * *v;
+      if (!(x.z() > 1e-3)) behind = true;
+      box.extend(Eigen::Vector2d(k.fx * x.x() / x.z() + k.cx, k.fy * x.y() / x.z() + k.cy));
+    }
+    if (behind) continue;
+    const double away = std::max({window.min().x() - box.max().x(), box.min().x() - window.max().x(),
+                                  window.min().y() - box.max().y(), box.min().y() - window.max().y()});
+    if (away > 0 && away < 1e9) gap[i] = static_cast<float>(away);
+  }
+  return gap;
+}
+
 std::vector<std::uint8_t> never_shadowed_planes(const SceneTriangles& tris, const Projector& proj, const DepthBuffer& d,
                                                 const RasterClip& w) {
   const std::size_t n = tris.a.size();
@@ -146,6 +169,7 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
     w.y1 = std::min(d.height - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin);
     cell->beam_depth = beam_window(d, w);
     cell->never_shadowed = never_shadowed_planes(cell->triangles, *cell->projector, d, w);
+    cell->beam_gap = beam_gaps(cell->triangles, *cell->projector, w, d.margin);
   }
 
   // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it

@@ -15,6 +15,13 @@
 
 namespace sim {
 
+// The projector pixels whose light the shading kernel takes: the depth buffer's window `w`
+// (inclusive cells) less its margin, each cell's pixel from -0.5 to +0.5 about its centre
+// (the kernel rounds a point's projector coordinates to the nearest cell).
+inline Eigen::AlignedBox2d beam_pixels(const RasterClip& w, int margin) {
+  return {Eigen::Vector2d(w.x0 - margin - 0.5, w.y0 - margin - 0.5), Eigen::Vector2d(w.x1 - margin + 0.5, w.y1 - margin + 0.5)};
+}
+
 struct Cell {
   Scenario scenario;
   World world;
@@ -33,6 +40,11 @@ struct Cell {
   // in the cell's +-0.51 px box a point of the plane falls. The shading kernel's test could not
   // darken a point of it, so the renderer skips that lookup (see never_shadowed_planes).
   std::vector<std::uint8_t> never_shadowed;
+  // Per static triangle, how far its image on the projector's plane lies beyond the pixels
+  // whose light the beam window holds (projector pixels, along an axis; 0: it reaches them, or
+  // some of it is behind the projector). Only a triangle more than a pixel away can lie
+  // outside the beam in a frame (renderer: outside_beam).
+  std::vector<float> beam_gap;
   std::vector<SpotHit> spot_hits;
   double farthest_spot_m = 0;  // the farthest centre hit from the projector (bounds the blur)
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees

@@ -345,7 +345,8 @@ void clear_band(const Intrinsics& k, int margin, int row0, int rows, DepthBuffer
 }
 
 void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
-                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out, bool by_plane) {
+                       const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out, bool by_plane,
+                       const std::vector<std::uint8_t>* moved, std::int32_t moved_by) {
   const auto to_screen = [&](const Eigen::Vector3d& p) {
     return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
   };
@@ -362,6 +363,10 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
   const Eigen::Vector3d viewer = viewer_T_world.inverse().translation();
   cull = cull && tris.outward.size() == tris.a.size();
   by_plane = by_plane && tris.plane_of.size() == tris.a.size();
+  const auto id_of = [&](std::size_t i) {
+    const std::int32_t id = by_plane ? tris.plane_of[i] : static_cast<std::int32_t>(i);
+    return moved && i < moved->size() && (*moved)[i] ? id + moved_by : id;
+  };
   const auto culled = [&](std::size_t i) {
     return cull && tris.outward[i] != 0 && tris.outward[i] * tris.normal_w[i].dot(viewer - tris.a[i]) < 0;
   };
@@ -370,12 +375,12 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
     const Eigen::Vector3d v[3] = {viewer_T_world * tris.a[i], viewer_T_world * tris.b[i], viewer_T_world * tris.c[i]};
     const int behind = (v[0].z() < kNear) + (v[1].z() < kNear) + (v[2].z() < kNear);
     if (behind == 3) continue;
-    const auto id = by_plane ? tris.plane_of[i] : static_cast<std::int32_t>(i);
+    const std::int32_t id = id_of(i);
     if (behind == 0) {
       const ScreenVertex s[3] = {to_screen(v[0]), to_screen(v[1]), to_screen(v[2])};
       // the next triangle, the other half of a flat quad: one polygon
       const std::size_t j = i + 1;
-      if (by_plane && j < tris.a.size() && tris.plane_of[j] == id && !culled(j)) {
+      if (by_plane && j < tris.a.size() && tris.plane_of[j] == tris.plane_of[i] && id_of(j) == id && !culled(j)) {
         const Eigen::Vector3d* w[3] = {&tris.a[j], &tris.b[j], &tris.c[j]};
         const Eigen::Vector3d* mine[3] = {&tris.a[i], &tris.b[i], &tris.c[i]};
         int extra = -1, shared = 0;

@@ -93,9 +93,12 @@ struct ScreenTriangle {
 };
 // Triangles [first, end) seen from viewer_T_world through `k`, clipped against the near plane
 // (a triangle crossing it becomes one or two); `cull` as in rasterize. Appended to `out`.
+// `moved`: triangle i (i < moved->size()) flagged there fills its id plus `moved_by` (the
+// renderer's triangles outside the beam this frame, whose numbers it keeps apart).
 void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
                        const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out,
-                       bool by_plane = false);
+                       bool by_plane = false, const std::vector<std::uint8_t>* moved = nullptr,
+                       std::int32_t moved_by = 0);
 // Fills `out` (its rows [row0, row0 + rows) only, and `clip`) with the triangles, in order. A
 // buffer filled band by band holds, bit for bit, what one fill of the whole holds.
 void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, const RasterClip& clip,

@@ -192,7 +192,9 @@ shading::DepthView beam_view(const Cell& cell, const std::vector<float>& window)
   return {window.data(), w.x1 - w.x0 + 1, w.y1 - w.y0 + 1, margin - w.x0, margin - w.y0};
 }
 
-// Each triangle's numbers of shading.hpp, for this camera pose (double precision, then float).
+// Each triangle's numbers of shading.hpp, for this camera pose (double precision, then float);
+// then, from n on, the planes' numbers for their triangles outside the beam (outside_beam):
+// their ambient alone (G = 0: no point, no spot).
 void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen::Isometry3d& world_T_camera,
                        const CameraSpec& cam, bool skip_unshadowed, std::vector<float>& out) {
   const ProjectorSpec& ps = cell.projector->spec();
@@ -201,7 +203,7 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
   const Eigen::Vector3d P = ps.world_T_projector.translation();
   const double focus_mid = 0.5 * (ps.focus_near_m + ps.focus_far_m);
   const std::size_t n = tris.normal_w.size();
-  const std::size_t stride = shading::triangle_stride(n);
+  const std::size_t stride = shading::triangle_stride(2 * n);
   out.assign(stride * shading::kTriangleFields, 0.0f);
   // the z-buffer names each pixel's plane (its first triangle, SceneTriangles::plane_of): only
   // those are ever read
@@ -210,6 +212,7 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
     if (by_plane && tris.plane_of[i] != static_cast<std::int32_t>(i)) continue;
     const auto rec = [&](int field) -> float& { return out[field * stride + i]; };
     rec(shading::kAmbient) = static_cast<float>(cam.ambient) * tris.albedo[i];
+    out[shading::kAmbient * stride + n + i] = rec(shading::kAmbient);
     const Eigen::Vector3d n_c = R.transpose() * tris.normal_w[i];
     const double o_c = tris.offset[i] - tris.normal_w[i].dot(C);  // plane n_c . X = o_c, camera frame
     // a plane through the camera's centre is seen edge-on: its ambient, no spot (G = 0)
@@ -226,6 +229,58 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
 
 }  // namespace
 
+// A pixel the z-buffer gives to a triangle looks along a ray within half a pixel of the
+// triangle's image (its z-buffer cell's centre lies in that image; the lens table rounds the ray
+// to the nearest cell). So the rays through the triangle's image box widened by a pixel meet
+// its plane in a region holding every point such a pixel shades: the box's four corner rays
+// meet the plane in front of the camera (then the whole box's rays do, and the region is the
+// convex quadrilateral of the four points), and each of the four lies in front of the
+// projector (then the whole region does, and its image is the convex hull of theirs). When
+// that image lies a projector pixel or more beyond beam_pixels, no rounding in the kernel
+// (about 1e-3 of a pixel) brings any of those points into the window. Rays meeting the plane
+// at a grazing angle (cosine under 0.01) are not trusted: there the kernel's 1/z loses digits.
+void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::vector<std::uint8_t>& out) {
+  const SceneTriangles& tris = cell.triangles;
+  const std::size_t n = std::min(tris.a.size(), cell.beam_gap.size());
+  out.assign(n, 0);
+  const RasterClip& w = cell.beam;
+  if (w.x0 > w.x1 || w.y0 > w.y1) return;
+  const Eigen::AlignedBox2d window = beam_pixels(w, cell.projector_depth.margin);
+  const Intrinsics& k = cell.scenario.camera.intrinsics;
+  const Intrinsics& kp = cell.projector->spec().intrinsics;
+  const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
+  const Eigen::Isometry3d p_T_c = cell.projector->projector_T_world() * world_T_camera;
+  const Eigen::Vector3d C = world_T_camera.translation();
+  constexpr double kNearest = 0.01, kGrazing = 0.01, kClear = 1.0;  // metres, cosine, projector pixels
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(cell.beam_gap[i] > kClear)) continue;  // its own image reaches the window: so does the region
+    Eigen::AlignedBox2d image;
+    bool near = false;
+    for (const Eigen::Vector3d* v : {&tris.a[i], &tris.b[i], &tris.c[i]}) {
+      const Eigen::Vector3d x = c_T_w * *v;
+      if (!(x.z() >= kNearest)) near = true;
+      image.extend(Eigen::Vector2d(k.fx * x.x() / x.z() + k.cx, k.fy * x.y() / x.z() + k.cy));
+    }
+    if (near) continue;  // clipped by the rasteriser: not worth the care
+    const Eigen::Vector3d n_c = c_T_w.linear() * tris.normal_w[i];
+    const double o_c = tris.offset[i] - tris.normal_w[i].dot(C);  // n_c . X = o_c
+    Eigen::AlignedBox2d seen;
+    bool sure = true;
+    for (int corner = 0; corner < 4 && sure; ++corner) {
+      const double u = corner & 1 ? image.max().x() + 1 : image.min().x() - 1;
+      const double v = corner & 2 ? image.max().y() + 1 : image.min().y() - 1;
+      const Eigen::Vector3d ray((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0);
+      const double facing = n_c.dot(ray), t = o_c / facing;
+      const Eigen::Vector3d x = p_T_c * (t * ray);
+      sure = std::abs(facing) >= kGrazing * ray.norm() && t > 0 && x.z() > 1e-3;
+      seen.extend(Eigen::Vector2d(kp.fx * x.x() / x.z() + kp.cx, kp.fy * x.y() / x.z() + kp.cy));
+    }
+    const bool beyond = seen.max().x() < window.min().x() - kClear || seen.min().x() > window.max().x() + kClear ||
+                        seen.max().y() < window.min().y() - kClear || seen.min().y() > window.max().y() + kClear;
+    out[i] = sure && beyond;
+  }
+}
+
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
                      RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links) {
   const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
@@ -240,8 +295,13 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   const SceneTriangles& tris = *scene.triangles;
   s.screen.clear();
   // the z-buffer names each pixel's plane (SceneTriangles::plane_of): a row of pixels crosses
-  // fewer of them than of triangles, and the kernel handles each distinct one in turn
-  project_triangles(tris, 0, world_T_camera.inverse(), k, cell.camera_margin_px, true, s.screen, true);
+  // fewer of them than of triangles, and the kernel handles each distinct one in turn; a
+  // triangle outside the beam names its plane's copy after the n triangles, which holds the
+  // ambient light alone
+  const auto n_tris = static_cast<std::int32_t>(tris.normal_w.size());
+  if (s.skip_outside_beam) outside_beam(cell, world_T_camera, s.outside);
+  project_triangles(tris, 0, world_T_camera.inverse(), k, cell.camera_margin_px, true, s.screen, true,
+                    s.skip_outside_beam ? &s.outside : nullptr, n_tris);
   prepare_triangles(cell, tris, world_T_camera, cam, s.skip_unshadowed, s.triangles);
 
   const Cell::Lens& lens = cell.lens;
@@ -254,7 +314,8 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   f.ray_x = cell.lens.ray_x.data();
   f.ray_y = cell.lens.ray_y.data();
   f.triangles = s.triangles.data();
-  f.triangle_count = tris.normal_w.size();
+  f.triangle_count = 2 * tris.normal_w.size();
+  f.outside_from = n_tris;
   f.projector_depth = beam_view(cell, cell.beam_depth);
   if (scene.arm_projector_depth) {
     // the arm's depth over the same window: one cell index serves both

@@ -58,6 +58,10 @@ struct RenderScratch {
   // false: the projector's depth looked up for every lit point, also where Cell::unshadowed
   // says no shadow can fall (the same bits: tests hold the two to each other)
   bool skip_unshadowed = true;
+  // false: every pixel's surface point projected into the projector, also where outside_beam
+  // says it lies outside the beam (the same bits: tests hold the two to each other)
+  bool skip_outside_beam = true;
+  std::vector<std::uint8_t> outside;  // outside_beam's flags for this frame
   // 0: the rows are shared out over OpenCV's thread pool (as many threads as cv::setNumThreads
   // allows); 1: all on the calling thread (a campaign's runs, one thread each)
   int threads = 0;
@@ -71,6 +75,11 @@ struct RenderScratch {
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
                      RenderScratch* scratch = nullptr, const CameraSpec* sensor = nullptr,
                      const LinkPoses* links = nullptr);
+
+// Per static triangle of the cell (Cell::triangles), 1 where no pixel the camera at
+// world_T_camera gives it can see a point the projector's beam window reaches (Cell::beam): such
+// a pixel takes the ambient light alone. Conservative: 0 where that is not certain.
+void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::vector<std::uint8_t>& out);
 
 // Ground truth for one spot (pattern row, col).
 struct SpotTruth {

@@ -69,6 +69,9 @@ struct Frame {
   std::size_t cells = 0;
   const float* triangles = nullptr;    // kTriangleFields x triangle_stride(triangle_count)
   std::size_t triangle_count = 0;
+  // ids from here on: a plane's triangles outside the projector's beam this frame (their
+  // numbers: the ambient light, G = 0); the kernel gives their pixels the ambient light alone
+  std::int32_t outside_from = INT32_MAX;
   // the projector
   DepthView projector_depth, arm_depth;  // arm_depth.inv_depth null: no arm in the beam
   float focused_blur = 0, defocus_per_m = 0, focus_near = 0, focus_far = 0;

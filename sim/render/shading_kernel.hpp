@@ -199,6 +199,19 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         L::storei(lit_row + u, none);
         continue;
       }
+      // every lane's triangle outside the beam (Frame::outside_from): the ambient light alone,
+      // with neither the point nor the projector needed (the full path gives the same: G = 0)
+      if (!L::any(L::mand(has, L::lei(tri, L::seti(f.outside_from - 1))))) {
+        const int t = L::lane(tri, L::first(has));
+        const M same = L::mand(has, L::eqi(tri, L::seti(t)));
+        const float* ambient = f.triangles + kAmbient * fields;
+        F a = L::sel(same, L::set(ambient[t]), zero);
+        const M left = L::mand(has, L::mnot(same));
+        if (L::any(left)) a = L::sel(left, L::gather(ambient, tri, left), a);
+        L::store(ambient_row + u, a);
+        L::storei(lit_row + u, none);
+        continue;
+      }
       // the lanes' triangles: the first lane's broadcast (a wall covers whole rows); the
       // others, on a tessellated surface, a few neighbouring planes whose ids lie in one run
       // (two loads and a permutation per field, where the unit has them); else each distinct

@@ -392,13 +392,14 @@ TEST(Render, EveryVectorUnitAndThreadCountGivesTheScalarPathsBytes) {
 // static scene can darken. Skipping it must change no byte, on any frame: every render case,
 // and poses much farther out (surfaces seen at grazing angles, the arm anywhere), on the
 // scalar path and the widest vector unit.
-TEST(Render, SkippingTheLookupWhereNoShadowCanFallChangesNoByte) {
+TEST(Render, SkippingWorkWhereNoShadowOrNoBeamCanFallChangesNoByte) {
   int frames = 0;
   const auto same = [&](const Cell& cell, const Eigen::Isometry3d& camera, const LinkPoses& links,
                         const CameraSpec* sensor, std::uint64_t seed, const std::string& what) {
     for (const bool scalar : {false, true}) {
       RenderScratch full, skip;
       full.skip_unshadowed = false;
+      full.skip_outside_beam = false;
       full.scalar = skip.scalar = scalar;
       full.threads = skip.threads = 1;
       const cv::Mat want = render_image(cell, camera, seed, &full, sensor, &links);
@@ -432,7 +433,7 @@ TEST(Render, SkippingTheLookupWhereNoShadowCanFallChangesNoByte) {
     }
     EXPECT_EQ(posed, 6) << name;
   }
-  std::printf("%d frames the same with and without the skipped lookups\n", frames);
+  std::printf("%d frames the same with and without the skipped work\n", frames);
 }
 
 // Which planes qualify, among the triangles the projector sees inside the beam window (only
@@ -465,6 +466,97 @@ TEST(Render, OnlyPlanesNothingCanShadowSkipTheLookup) {
               wall.first, wall.second, faces.first, faces.second, back.first, back.second);
   EXPECT_GT(back.second, 0u);
   EXPECT_EQ(back.first, 0u);
+}
+
+// outside_beam's argument, checked pixel by pixel in double precision: every pixel whose
+// z-buffer cell's centre lies in a flagged triangle's image shades a point (its ray met with the
+// triangle's plane) that the projector sees a pixel or more beyond the beam window. And it
+// flags something where it should: the cylinder's rings above and below the beam, the walls'
+// tiles beside it.
+TEST(Render, TrianglesFlaggedOutsideTheBeamShowNoPixelThatTheBeamReaches) {
+  std::size_t pixels = 0, frames = 0;
+  std::map<std::string, std::size_t> flagged;
+  for (const char* name : {"plane", "cylinder", "ham", "cylinder_occlusion", "fig5"}) {
+    const auto cell = build_cell(load_scenario(kScenarios + name + ".yaml"));
+    const auto robot = make_robot(*cell);
+    const Intrinsics& k = cell->scenario.camera.intrinsics;
+    const Intrinsics& kp = cell->projector->spec().intrinsics;
+    const Eigen::AlignedBox2d window = beam_pixels(cell->beam, cell->projector_depth.margin);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> cm(-40, 40), deg(-35, 35);
+    int posed = 0;
+    for (int attempt = 0; attempt < 60 && posed < 5; ++attempt) {
+      std::string pose = posed == 0 ? "initial" : posed == 1 ? "desired" : "";
+      if (pose.empty()) {
+        char text[128];
+        std::snprintf(text, sizeof text, "%.3f %.3f %.3f %.3f %.3f %.3f", cm(rng), cm(rng), cm(rng), deg(rng),
+                      deg(rng), deg(rng));
+        pose = text;
+      }
+      try {
+        robot->reset(resolve_pose(cell->scenario, pose));
+      } catch (const std::exception&) {
+        continue;  // beyond the arm's reach, or in collision: another pose
+      }
+      ++posed;
+      ++frames;
+      const Eigen::Isometry3d w_T_c = robot->world_T_camera();
+      std::vector<std::uint8_t> outside;
+      outside_beam(*cell, w_T_c, outside);
+      flagged[name] += static_cast<std::size_t>(std::count(outside.begin(), outside.end(), 1));
+      // every cell centre inside a flagged triangle's image: the triangles one by one (not
+      // a z-buffer: the argument holds for each whatever hides it)
+      const Eigen::Isometry3d c_T_w = w_T_c.inverse();
+      const Eigen::Isometry3d p_T_c = cell->projector->projector_T_world() * w_T_c;
+      const int m = cell->camera_margin_px;
+      for (std::size_t i = 0; i < outside.size(); ++i) {
+        if (!outside[i]) continue;
+        const SceneTriangles& t = cell->triangles;
+        Eigen::Vector2d p[3];
+        const Eigen::Vector3d* v[3] = {&t.a[i], &t.b[i], &t.c[i]};
+        for (int j = 0; j < 3; ++j) {
+          const Eigen::Vector3d x = c_T_w * *v[j];
+          p[j] = {k.fx * x.x() / x.z() + k.cx, k.fy * x.y() / x.z() + k.cy};
+        }
+        const auto side = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& q) {
+          return (b - a).x() * (q - a).y() - (b - a).y() * (q - a).x();
+        };
+        const double area = side(p[0], p[1], p[2]);
+        const Eigen::Vector3d n_c = c_T_w.linear() * t.normal_w[i];
+        const double o_c = t.offset[i] - t.normal_w[i].dot(w_T_c.translation());
+        const int u0 = std::max(-m, static_cast<int>(std::floor(std::min({p[0].x(), p[1].x(), p[2].x()}))));
+        const int u1 = std::min(k.width + m, static_cast<int>(std::ceil(std::max({p[0].x(), p[1].x(), p[2].x()}))));
+        const int v0 = std::max(-m, static_cast<int>(std::floor(std::min({p[0].y(), p[1].y(), p[2].y()}))));
+        const int v1 = std::min(k.height + m, static_cast<int>(std::ceil(std::max({p[0].y(), p[1].y(), p[2].y()}))));
+        for (int cv = v0; cv <= v1; ++cv)
+          for (int cu = u0; cu <= u1; ++cu) {
+            const Eigen::Vector2d c(cu, cv);
+            const double w0 = side(p[1], p[2], c) / area, w1 = side(p[2], p[0], c) / area, w2 = side(p[0], p[1], c) / area;
+            if (std::min({w0, w1, w2}) < -1e-9) continue;  // the cell is not the triangle's
+            // the rays the lens rounds to this cell: half a pixel about its centre
+            for (const double du : {-0.5, 0.5})
+              for (const double dv : {-0.5, 0.5}) {
+                const Eigen::Vector3d ray((cu + du - k.cx) / k.fx, (cv + dv - k.cy) / k.fy, 1.0);
+                const Eigen::Vector3d x = p_T_c * (o_c / n_c.dot(ray) * ray);
+                ASSERT_GT(x.z(), 0) << name << " " << pose << " triangle " << i;
+                const Eigen::Vector2d q(kp.fx * x.x() / x.z() + kp.cx, kp.fy * x.y() / x.z() + kp.cy);
+                const double beyond = std::max({window.min().x() - q.x(), q.x() - window.max().x(),
+                                                window.min().y() - q.y(), q.y() - window.max().y()});
+                ASSERT_GE(beyond, 0.999) << name << " " << pose << " triangle " << i << " cell (" << cu << ", " << cv
+                                         << ") shades a point " << beyond << " px beyond the window";
+                ++pixels;
+              }
+          }
+      }
+    }
+    EXPECT_EQ(posed, 5) << name;
+  }
+  std::printf("%zu frames, %zu rays of flagged triangles, all beyond the window; flagged: plane %zu, cylinder %zu, "
+              "ham %zu\n",
+              frames, pixels, flagged["plane"], flagged["cylinder"], flagged["ham"]);
+  EXPECT_GT(flagged["plane"], 0u);
+  EXPECT_GT(flagged["cylinder"], 100u);
+  EXPECT_GT(pixels, 100000u);
 }
 
 // Issue 22 redefined the images in single precision, with spots found on the projector's grid

@@ -254,6 +254,8 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
   constexpr double kNearest = 0.01, kGrazing = 0.01, kClear = 1.0;  // metres, cosine, projector pixels
   for (std::size_t i = 0; i < n; ++i) {
     if (!(cell.beam_gap[i] > kClear)) continue;  // its own image reaches the window: so does the region
+    // a face of a closed mesh turned away from the camera is never drawn (project_triangles)
+    if (tris.outward.size() == tris.a.size() && tris.outward[i] * tris.normal_w[i].dot(C - tris.a[i]) < 0) continue;
     Eigen::AlignedBox2d image;
     bool near = false;
     for (const Eigen::Vector3d* v : {&tris.a[i], &tris.b[i], &tris.c[i]}) {

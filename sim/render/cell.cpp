@@ -15,15 +15,6 @@ namespace sim {
 
 namespace {
 
-// Cell::never_shadowed. A plane P qualifies when, at every cell c of the beam window, P's 1/z
-// over c's +-0.51 px box (the kernel looks up the cell nearest to a point's projector
-// coordinates, computed in single precision) stays above 0, and the stored 1/z at c (the
-// nearest surface, as the kernel reads it) no more than 0.1 % above its least (1/z is affine
-// on the image, so least at a corner). Then any point X of P's plane that the kernel looks up
-// has z_X q_c <= 1.001, where it darkens only above 1.002 + 0.002 q_c: skipping the lookup
-// gives the same bytes, whatever the camera's pose. Only the planes that are the nearest
-// surface somewhere in the window can qualify (a wall facing the projector, with nothing
-// before it); each is checked row by row against the upper hull of the row's 1/z.
 // Cell::beam_gap: each triangle's image box on the projector's plane against beam_pixels.
 std::vector<float> beam_gaps(const SceneTriangles& tris, const Projector& proj, const RasterClip& w, int margin) {
   std::vector<float> gap(tris.a.size(), 0.0f);
@@ -47,6 +38,15 @@ std::vector<float> beam_gaps(const SceneTriangles& tris, const Projector& proj, 
   return gap;
 }
 
+// Cell::never_shadowed. A plane P qualifies when, at every cell c of the beam window, P's 1/z
+// over c's +-0.51 px box (the kernel looks up the cell nearest to a point's projector
+// coordinates, computed in single precision) stays above 0, and the stored 1/z at c (the
+// nearest surface, as the kernel reads it) no more than 0.1 % above its least (1/z is affine
+// on the image, so least at a corner). Then any point X of P's plane that the kernel looks up
+// has z_X q_c <= 1.001, where it darkens only above 1.002 + 0.002 q_c: skipping the lookup
+// gives the same bytes, whatever the camera's pose. Only the planes that are the nearest
+// surface somewhere in the window can qualify (a wall facing the projector, with nothing
+// before it); each is checked row by row against the upper hull of the row's 1/z.
 std::vector<std::uint8_t> never_shadowed_planes(const SceneTriangles& tris, const Projector& proj, const DepthBuffer& d,
                                                 const RasterClip& w) {
   const std::size_t n = tris.a.size();

@@ -28,11 +28,10 @@ std::vector<float> beam_gaps(const SceneTriangles& tris, const Projector& proj, 
     for (const Eigen::Vector3d* v : {&tris.a[i], &tris.b[i], &tris.c[i]}) {
       const Eigen::Vector3d x = p_T_w * *v;
       if (!(x.z() > 1e-3)) behind = true;
-      box.extend(Eigen::Vector2d(k.fx * x.x() / x.z() + k.cx, k.fy * x.y() / x.z() + k.cy));
+      box.extend(pinhole_pixel(k, x));
     }
     if (behind) continue;
-    const double away = std::max({window.min().x() - box.max().x(), box.min().x() - window.max().x(),
-                                  window.min().y() - box.max().y(), box.min().y() - window.max().y()});
+    const double away = gap_beyond(box, window);
     if (away > 0 && away < 1e9) gap[i] = static_cast<float>(away);
   }
   return gap;

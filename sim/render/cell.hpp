@@ -2,6 +2,7 @@
 // camera's lens. Everything a frame depends on except the camera pose.
 #pragma once
 
+#include <algorithm>
 #include <memory>
 #include <vector>
 
@@ -20,6 +21,12 @@ namespace sim {
 // (the kernel rounds a point's projector coordinates to the nearest cell).
 inline Eigen::AlignedBox2d beam_pixels(const RasterClip& w, int margin) {
   return {Eigen::Vector2d(w.x0 - margin - 0.5, w.y0 - margin - 0.5), Eigen::Vector2d(w.x1 - margin + 0.5, w.y1 - margin + 0.5)};
+}
+
+// How far `box` lies beyond `window` along an axis (its largest gap; 0 or less: they overlap).
+inline double gap_beyond(const Eigen::AlignedBox2d& box, const Eigen::AlignedBox2d& window) {
+  return std::max({window.min().x() - box.max().x(), box.min().x() - window.max().x(), window.min().y() - box.max().y(),
+                   box.min().y() - window.max().y()});
 }
 
 struct Cell {

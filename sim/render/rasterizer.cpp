@@ -348,7 +348,8 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
                        const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out, bool by_plane,
                        const std::vector<std::uint8_t>* moved, std::int32_t moved_by) {
   const auto to_screen = [&](const Eigen::Vector3d& p) {
-    return ScreenVertex{k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy, 1.0 / p.z()};
+    const Eigen::Vector2d s = pinhole_pixel(k, p);
+    return ScreenVertex{s.x(), s.y(), 1.0 / p.z()};
   };
   const auto add = [&](const ScreenVertex* p, int n, std::int32_t id) {
     ScreenTriangle t{};
@@ -368,7 +369,7 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
     return moved && i < moved->size() && (*moved)[i] ? id + moved_by : id;
   };
   const auto culled = [&](std::size_t i) {
-    return cull && tris.outward[i] != 0 && tris.outward[i] * tris.normal_w[i].dot(viewer - tris.a[i]) < 0;
+    return cull && faces_away(tris, i, viewer);
   };
   for (std::size_t i = first; i < tris.a.size(); ++i) {
     if (culled(i)) continue;

@@ -31,6 +31,17 @@ struct SceneTriangles {
   std::vector<std::int32_t> plane_of;
 };
 
+// Where a point `p` of a viewer's frame lands on its image through the ideal pinhole `k` (pixels).
+inline Eigen::Vector2d pinhole_pixel(const Intrinsics& k, const Eigen::Vector3d& p) {
+  return {k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy};
+}
+
+// Whether triangle i is a face of a closed mesh turned away from a viewer at `viewer` (world):
+// hidden by the mesh's own faces turned towards it, left out where culling is asked.
+inline bool faces_away(const SceneTriangles& tris, std::size_t i, const Eigen::Vector3d& viewer) {
+  return tris.outward[i] != 0 && tris.outward[i] * tris.normal_w[i].dot(viewer - tris.a[i]) < 0;
+}
+
 // +1 when the mesh is closed (every edge shared by exactly two faces, in opposite directions)
 // with normals pointing out of it, -1 closed with normals pointing in, 0 open.
 int closed_orientation(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles);

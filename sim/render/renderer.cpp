@@ -69,7 +69,7 @@ Eigen::AlignedBox2d arm_box_in_projector(const Cell& cell, const LinkPoses& link
         behind = true;
         continue;
       }
-      box.extend(Eigen::Vector2d(kp.fx * x.x() / x.z() + kp.cx, kp.fy * x.y() / x.z() + kp.cy));
+      box.extend(pinhole_pixel(kp, x));
     }
   }
   return box;
@@ -255,13 +255,13 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
   for (std::size_t i = 0; i < n; ++i) {
     if (!(cell.beam_gap[i] > kClear)) continue;  // its own image reaches the window: so does the region
     // a face of a closed mesh turned away from the camera is never drawn (project_triangles)
-    if (tris.outward.size() == tris.a.size() && tris.outward[i] * tris.normal_w[i].dot(C - tris.a[i]) < 0) continue;
+    if (tris.outward.size() == tris.a.size() && faces_away(tris, i, C)) continue;
     Eigen::AlignedBox2d image;
     bool near = false;
     for (const Eigen::Vector3d* v : {&tris.a[i], &tris.b[i], &tris.c[i]}) {
       const Eigen::Vector3d x = c_T_w * *v;
       if (!(x.z() >= kNearest)) near = true;
-      image.extend(Eigen::Vector2d(k.fx * x.x() / x.z() + k.cx, k.fy * x.y() / x.z() + k.cy));
+      image.extend(pinhole_pixel(k, x));
     }
     if (near) continue;  // clipped by the rasteriser: not worth the care
     const Eigen::Vector3d n_c = c_T_w.linear() * tris.normal_w[i];
@@ -275,11 +275,9 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
       const double facing = n_c.dot(ray), t = o_c / facing;
       const Eigen::Vector3d x = p_T_c * (t * ray);
       sure = std::abs(facing) >= kGrazing * ray.norm() && t > 0 && x.z() > 1e-3;
-      seen.extend(Eigen::Vector2d(kp.fx * x.x() / x.z() + kp.cx, kp.fy * x.y() / x.z() + kp.cy));
+      seen.extend(pinhole_pixel(kp, x));
     }
-    const bool beyond = seen.max().x() < window.min().x() - kClear || seen.min().x() > window.max().x() + kClear ||
-                        seen.max().y() < window.min().y() - kClear || seen.min().y() > window.max().y() + kClear;
-    out[i] = sure && beyond;
+    out[i] = sure && gap_beyond(seen, window) > kClear;
   }
 }
 

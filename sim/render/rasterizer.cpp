@@ -161,6 +161,86 @@ __attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const 
   }
 }
 
+// A thin polygon (its box at most kThinColumns wide: a tessellated surface's strip, spans of
+// 2-4 px) with AVX-512, sixteen rows at a time: the rows' spans as spans4 finds them (the same
+// divisions, comparisons and roundings, eight rows per vector of doubles) and their first 1/z,
+// then each row written as fill_spans4_avx512 writes a short one, the same number of running
+// additions for all sixteen (lanes past a row's span are not written). Row by row, a short
+// span's own bounds, first 1/z and variable-length loop cost more than its pixels did (a
+// third of the cylinder's frame was its rasteriser); here sixteen rows share them.
+constexpr int kThinColumns = 16;
+__attribute__((target(SIM_AVX512_TARGET))) void fill_thin_avx512(int y0, int y1, int x0, int x1,
+                                                                   const Affine* const* edges, int n,
+                                                                   const Affine& iz, std::int32_t id, DepthBuffer& out) {
+  const __m512i ids = _mm512_set1_epi32(id);
+  const __m512 step = _mm512_set1_ps(static_cast<float>(iz.a));
+  const __m512d up = _mm512_setr_pd(0, 1, 2, 3, 4, 5, 6, 7);
+  for (int y = y0; y <= y1; y += 16) {
+    __m256i xa_h[2], xb_h[2];
+    __m256 q_h[2];
+    for (int h = 0; h < 2; ++h) {
+      const __m512d yv = _mm512_add_pd(_mm512_set1_pd(y + 8 * h), up);
+      __m512d lo = _mm512_set1_pd(x0), hi = _mm512_set1_pd(x1);
+      __mmask8 empty = 0;
+      for (int k = 0; k < n; ++k) {
+        const Affine& e = *edges[k];
+        const __m512d c = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(e.b), yv), _mm512_set1_pd(e.c));
+        if (e.a > 1e-15 || e.a < -1e-15) {
+          const __m512d bound = _mm512_div_pd(_mm512_xor_pd(_mm512_add_pd(c, _mm512_set1_pd(1e-9)), _mm512_set1_pd(-0.0)),
+                                              _mm512_set1_pd(e.a));
+          if (e.a > 0) lo = _mm512_max_pd(bound, lo);
+          else hi = _mm512_min_pd(bound, hi);
+        } else {
+          empty |= _mm512_cmp_pd_mask(c, _mm512_set1_pd(-1e-9), _CMP_LT_OQ);
+        }
+      }
+      // rows past the polygon's last are empty
+      empty |= _mm512_cmp_pd_mask(yv, _mm512_set1_pd(y1), _CMP_GT_OQ);
+      const __m256i a = _mm256_max_epi32(_mm256_set1_epi32(x0),
+                                         _mm512_cvttpd_epi32(_mm512_roundscale_pd(lo, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC)));
+      const __m256i b = _mm256_min_epi32(_mm256_set1_epi32(x1),
+                                         _mm512_cvttpd_epi32(_mm512_roundscale_pd(hi, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC)));
+      xa_h[h] = a;
+      xb_h[h] = _mm256_mask_blend_epi32(empty, b, _mm256_sub_epi32(a, _mm256_set1_epi32(1)));
+      // the row's first 1/z, iz.at(xa, y) in double, then rounded to float
+      const __m512d at = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(iz.a), _mm512_cvtepi32_pd(a)),
+                                                     _mm512_mul_pd(_mm512_set1_pd(iz.b), yv)),
+                                       _mm512_set1_pd(iz.c));
+      q_h[h] = _mm512_cvtpd_ps(at);
+    }
+    const __m512i xa = _mm512_inserti64x4(_mm512_castsi256_si512(xa_h[0]), xa_h[1], 1);
+    const __m512i xb = _mm512_inserti64x4(_mm512_castsi256_si512(xb_h[0]), xb_h[1], 1);
+    __m512 q = _mm512_insertf32x8(_mm512_castps256_ps512(q_h[0]), q_h[1], 1);
+    const __m512i count = _mm512_sub_epi32(xb, xa);  // the span's pixels less one
+    const __mmask16 rows = _mm512_cmpge_epi32_mask(count, _mm512_setzero_si512());
+    if (!rows) continue;
+    const int columns = _mm512_mask_reduce_max_epi32(rows, count) + 1;
+    // each row's first cell, (y + r - row0) width + xa (0 for an empty row), its 1/z and which of
+    // its columns it covers
+    const __m512i row = _mm512_add_epi32(_mm512_set1_epi32(y - out.row0), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9,
+                                                                                             10, 11, 12, 13, 14, 15));
+    alignas(64) std::int32_t cell[16], covered[16];
+    alignas(64) float first[16];
+    _mm512_store_si512(cell, _mm512_maskz_add_epi32(rows, _mm512_mullo_epi32(row, _mm512_set1_epi32(out.width)), xa));
+    _mm512_store_ps(first, q);
+    // (1 << (count + 1)) - 1, 0 for an empty row
+    _mm512_store_si512(covered, _mm512_maskz_sub_epi32(rows, _mm512_sllv_epi32(_mm512_set1_epi32(2), count),
+                                                      _mm512_set1_epi32(1)));
+    const int last = std::min(15, y1 - y);
+    for (int r = 0; r <= last; ++r) {
+      // lane k: the first 1/z and k additions of dq, as in fill_spans4_avx512
+      __m512 qv = _mm512_set1_ps(first[r]);
+      for (int j = 1; j < columns; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
+      const __mmask16 in = static_cast<__mmask16>(covered[r]);
+      float* inv_depth = out.inv_depth.data() + cell[r];
+      const __m512 dv = _mm512_maskz_loadu_ps(in, inv_depth);
+      const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
+      _mm512_mask_storeu_ps(inv_depth, nearer, qv);
+      _mm512_mask_storeu_epi32(out.triangle.data() + cell[r], nearer, ids);
+    }
+  }
+}
+
 // The rows a polygon spanning image rows [v_lo, v_hi] may cover in a buffer with margin m
 // (before any clip).
 void polygon_rows(double v_lo, double v_hi, double m, int& y0, int& y1) {
@@ -223,6 +303,10 @@ void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& ou
       }
     }
   };
+  if (unit == VectorUnit::kAvx512 && x1 - x0 < kThinColumns) {
+    fill_thin_avx512(y0, y1, x0, x1, edges, n, iz, id, out);
+    return;
+  }
   if (unit != VectorUnit::kScalar) {
     // the spans of four rows at once: the same divisions, comparisons and roundings
     alignas(16) int xa[4], xb[4];

@@ -161,17 +161,74 @@ __attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const 
   }
 }
 
-// A thin polygon (its box at most kThinColumns wide: a tessellated surface's strip, spans of
-// 2-4 px) with AVX-512, sixteen rows at a time: the rows' spans as spans4 finds them (the same
-// divisions, comparisons and roundings, eight rows per vector of doubles) and their first 1/z,
-// then each row written as fill_spans4_avx512 writes a short one, the same number of running
-// additions for all sixteen (lanes past a row's span are not written). Row by row, a short
-// span's own bounds, first 1/z and variable-length loop cost more than its pixels did (a
-// third of the cylinder's frame was its rasteriser); here sixteen rows share them.
+// Sixteen rows' spans of at most kThinColumns pixels (`count`: each row's pixels less one,
+// `rows`: the rows with any, `q`: their first 1/z), each written as fill_spans4_avx512 writes a
+// short one, the same number of running additions for all sixteen (lanes past a row's span are
+// not written).
+__attribute__((target(SIM_AVX512_TARGET))) void thin_rows(int y, int y1, __m512i xa, __m512i count, __mmask16 rows,
+                                                            __m512 q, __m512 step, __m512i ids, DepthBuffer& out) {
+  const int columns = _mm512_mask_reduce_max_epi32(rows, count) + 1;
+  // each row's first cell, (y + r - row0) width + xa (0 for an empty row), its 1/z and which of
+  // its columns it covers
+  const __m512i row = _mm512_add_epi32(_mm512_set1_epi32(y - out.row0), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9,
+                                                                                           10, 11, 12, 13, 14, 15));
+  alignas(64) std::int32_t cell[16], covered[16];
+  alignas(64) float first[16];
+  _mm512_store_si512(cell, _mm512_maskz_add_epi32(rows, _mm512_mullo_epi32(row, _mm512_set1_epi32(out.width)), xa));
+  _mm512_store_ps(first, q);
+  // (1 << (count + 1)) - 1, 0 for an empty row
+  _mm512_store_si512(covered, _mm512_maskz_sub_epi32(rows, _mm512_sllv_epi32(_mm512_set1_epi32(2), count),
+                                                    _mm512_set1_epi32(1)));
+  const int last = std::min(15, y1 - y);
+  for (int r = 0; r <= last; ++r) {
+    // lane k: the first 1/z and k additions of dq, as in fill_spans4_avx512
+    __m512 qv = _mm512_set1_ps(first[r]);
+    for (int j = 1; j < columns; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
+    const __mmask16 in = static_cast<__mmask16>(covered[r]);
+    float* inv_depth = out.inv_depth.data() + cell[r];
+    const __m512 dv = _mm512_maskz_loadu_ps(in, inv_depth);
+    const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
+    _mm512_mask_storeu_ps(inv_depth, nearer, qv);
+    _mm512_mask_storeu_epi32(out.triangle.data() + cell[r], nearer, ids);
+  }
+}
+
+// running_sums4 for sixteen rows, `columns` long (rounded up to 4): row r's at sums[r * len].
+// The four groups of four rows run side by side, so that each group's chain of additions (one
+// per pixel, as the scalar loop's) waits on the others' and not on itself.
+__attribute__((target(SIM_AVX512_TARGET))) std::size_t running_sums16(int columns, const float* q0, float dq,
+                                                                        std::vector<float>& sums) {
+  const std::size_t len = (static_cast<std::size_t>(columns) + 3) & ~std::size_t{3};
+  if (sums.size() < 16 * len) sums.resize(16 * len);
+  __m128 q[4] = {_mm_load_ps(q0), _mm_load_ps(q0 + 4), _mm_load_ps(q0 + 8), _mm_load_ps(q0 + 12)};
+  const __m128 step = _mm_set1_ps(dq);
+  float* out = sums.data();
+  for (std::size_t k = 0; k < len; k += 4)
+    for (int g = 0; g < 4; ++g) {
+      __m128 a = q[g], b = _mm_add_ps(a, step), c = _mm_add_ps(b, step), d = _mm_add_ps(c, step);
+      q[g] = _mm_add_ps(d, step);
+      _MM_TRANSPOSE4_PS(a, b, c, d);  // a: row 4g's sums k..k+3, b: row 4g + 1's, ...
+      float* at = out + 4 * g * len + k;
+      _mm_storeu_ps(at, a);
+      _mm_storeu_ps(at + len, b);
+      _mm_storeu_ps(at + 2 * len, c);
+      _mm_storeu_ps(at + 3 * len, d);
+    }
+  return len;
+}
+
+// fill_polygon with AVX-512, sixteen rows at a time: the rows' spans as spans4 finds them (the
+// same divisions, comparisons and roundings, eight rows per vector of doubles) and their first
+// 1/z, then the rows' pixels: short spans (a tessellated surface's strips, 2-4 px) by
+// thin_rows, long ones (a wall's) from running_sums16. Row by row, a short span's own bounds,
+// first 1/z and variable-length loop cost more than its pixels did (a third of the cylinder's
+// frame was its rasteriser), and a long one's running sums waited on each other; here sixteen
+// rows share them.
 constexpr int kThinColumns = 16;
-__attribute__((target(SIM_AVX512_TARGET))) void fill_thin_avx512(int y0, int y1, int x0, int x1,
-                                                                   const Affine* const* edges, int n,
-                                                                   const Affine& iz, std::int32_t id, DepthBuffer& out) {
+__attribute__((target(SIM_AVX512_TARGET))) void fill_rows16_avx512(int y0, int y1, int x0, int x1,
+                                                                     const Affine* const* edges, int n, const Affine& iz,
+                                                                     std::int32_t id, DepthBuffer& out,
+                                                                     std::vector<float>& sums) {
   const __m512i ids = _mm512_set1_epi32(id);
   const __m512 step = _mm512_set1_ps(static_cast<float>(iz.a));
   const __m512d up = _mm512_setr_pd(0, 1, 2, 3, 4, 5, 6, 7);
@@ -215,28 +272,34 @@ __attribute__((target(SIM_AVX512_TARGET))) void fill_thin_avx512(int y0, int y1,
     const __mmask16 rows = _mm512_cmpge_epi32_mask(count, _mm512_setzero_si512());
     if (!rows) continue;
     const int columns = _mm512_mask_reduce_max_epi32(rows, count) + 1;
-    // each row's first cell, (y + r - row0) width + xa (0 for an empty row), its 1/z and which of
-    // its columns it covers
-    const __m512i row = _mm512_add_epi32(_mm512_set1_epi32(y - out.row0), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9,
-                                                                                             10, 11, 12, 13, 14, 15));
-    alignas(64) std::int32_t cell[16], covered[16];
-    alignas(64) float first[16];
-    _mm512_store_si512(cell, _mm512_maskz_add_epi32(rows, _mm512_mullo_epi32(row, _mm512_set1_epi32(out.width)), xa));
-    _mm512_store_ps(first, q);
-    // (1 << (count + 1)) - 1, 0 for an empty row
-    _mm512_store_si512(covered, _mm512_maskz_sub_epi32(rows, _mm512_sllv_epi32(_mm512_set1_epi32(2), count),
-                                                      _mm512_set1_epi32(1)));
-    const int last = std::min(15, y1 - y);
-    for (int r = 0; r <= last; ++r) {
-      // lane k: the first 1/z and k additions of dq, as in fill_spans4_avx512
-      __m512 qv = _mm512_set1_ps(first[r]);
-      for (int j = 1; j < columns; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
-      const __mmask16 in = static_cast<__mmask16>(covered[r]);
-      float* inv_depth = out.inv_depth.data() + cell[r];
-      const __m512 dv = _mm512_maskz_loadu_ps(in, inv_depth);
-      const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
-      _mm512_mask_storeu_ps(inv_depth, nearer, qv);
-      _mm512_mask_storeu_epi32(out.triangle.data() + cell[r], nearer, ids);
+    if (columns <= kThinColumns) {
+      thin_rows(y, y1, xa, count, rows, q, step, ids, out);
+    } else {
+      // long spans (a wall's): the running sums of the sixteen rows, then each row sixteen
+      // pixels at a time
+      alignas(64) std::int32_t first_x[16], last_x[16];
+      alignas(64) float first[16];
+      _mm512_store_si512(first_x, xa);
+      _mm512_store_si512(last_x, _mm512_mask_blend_epi32(rows, _mm512_sub_epi32(xa, _mm512_set1_epi32(1)),
+                                                         _mm512_add_epi32(xa, count)));
+      _mm512_store_ps(first, q);
+      const std::size_t len = running_sums16(columns, first, static_cast<float>(iz.a), sums);
+      const int last = std::min(15, y1 - y);
+      for (int r = 0; r <= last; ++r) {
+        const int n_r = last_x[r] - first_x[r] + 1;
+        if (n_r <= 0) continue;
+        const std::size_t at = static_cast<std::size_t>(y + r - out.row0) * out.width + first_x[r];
+        const float* sum = &sums[r * len];
+        float* inv_depth = &out.inv_depth[at];
+        std::int32_t* tri = &out.triangle[at];
+        for (int x = 0; x < n_r; x += 16) {
+          const __mmask16 in = n_r - x >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << (n_r - x)) - 1);
+          const __m512 qv = _mm512_maskz_loadu_ps(in, sum + x), dv = _mm512_maskz_loadu_ps(in, inv_depth + x);
+          const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
+          _mm512_mask_storeu_ps(inv_depth + x, nearer, qv);
+          _mm512_mask_storeu_epi32(tri + x, nearer, ids);
+        }
+      }
     }
   }
 }
@@ -303,8 +366,8 @@ void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& ou
       }
     }
   };
-  if (unit == VectorUnit::kAvx512 && x1 - x0 < kThinColumns) {
-    fill_thin_avx512(y0, y1, x0, x1, edges, n, iz, id, out);
+  if (unit == VectorUnit::kAvx512) {
+    fill_rows16_avx512(y0, y1, x0, x1, edges, n, iz, id, out, sums);
     return;
   }
   if (unit != VectorUnit::kScalar) {

@@ -69,6 +69,26 @@ struct Lanes {
     }
     return true;
   }
+  // shading_kernel.hpp's noise_offset for chunks [0, n) of (row v, channel c), eight at a time
+  // (the same 64-bit hash and scaling, lane by lane); out holds n rounded up to 8
+  static void noise_offsets(const Frame& f, int v, int c, int n, std::uint32_t* out) {
+    const __m512i seed = _mm512_set1_epi64(static_cast<long long>(f.noise_seed));
+    const __m512i golden = _mm512_set1_epi64(static_cast<long long>(0x9E3779B97F4A7C15ull));
+    const __m512i c1 = _mm512_set1_epi64(static_cast<long long>(0xBF58476D1CE4E5B9ull));
+    const __m512i c2 = _mm512_set1_epi64(static_cast<long long>(0x94D049BB133111EBull));
+    const __m512i span = _mm512_set1_epi64(f.noise_span);
+    const std::uint64_t base = (static_cast<std::uint64_t>(v) * 3 + static_cast<std::uint64_t>(c)) * 65536u + 1;
+    __m512i key = _mm512_add_epi64(_mm512_set1_epi64(static_cast<long long>(base)), _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7));
+    for (int k = 0; k < n; k += 8) {
+      __m512i z = _mm512_xor_si512(seed, _mm512_mullo_epi64(golden, key));
+      z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64(z, 30)), c1);
+      z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64(z, 27)), c2);
+      z = _mm512_xor_si512(z, _mm512_srli_epi64(z, 31));
+      const __m512i at = _mm512_srli_epi64(_mm512_mul_epu32(_mm512_srli_epi64(z, 32), span), 32);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + k), _mm512_cvtepi64_epi32(at));
+      key = _mm512_add_epi64(key, _mm512_set1_epi64(8));
+    }
+  }
   static I cvtt(F a) { return _mm512_cvttps_epi32(a); }
   static F cvt(I a) { return _mm512_cvtepi32_ps(a); }
   static I addi(I a, I b) { return _mm512_add_epi32(a, b); }

@@ -14,7 +14,8 @@
 // the last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt; addi,
 // subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
-// lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved).
+// lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved);
+// optionally noise_offsets (noise_offset for a row's first n chunks, several at a time).
 #pragma once
 
 #include <cstddef>
@@ -305,8 +306,12 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       L::storei(lit_row + u, L::seli(L::mand(look, L::mnot(dark)), L::seti(0), none));
     }
     // 4. the spots' light, then the sensor: exposure, read and shot noise, 8-bit quantisation
-    for (int c = 0; c < 3; ++c)
-      for (int k = 0; k < chunks && k < 256; ++k) offsets_buf[c * 256 + k] = noise_offset(f, v, c, k);
+    for (int c = 0; c < 3; ++c) {
+      if constexpr (requires { L::noise_offsets(f, v, c, chunks, offsets_buf); })
+        L::noise_offsets(f, v, c, chunks < 256 ? chunks : 256, offsets_buf + c * 256);  // where the unit has 64-bit lanes
+      else
+        for (int k = 0; k < chunks && k < 256; ++k) offsets_buf[c * 256 + k] = noise_offset(f, v, c, k);
+    }
     F known = L::set(-1.0f), known_sd = zero;  // the standard deviation of the last values seen
     std::uint8_t* row = image + static_cast<std::size_t>(v) * step;
     for (int u = 0; u < f.width; u += N) {

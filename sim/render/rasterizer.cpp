@@ -118,53 +118,11 @@ __attribute__((target("avx2"))) void fill_spans4(int y, const int* xa, const int
   }
 }
 
-// fill_spans4 with AVX-512: each row sixteen pixels at a time, its last piece under a mask (a
-// span's remainder, one pixel at a time, mispredicted its branch on every short span: the
-// tessellated cylinder's are short)
-__attribute__((target(SIM_AVX512_TARGET))) void fill_spans4_avx512(int y, const int* xa, const int* xb,
-                                                                     const float* q0, float dq, std::int32_t id,
-                                                                     DepthBuffer& out, std::vector<float>& sums) {
-  const __m512i ids = _mm512_set1_epi32(id);
-  int longest = 0;
-  for (int r = 0; r < 4; ++r) longest = std::max(longest, xb[r] - xa[r] + 1);
-  if (longest <= 0) return;
-  if (longest <= 16) {
-    // short spans (a tessellated surface's strips, 2-4 px): each row's running sums in one
-    // vector, lane k after k additions of dq (the same additions, one rounding each), with no
-    // buffer of sums in between
-    const __m512 step = _mm512_set1_ps(dq);
-    for (int r = 0; r < 4; ++r) {
-      const int n = xb[r] - xa[r] + 1;
-      if (n <= 0) continue;
-      __m512 qv = _mm512_set1_ps(q0[r]);
-      for (int j = 1; j < n; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
-      const std::size_t first = static_cast<std::size_t>(y + r - out.row0) * out.width + xa[r];
-      float* inv_depth = &out.inv_depth[first];
-      const __mmask16 in = static_cast<__mmask16>((1u << n) - 1);
-      const __m512 dv = _mm512_maskz_loadu_ps(in, inv_depth);
-      const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
-      _mm512_mask_storeu_ps(inv_depth, nearer, qv);
-      _mm512_mask_storeu_epi32(&out.triangle[first], nearer, ids);
-    }
-    return;
-  }
-  const std::size_t len = running_sums4(xa, xb, q0, dq, sums);
-  for (int r = 0; r < 4; ++r) {
-    const auto [sum, inv_depth, tri, n] = row_span(r, y, xa, xb, len, sums, out);
-    for (int x = 0; x < n; x += 16) {
-      const __mmask16 in = n - x >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << (n - x)) - 1);
-      const __m512 qv = _mm512_maskz_loadu_ps(in, sum + x), dv = _mm512_maskz_loadu_ps(in, inv_depth + x);
-      const __mmask16 nearer = _mm512_mask_cmp_ps_mask(in, qv, dv, _CMP_GT_OQ);  // as the scalar q > inv_depth
-      _mm512_mask_storeu_ps(inv_depth + x, nearer, qv);
-      _mm512_mask_storeu_epi32(tri + x, nearer, ids);
-    }
-  }
-}
-
 // Sixteen rows' spans of at most kThinColumns pixels (`count`: each row's pixels less one,
-// `rows`: the rows with any, `q`: their first 1/z), each written as fill_spans4_avx512 writes a
-// short one, the same number of running additions for all sixteen (lanes past a row's span are
-// not written).
+// `rows`: the rows with any, `q`: their first 1/z), each row's running sums in one vector, with
+// the same number of additions for all sixteen (lanes past a row's span are not written), then
+// its pixels compared and written under a mask (a remainder loop mispredicted its branch on
+// every short span: the tessellated cylinder's are short).
 __attribute__((target(SIM_AVX512_TARGET))) void thin_rows(int y, int y1, __m512i xa, __m512i count, __mmask16 rows,
                                                             __m512 q, __m512 step, __m512i ids, DepthBuffer& out) {
   const int columns = _mm512_mask_reduce_max_epi32(rows, count) + 1;
@@ -181,7 +139,7 @@ __attribute__((target(SIM_AVX512_TARGET))) void thin_rows(int y, int y1, __m512i
                                                     _mm512_set1_epi32(1)));
   const int last = std::min(15, y1 - y);
   for (int r = 0; r <= last; ++r) {
-    // lane k: the first 1/z and k additions of dq, as in fill_spans4_avx512
+    // lane k: the first 1/z and k additions of dq (the same additions, one rounding each)
     __m512 qv = _mm512_set1_ps(first[r]);
     for (int j = 1; j < columns; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
     const __mmask16 in = static_cast<__mmask16>(covered[r]);
@@ -370,7 +328,7 @@ void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& ou
     fill_rows16_avx512(y0, y1, x0, x1, edges, n, iz, id, out, sums);
     return;
   }
-  if (unit != VectorUnit::kScalar) {
+  if (unit == VectorUnit::kAvx2) {
     // the spans of four rows at once: the same divisions, comparisons and roundings
     alignas(16) int xa[4], xb[4];
     alignas(16) float q0[4];
@@ -380,8 +338,7 @@ void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& ou
         if (y + r > y1) xb[r] = xa[r] - 1;  // past the triangle's last row
         q0[r] = xa[r] <= xb[r] ? static_cast<float>(iz.at(xa[r], y + r)) : 0.f;
       }
-      (unit == VectorUnit::kAvx512 ? fill_spans4_avx512 : fill_spans4)(y, xa, xb, q0, static_cast<float>(iz.a), id,
-                                                                         out, sums);
+      fill_spans4(y, xa, xb, q0, static_cast<float>(iz.a), id, out, sums);
     }
     return;
   }
@@ -588,7 +545,7 @@ void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, c
                     bool avx512) {
   const VectorUnit unit = vector_unit(!vector, avx512);
   const int lo = std::max(clip.y0, out.row0), hi = std::min(clip.y1, out.row0 + out.rows - 1);
-  thread_local std::vector<float> sums;  // fill_spans4's running sums
+  thread_local std::vector<float> sums;  // the running sums of fill_spans4 and fill_rows16_avx512
   for (const ScreenTriangle& t : tris) {
     if (t.y1 < lo || t.y0 > hi) continue;
     ScreenVertex p[4];

@@ -40,6 +40,10 @@ constexpr std::size_t triangle_stride(std::size_t n) { return n + 32; }
 constexpr int kSymbolLut = 16;       // colour tables' entries; kUnlitSymbol has colour 0
 constexpr int kUnlitSymbol = 15;
 constexpr int kNoiseChunk = 64;      // pixels per noise run
+// a noise run's offset hashes (row, channel, chunk) with the seed: key times kNoiseKeyScale,
+// then splitmix64's finaliser (its two multipliers)
+constexpr std::uint64_t kNoiseKeyScale = 0x9E3779B97F4A7C15ull;
+constexpr std::uint64_t kMix1 = 0xBF58476D1CE4E5B9ull, kMix2 = 0x94D049BB133111EBull;
 constexpr int kMaxSpotsAway = 8;     // a point takes the light of spots at most this many pitches away
 constexpr int kEdgeSegments = 32;
 constexpr float kEdgeReach = 4.0f;   // 0.5 erfc(4 / sqrt 2) = 3e-5: nothing beyond

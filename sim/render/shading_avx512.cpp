@@ -73,9 +73,9 @@ struct Lanes {
   // (the same 64-bit hash and scaling, lane by lane); out holds n rounded up to 8
   static void noise_offsets(const Frame& f, int v, int c, int n, std::uint32_t* out) {
     const __m512i seed = _mm512_set1_epi64(static_cast<long long>(f.noise_seed));
-    const __m512i golden = _mm512_set1_epi64(static_cast<long long>(0x9E3779B97F4A7C15ull));
-    const __m512i c1 = _mm512_set1_epi64(static_cast<long long>(0xBF58476D1CE4E5B9ull));
-    const __m512i c2 = _mm512_set1_epi64(static_cast<long long>(0x94D049BB133111EBull));
+    const __m512i golden = _mm512_set1_epi64(static_cast<long long>(kNoiseKeyScale));
+    const __m512i c1 = _mm512_set1_epi64(static_cast<long long>(kMix1));
+    const __m512i c2 = _mm512_set1_epi64(static_cast<long long>(kMix2));
     const __m512i span = _mm512_set1_epi64(f.noise_span);
     const std::uint64_t base = (static_cast<std::uint64_t>(v) * 3 + static_cast<std::uint64_t>(c)) * 65536u + 1;
     __m512i key = _mm512_add_epi64(_mm512_set1_epi64(static_cast<long long>(base)), _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7));

@@ -28,8 +28,8 @@ namespace sim::shading {
 namespace {
 
 inline std::uint64_t mix64(std::uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z = (z ^ (z >> 30)) * kMix1;
+  z = (z ^ (z >> 27)) * kMix2;
   return z ^ (z >> 31);
 }
 
@@ -39,7 +39,7 @@ inline std::uint32_t noise_offset(const Frame& f, int v, int channel, int chunk)
   const std::uint64_t key = (static_cast<std::uint64_t>(v) * 3 + static_cast<std::uint64_t>(channel)) * 65536u +
                             static_cast<std::uint64_t>(chunk) + 1;
   // the hash's top 32 bits scaled to [0, span) (a multiply, not a division)
-  return static_cast<std::uint32_t>(((mix64(f.noise_seed ^ (0x9E3779B97F4A7C15ull * key)) >> 32) * f.noise_span) >> 32);
+  return static_cast<std::uint32_t>(((mix64(f.noise_seed ^ (kNoiseKeyScale * key)) >> 32) * f.noise_span) >> 32);
 }
 
 // floor, as an int (exact for |x| < 2^31; INT_MIN beyond, and for NaN)

@@ -213,10 +213,10 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         L::storei(lit_row + u, none);
         continue;
       }
-      // the lanes' triangles: the first lane's broadcast (a wall covers whole rows); the
-      // others, on a tessellated surface, a few neighbouring planes whose ids lie in one run
-      // (two loads and a permutation per field, where the unit has them); else each distinct
-      // one broadcast (a row of pixels crosses few), up to four, then gathers
+      // the lanes' triangles: where their ids lie in one run of 32 (a wall's one plane, a
+      // tessellated surface's few neighbouring ones), two loads and a permutation per field,
+      // where the unit has them; else each distinct one broadcast (a row of pixels crosses
+      // few), up to four, then gathers
       F field[kTriangleFields];
       for (F& x : field) x = zero;
       M left = has;
@@ -226,9 +226,8 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * fields + t]), field[k]);
         left = L::mand(left, L::mnot(same));
       };
-      broadcast();
-      if (L::any(left) && !L::permute_fields(f.triangles, fields, tri, left, field)) {
-        for (int pass = 1; pass < 4 && L::any(left); ++pass) broadcast();
+      if (!L::permute_fields(f.triangles, fields, tri, has, field)) {
+        for (int pass = 0; pass < 4 && L::any(left); ++pass) broadcast();
         if (L::any(left))
           for (int k = 0; k < kTriangleFields; ++k)
             field[k] = L::sel(left, L::gather(f.triangles + k * fields, tri, left), field[k]);

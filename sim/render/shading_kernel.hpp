@@ -120,16 +120,17 @@ inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typen
                          L::subi(r_mid, away));
   const I r_hi = L::seli(lit, L::mini(L::mini(L::addi(floor_int<L>(L::add(gy, span)), one), last_row), L::addi(r_mid, away)),
                          none);
-  const int n_c = L::reduce_max(L::subi(c_hi, c_lo), lit) + 1;
-  const int n_r = L::reduce_max(L::subi(r_hi, r_lo), lit) + 1;
-  for (int kr = 0; kr < n_r; ++kr) {
+  // row by row, column by column, as long as some lane's range holds them (the lanes' ranges
+  // end one after another: once none holds one, none holds a later one)
+  for (int kr = 0;; ++kr) {
     const I row = L::addi(r_lo, L::seti(kr));
     const M in_row = L::mand(lit, L::lei(row, r_hi));
-    if (!L::any(in_row)) continue;
-    for (int kc = 0; kc < n_c; ++kc) {
+    if (!L::any(in_row)) break;
+    for (int kc = 0;; ++kc) {
       const I col = L::addi(c_lo, L::seti(kc));
       const M m = L::mand(in_row, L::lei(col, c_hi));
-      if (L::any(m)) add_spot<L>(f, m, row, col, pu, pv, reach2, inv_sigma, weight, r, g, b);
+      if (!L::any(m)) break;
+      add_spot<L>(f, m, row, col, pu, pv, reach2, inv_sigma, weight, r, g, b);
     }
   }
 }

@@ -98,6 +98,8 @@ struct Lanes {
     }
   }
   static I cvtt(F a) { return _mm512_cvttps_epi32(a); }
+  // floor_int in one conversion rounding down (INT_MIN beyond int and for NaN)
+  static I cvt_floor(F a) { return _mm512_cvt_roundps_epi32(a, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC); }
   static F cvt(I a) { return _mm512_cvtepi32_ps(a); }
   static I addi(I a, I b) { return _mm512_add_epi32(a, b); }
   static I subi(I a, I b) { return _mm512_sub_epi32(a, b); }

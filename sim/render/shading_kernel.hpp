@@ -42,12 +42,19 @@ inline std::uint32_t noise_offset(const Frame& f, int v, int channel, int chunk)
   return static_cast<std::uint32_t>(((mix64(f.noise_seed ^ (kNoiseKeyScale * key)) >> 32) * f.noise_span) >> 32);
 }
 
-// floor, as an int (exact for |x| < 2^31; INT_MIN beyond, and for NaN)
+// floor, as an int (exact for |x| < 2^31; INT_MIN beyond, either side, and for NaN)
 template <class L>
 inline typename L::I floor_int(typename L::F x) {
-  const typename L::I t = L::cvtt(x);
-  // truncation rounded towards zero: one less where that went up
-  return L::subi(t, L::seli(L::gt(L::cvt(t), x), L::seti(1), L::seti(0)));
+  // one conversion rounding down, where the unit has it
+  if constexpr (requires { L::cvt_floor(x); }) {
+    return L::cvt_floor(x);
+  } else {
+    const typename L::I t = L::cvtt(x);
+    // truncation rounded towards zero: one less where that went up (and not where it was out
+    // of range, INT_MIN, which one less would wrap)
+    const typename L::M down = L::mand(L::gt(L::cvt(t), x), L::mnot(L::eqi(t, L::seti(-2147483647 - 1))));
+    return L::subi(t, L::seli(down, L::seti(1), L::seti(0)));
+  }
 }
 
 // The light of spot (row, col) at the lanes `m`'s surface points, if they lie within its reach.

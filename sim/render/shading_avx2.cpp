@@ -54,7 +54,7 @@ struct Lanes {
       _mm_prefetch(reinterpret_cast<const char*>(p + at[__builtin_ctz(b)]), _MM_HINT_T0);
   }
   static I gatheri_run(const std::int32_t* p, std::size_t, I i, M m, std::int64_t) { return gatheri(p, i, m); }
-  static bool permute_fields(const float*, std::size_t, I, M, F*) { return false; }
+  static bool permute_fields(const float*, std::size_t, int, I, M, F*) { return false; }
   static I cvtt(F a) { return _mm256_cvttps_epi32(a); }
   // floor_int: rounded down, then converted (INT_MIN beyond int and for NaN)
   static I cvt_floor(F a) { return _mm256_cvttps_epi32(_mm256_round_ps(a, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC)); }

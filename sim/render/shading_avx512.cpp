@@ -59,7 +59,7 @@ struct Lanes {
   }
   // the lanes of a tessellated surface name a few neighbouring planes: one run of 32, then two
   // loads and a permutation per field
-  static bool permute_fields(const float* p, std::size_t stride, I i, M m, F* out) {
+  static bool permute_fields(const float* p, std::size_t stride, int count, I i, M m, F* out) {
     // the run: first guessed about lane 0's id (a strip's neighbours lie within 16 of it: two
     // comparisons), else from the lanes' least and greatest ids (two reductions, longer)
     const int guess = _mm_cvtsi128_si32(_mm512_castsi512_si128(i));
@@ -71,7 +71,7 @@ struct Lanes {
       if (lo < 0 || hi - lo >= 32) return false;
       at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
     }
-    for (int k = 0; k < kTriangleFields; ++k) {
+    for (int k = 0; k < count; ++k) {
       const float* q = p + k * stride + lo;
       out[k] = _mm512_mask_blend_ps(m, out[k], _mm512_permutex2var_ps(_mm512_loadu_ps(q), at, _mm512_loadu_ps(q + 16)));
     }

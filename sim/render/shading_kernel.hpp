@@ -10,8 +10,8 @@
 // in m asked of the cache, nothing waits); gather (m ? p[i] : 0), gatheri
 // (m ? p[i] : -1), gatheri_run (the same, the indices in a run of 32 the caller knows);
 // permute_fields (where m's indices lie in one run of 32 and the unit permutes: out[k] =
-// m ? p[k stride + i] : out[k] for kTriangleFields arrays `stride` apart, each readable 32 past
-// the last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt; addi,
+// m ? p[k stride + i] : out[k] for `count` arrays `stride` apart, each readable 32 past the
+// last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt; addi,
 // subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
 // lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved);
@@ -211,12 +211,15 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       // every lane's triangle outside the beam (Frame::outside_from): the ambient light alone,
       // with neither the point nor the projector needed (the full path gives the same: G = 0)
       if (!L::any(L::mand(has, L::lei(tri, L::seti(f.outside_from - 1))))) {
-        const int t = L::lane(tri, L::first(has));
-        const M same = L::mand(has, L::eqi(tri, L::seti(t)));
         const float* ambient = f.triangles + kAmbient * fields;
-        F a = L::sel(same, L::set(ambient[t]), zero);
-        const M left = L::mand(has, L::mnot(same));
-        if (L::any(left)) a = L::sel(left, L::gather(ambient, tri, left), a);
+        F a = zero;
+        if (!L::permute_fields(ambient, fields, 1, tri, has, &a)) {
+          const int t = L::lane(tri, L::first(has));
+          const M same = L::mand(has, L::eqi(tri, L::seti(t)));
+          a = L::sel(same, L::set(ambient[t]), zero);
+          const M left = L::mand(has, L::mnot(same));
+          if (L::any(left)) a = L::sel(left, L::gather(ambient, tri, left), a);
+        }
         L::store(ambient_row + u, a);
         L::storei(lit_row + u, none);
         continue;
@@ -234,7 +237,7 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * fields + t]), field[k]);
         left = L::mand(left, L::mnot(same));
       };
-      if (!L::permute_fields(f.triangles, fields, tri, has, field)) {
+      if (!L::permute_fields(f.triangles, fields, kTriangleFields, tri, has, field)) {
         for (int pass = 0; pass < 4 && L::any(left); ++pass) broadcast();
         if (L::any(left))
           for (int k = 0; k < kTriangleFields; ++k)

@@ -46,7 +46,7 @@ struct Lanes {
   // the vector units' conversions: INT_MIN for what does not fit (a C++ cast would be undefined)
   static void prefetch(const float*, I, M) {}  // one lookup at a time: nothing to overlap
   static I gatheri_run(const std::int32_t* p, std::size_t, I i, M m, std::int64_t) { return gatheri(p, i, m); }
-  static bool permute_fields(const float*, std::size_t, I, M, F*) { return false; }
+  static bool permute_fields(const float*, std::size_t, int, I, M, F*) { return false; }
   static I cvtt(F a) { return _mm_cvttss_si32(_mm_set_ss(a)); }
   static F cvt(I a) { return static_cast<float>(a); }
   // wrapping, as the vector units' integer lanes do

@@ -58,24 +58,42 @@ struct Lanes {
     return _mm512_mask_blend_epi32(m, _mm512_set1_epi32(-1), v);
   }
   // the lanes of a tessellated surface name a few neighbouring planes: one run of 32, then two
-  // loads and a permutation per field
+  // loads and a permutation per field; where a surface's edge meets another object, two runs
   static bool permute_fields(const float* p, std::size_t stride, int count, I i, M m, F* out) {
+    const __m512i run = _mm512_set1_epi32(32);
     // the run: first guessed about lane 0's id (a strip's neighbours lie within 16 of it: two
     // comparisons), else from the lanes' least and greatest ids (two reductions, longer)
     const int guess = _mm_cvtsi128_si32(_mm512_castsi512_si128(i));
     int lo = guess < 16 ? 0 : guess - 16;
     __m512i at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
-    if (guess < 0 || _mm512_mask_cmplt_epu32_mask(m, at, _mm512_set1_epi32(32)) != m) {
-      lo = _mm512_mask_reduce_min_epi32(m, i);
-      const int hi = _mm512_mask_reduce_max_epi32(m, i);
-      if (lo < 0 || hi - lo >= 32) return false;
-      at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
+    if (guess >= 0 && _mm512_mask_cmplt_epu32_mask(m, at, run) == m) {
+      permute_run(p, stride, count, lo, at, m, out);
+      return true;
     }
+    lo = _mm512_mask_reduce_min_epi32(m, i);
+    const int hi = _mm512_mask_reduce_max_epi32(m, i);
+    if (lo < 0) return false;
+    at = _mm512_sub_epi32(i, _mm512_set1_epi32(lo));
+    if (hi - lo < 32) {
+      permute_run(p, stride, count, lo, at, m, out);
+      return true;
+    }
+    // the least id's run and the greatest's (a silhouette: the object's planes, the wall's)
+    const M low = _mm512_mask_cmplt_epu32_mask(m, at, run);
+    const int lo2 = hi - 31;
+    const __m512i at2 = _mm512_sub_epi32(i, _mm512_set1_epi32(lo2));
+    const M high = _mm512_mask_cmplt_epu32_mask(m, at2, run);
+    if ((low | high) != m) return false;
+    permute_run(p, stride, count, lo, at, low, out);
+    permute_run(p, stride, count, lo2, at2, static_cast<M>(high & ~low), out);
+    return true;
+  }
+  // out[k] = m ? p[k stride + lo + at] : out[k], at in [0, 32)
+  static void permute_run(const float* p, std::size_t stride, int count, int lo, I at, M m, F* out) {
     for (int k = 0; k < count; ++k) {
       const float* q = p + k * stride + lo;
       out[k] = _mm512_mask_blend_ps(m, out[k], _mm512_permutex2var_ps(_mm512_loadu_ps(q), at, _mm512_loadu_ps(q + 16)));
     }
-    return true;
   }
   // shading_kernel.hpp's noise_offset for chunks [0, n) of (row v, channel c), eight at a time
   // (the same 64-bit hash and scaling, lane by lane); out holds n rounded up to 8

@@ -19,23 +19,17 @@ struct ScreenVertex {
   double u, v, inv_z;
 };
 
-// w(x, y) = a x + b y + c: barycentric weights and 1/z are affine in screen space
-struct Affine {
-  double a, b, c;
-  double at(double x, double y) const { return a * x + b * y + c; }
-};
-
 // fill_triangle's row spans for rows y..y+3, with AVX2: per edge the same c = b y + c,
 // -(c + 1e-9) / a, std::max / std::min (maxpd and minpd return their second operand for a
 // NaN, as std::max(lo, v) keeps lo), the same ceil, floor and truncating conversion (an
 // out-of-range value becomes INT_MIN in both). A row outside an edge parallel to the rows is
 // empty (the scalar loop's hi = lo - 1).
-__attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine* const* edges, int n, int* xa, int* xb) {
+__attribute__((target("avx2"))) void spans4(int y, int x0, int x1, const Affine* edges, int n, int* xa, int* xb) {
   const __m256d yv = _mm256_setr_pd(y, y + 1, y + 2, y + 3);
   __m256d lo = _mm256_set1_pd(x0), hi = _mm256_set1_pd(x1);
   __m256d empty = _mm256_setzero_pd();
   for (int k = 0; k < n; ++k) {
-    const Affine& e = *edges[k];
+    const Affine& e = edges[k];
     const __m256d c = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(e.b), yv), _mm256_set1_pd(e.c));
     if (e.a > 1e-15 || e.a < -1e-15) {
       const __m256d bound = _mm256_div_pd(_mm256_xor_pd(_mm256_add_pd(c, _mm256_set1_pd(1e-9)), _mm256_set1_pd(-0.0)),
@@ -184,7 +178,7 @@ __attribute__((target(SIM_AVX512_TARGET))) std::size_t running_sums16(int column
 // rows share them.
 constexpr int kThinColumns = 16;
 __attribute__((target(SIM_AVX512_TARGET))) void fill_rows16_avx512(int y0, int y1, int x0, int x1,
-                                                                     const Affine* const* edges, int n, const Affine& iz,
+                                                                     const Affine* edges, int n, const Affine& iz,
                                                                      std::int32_t id, DepthBuffer& out,
                                                                      std::vector<float>& sums) {
   const __m512i ids = _mm512_set1_epi32(id);
@@ -198,7 +192,7 @@ __attribute__((target(SIM_AVX512_TARGET))) void fill_rows16_avx512(int y0, int y
       __m512d lo = _mm512_set1_pd(x0), hi = _mm512_set1_pd(x1);
       __mmask8 empty = 0;
       for (int k = 0; k < n; ++k) {
-        const Affine& e = *edges[k];
+        const Affine& e = edges[k];
         const __m512d c = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(e.b), yv), _mm512_set1_pd(e.c));
         if (e.a > 1e-15 || e.a < -1e-15) {
           const __m512d bound = _mm512_div_pd(_mm512_xor_pd(_mm512_add_pd(c, _mm512_set1_pd(1e-9)), _mm512_set1_pd(-0.0)),
@@ -278,40 +272,18 @@ void polygon_rows(double v_lo, double v_hi, double m, int& y0, int& y1) {
 
 // A convex polygon of 3 or 4 vertices (a triangle, or a flat quad: two coplanar triangles of a
 // mesh), counter-clockwise or clockwise: the pixels inside every edge, 1/z from the plane of its
-// first three vertices.
-void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& out, const RasterClip& clip,
-                  VectorUnit unit, std::vector<float>& sums) {
-  const ScreenVertex &p0 = p[0], &p1 = p[1], &p2 = p[2];
-  const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
-  if (std::abs(area) < 1e-12) return;
-  const double m = out.margin;
-  double u_lo = p0.u, u_hi = p0.u, v_lo = p0.v, v_hi = p0.v;
-  for (int i = 1; i < n; ++i) {
-    u_lo = std::min(u_lo, p[i].u), u_hi = std::max(u_hi, p[i].u);
-    v_lo = std::min(v_lo, p[i].v), v_hi = std::max(v_hi, p[i].v);
-  }
-  const int x0 = std::max(clip.x0, static_cast<int>(std::ceil(u_lo + m)));
-  const int x1 = std::min({out.width - 1, clip.x1, static_cast<int>(std::floor(u_hi + m))});
-  const int y0 = std::max({clip.y0, out.row0, static_cast<int>(std::ceil(v_lo + m))});
-  const int y1 = std::min({out.height - 1, out.row0 + out.rows - 1, clip.y1, static_cast<int>(std::floor(v_hi + m))});
+// first three vertices (solve_edges).
+void fill_polygon(const ScreenTriangle& t, DepthBuffer& out, const RasterClip& clip, VectorUnit unit,
+                  std::vector<float>& sums) {
+  const int x0 = std::max(clip.x0, t.x0);
+  const int x1 = std::min({out.width - 1, clip.x1, t.x1});
+  const int y0 = std::max({clip.y0, out.row0, t.y0});
+  const int y1 = std::min({out.height - 1, out.row0 + out.rows - 1, clip.y1, t.y1});
   if (x0 > x1 || y0 > y1) return;
-  const double inv_area = 1.0 / area;
-  const auto edge = [&](const ScreenVertex& s, const ScreenVertex& e) {
-    // ((e.u - s.u) (y - s.v) - (e.v - s.v) (x - s.u)) / area, in buffer coordinates
-    const double a = -(e.v - s.v) * inv_area, b = (e.u - s.u) * inv_area;
-    return Affine{a, b, -(a * (s.u + m) + b * (s.v + m))};
-  };
-  // the first triangle's barycentric weights give 1/z; the polygon's edges bound it
-  const Affine w0 = edge(p1, p2), w1 = edge(p2, p0), w2 = edge(p0, p1);
-  const Affine iz{w0.a * p0.inv_z + w1.a * p1.inv_z + w2.a * p2.inv_z,
-                  w0.b * p0.inv_z + w1.b * p1.inv_z + w2.b * p2.inv_z,
-                  w0.c * p0.inv_z + w1.c * p1.inv_z + w2.c * p2.inv_z};
-  Affine quad_edges[4];
-  const Affine* edges[4] = {&w0, &w1, &w2, nullptr};
-  if (n == 4) {
-    for (int i = 0; i < 4; ++i) quad_edges[i] = edge(p[i], p[(i + 1) % 4]);
-    for (int i = 0; i < 4; ++i) edges[i] = &quad_edges[i];
-  }
+  const Affine* const edges = t.edge;
+  const int n = t.n;
+  const Affine& iz = t.iz;
+  const std::int32_t id = t.id;
   const auto fill_span = [&](int y, int xa, int xb) {
     float q = static_cast<float>(iz.at(xa, y));
     const float dq = static_cast<float>(iz.a);
@@ -347,7 +319,7 @@ void fill_polygon(const ScreenVertex* p, int n, std::int32_t id, DepthBuffer& ou
     // the loop below visits only covered pixels (thin triangles leave most of their box empty)
     double lo = x0, hi = x1;
     for (int k = 0; k < n; ++k) {
-      const Affine* e = edges[k];
+      const Affine* e = &edges[k];
       const double c = e->b * y + e->c;
       if (e->a > 1e-15) lo = std::max(lo, -(c + 1e-9) / e->a);
       else if (e->a < -1e-15) hi = std::min(hi, -(c + 1e-9) / e->a);
@@ -460,10 +432,8 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
     for (int i = 0; i < n; ++i) t.u[i] = p[i].u, t.v[i] = p[i].v, t.inv_z[i] = p[i].inv_z;
     t.n = n;
     t.id = id;
-    double lo = p[0].v, hi = p[0].v;
-    for (int i = 1; i < n; ++i) lo = std::min(lo, p[i].v), hi = std::max(hi, p[i].v);
-    polygon_rows(lo, hi, margin, t.y0, t.y1);
-    if (t.y0 <= t.y1) out.push_back(t);
+    solve_edges(t, margin);
+    if (t.y0 <= t.y1 && t.x0 <= t.x1) out.push_back(t);
   };
   const Eigen::Vector3d viewer = viewer_T_world.inverse().translation();
   cull = cull && tris.outward.size() == tris.a.size();
@@ -541,17 +511,59 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
   }
 }
 
+void solve_edges(ScreenTriangle& t, int margin) {
+  const ScreenVertex p[4] = {{t.u[0], t.v[0], t.inv_z[0]}, {t.u[1], t.v[1], t.inv_z[1]}, {t.u[2], t.v[2], t.inv_z[2]},
+                             {t.u[3], t.v[3], t.inv_z[3]}};
+  const int n = t.n;
+  const ScreenVertex &p0 = p[0], &p1 = p[1], &p2 = p[2];
+  const double m = margin;
+  double u_lo = p0.u, u_hi = p0.u, v_lo = p0.v, v_hi = p0.v;
+  for (int i = 1; i < n; ++i) {
+    u_lo = std::min(u_lo, p[i].u), u_hi = std::max(u_hi, p[i].u);
+    v_lo = std::min(v_lo, p[i].v), v_hi = std::max(v_hi, p[i].v);
+  }
+  polygon_rows(v_lo, v_hi, m, t.y0, t.y1);
+  const double area = (p1.u - p0.u) * (p2.v - p0.v) - (p1.v - p0.v) * (p2.u - p0.u);
+  const double left = std::ceil(u_lo + m), right = std::floor(u_hi + m);
+  // no area (or NaN): no columns; far beyond any buffer, as far as a cast can hold
+  if (!(std::abs(area) >= 1e-12) || !(left <= right)) {
+    t.x0 = 1;
+    t.x1 = 0;
+    return;
+  }
+  t.x0 = static_cast<int>(std::clamp(left, -1e9, 1e9));
+  t.x1 = static_cast<int>(std::clamp(right, -1e9, 1e9));
+  const double inv_area = 1.0 / area;
+  const auto edge = [&](const ScreenVertex& s, const ScreenVertex& e) {
+    // ((e.u - s.u) (y - s.v) - (e.v - s.v) (x - s.u)) / area, in buffer coordinates
+    const double a = -(e.v - s.v) * inv_area, b = (e.u - s.u) * inv_area;
+    return Affine{a, b, -(a * (s.u + m) + b * (s.v + m))};
+  };
+  // the first triangle's barycentric weights give 1/z; the polygon's edges bound it
+  const Affine w0 = edge(p1, p2), w1 = edge(p2, p0), w2 = edge(p0, p1);
+  t.iz = Affine{w0.a * p0.inv_z + w1.a * p1.inv_z + w2.a * p2.inv_z, w0.b * p0.inv_z + w1.b * p1.inv_z + w2.b * p2.inv_z,
+                w0.c * p0.inv_z + w1.c * p1.inv_z + w2.c * p2.inv_z};
+  if (n == 4) {
+    for (int i = 0; i < 4; ++i) t.edge[i] = edge(p[i], p[(i + 1) % 4]);
+  } else {
+    t.edge[0] = w0, t.edge[1] = w1, t.edge[2] = w2;
+  }
+}
+
 void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, const RasterClip& clip, bool vector,
                     bool avx512) {
   const VectorUnit unit = vector_unit(!vector, avx512);
   const int lo = std::max(clip.y0, out.row0), hi = std::min(clip.y1, out.row0 + out.rows - 1);
   thread_local std::vector<float> sums;  // the running sums of fill_spans4 and fill_rows16_avx512
-  for (const ScreenTriangle& t : tris) {
-    if (t.y1 < lo || t.y0 > hi) continue;
-    ScreenVertex p[4];
-    for (int i = 0; i < t.n; ++i) p[i] = {t.u[i], t.v[i], t.inv_z[i]};
-    fill_polygon(p, t.n, t.id, out, clip, unit, sums);
-  }
+  for (const ScreenTriangle& t : tris)
+    if (t.y1 >= lo && t.y0 <= hi) fill_polygon(t, out, clip, unit, sums);
+}
+
+void fill_triangles(const std::vector<ScreenTriangle>& tris, const std::vector<std::int32_t>& which, DepthBuffer& out,
+                    const RasterClip& clip, bool vector, bool avx512) {
+  const VectorUnit unit = vector_unit(!vector, avx512);
+  thread_local std::vector<float> sums;
+  for (const std::int32_t i : which) fill_polygon(tris[static_cast<std::size_t>(i)], out, clip, unit, sums);
 }
 
 void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,

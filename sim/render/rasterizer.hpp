@@ -94,13 +94,23 @@ struct RasterClip {
   int x0 = 0, y0 = 0, x1 = std::numeric_limits<int>::max(), y1 = std::numeric_limits<int>::max();
 };
 
+// w(x, y) = a x + b y + c over a buffer's pixels: barycentric weights and 1/z are affine there
+struct Affine {
+  double a, b, c;
+  double at(double x, double y) const { return a * x + b * y + c; }
+};
+
 // A triangle on a viewer's image plane (pixels, without the margin), ready to fill; or a flat
-// convex quad, two triangles of one plane sharing an edge (n = 4).
+// convex quad, two triangles of one plane sharing an edge (n = 4). Its edges and 1/z are
+// solved once (project_triangles), however many bands of a buffer it is then filled into.
 struct ScreenTriangle {
   double u[4], v[4], inv_z[4];
   int n;            // vertices: 3 or 4
   std::int32_t id;  // index into SceneTriangles (by_plane: its plane_of)
   int y0, y1;       // the buffer rows it may cover
+  int x0, x1;       // the buffer columns it may cover; x0 > x1: nothing (no area)
+  Affine edge[4];   // inside: every edge's w >= 0 (n of them), buffer coordinates
+  Affine iz;        // 1/z, from the plane of its first three vertices
 };
 // Triangles [first, end) seen from viewer_T_world through `k`, clipped against the near plane
 // (a triangle crossing it becomes one or two); `cull` as in rasterize. Appended to `out`.
@@ -114,6 +124,12 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
 // buffer filled band by band holds, bit for bit, what one fill of the whole holds.
 void fill_triangles(const std::vector<ScreenTriangle>& tris, DepthBuffer& out, const RasterClip& clip,
                     bool vector = true, bool avx512 = true);
+// The same for the triangles tris[i], i in `which` (ascending: the order of the fill).
+void fill_triangles(const std::vector<ScreenTriangle>& tris, const std::vector<std::int32_t>& which, DepthBuffer& out,
+                    const RasterClip& clip, bool vector = true, bool avx512 = true);
+// ScreenTriangle's edges, 1/z and box for its vertices u, v, inv_z and n, in a buffer with
+// `margin` (project_triangles calls it; a caller building its own calls it too).
+void solve_edges(ScreenTriangle& t, int margin);
 // Sizes `out` as the viewer's buffer (k's image with `margin` around it) holding rows
 // [row0, row0 + rows) (clamped to it), cleared: nothing anywhere.
 void clear_band(const Intrinsics& k, int margin, int row0, int rows, DepthBuffer& out);

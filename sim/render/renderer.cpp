@@ -382,6 +382,35 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   // on how they are shared out over threads.
   cv::Mat image(k.height, k.width, CV_8UC3);
   const int bands = (k.height + kBandRows - 1) / kBandRows;
+  // each band's z-buffer rows, and the polygons that meet them (in order): a band's fill then
+  // visits its own, not every polygon of the frame
+  std::vector<std::pair<int, int>> band_rows(static_cast<std::size_t>(bands));
+  s.band_screen.resize(static_cast<std::size_t>(bands));
+  for (int b = 0; b < bands; ++b) {
+    const int v0 = b * kBandRows, v1 = std::min(k.height, v0 + kBandRows);
+    band_rows[static_cast<std::size_t>(b)] = {*std::min_element(lens.zrow_lo.begin() + v0, lens.zrow_lo.begin() + v1),
+                                              *std::max_element(lens.zrow_hi.begin() + v0, lens.zrow_hi.begin() + v1)};
+    s.band_screen[static_cast<std::size_t>(b)].clear();
+  }
+  // bands whose rows rise with the band (any lens that keeps the image's rows in order): from
+  // the first band reaching a polygon's top row to the last its bottom row reaches; else all
+  bool rising = true;
+  for (int b = 1; b < bands; ++b)
+    rising = rising && band_rows[static_cast<std::size_t>(b)].first >= band_rows[static_cast<std::size_t>(b - 1)].first &&
+             band_rows[static_cast<std::size_t>(b)].second >= band_rows[static_cast<std::size_t>(b - 1)].second;
+  for (std::size_t i = 0; i < s.screen.size(); ++i) {
+    const ScreenTriangle& t = s.screen[i];
+    int b = 0;
+    if (rising)
+      b = static_cast<int>(std::partition_point(band_rows.begin(), band_rows.end(),
+                                                [&](const std::pair<int, int>& r) { return r.second < t.y0; }) -
+                           band_rows.begin());
+    for (; b < bands; ++b) {
+      const auto [z0, z1] = band_rows[static_cast<std::size_t>(b)];
+      if (rising && z0 > t.y1) break;
+      if (t.y1 >= z0 && t.y0 <= z1) s.band_screen[static_cast<std::size_t>(b)].push_back(static_cast<std::int32_t>(i));
+    }
+  }
   const auto shade_bands = [&](const cv::Range& range) {
     // each thread's own band buffers, kept from frame to frame (no allocation per frame)
     thread_local DepthBuffer depth;
@@ -389,12 +418,12 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
     rows.resize(static_cast<std::size_t>(shading::kRowArrays) * f.stride);
     for (int b = range.start; b < range.end; ++b) {
       const int v0 = b * kBandRows, v1 = std::min(k.height, v0 + kBandRows);
-      const int z0 = *std::min_element(lens.zrow_lo.begin() + v0, lens.zrow_lo.begin() + v1);
-      const int z1 = *std::max_element(lens.zrow_hi.begin() + v0, lens.zrow_hi.begin() + v1);
+      const auto [z0, z1] = band_rows[static_cast<std::size_t>(b)];
       shading::Frame band = f;
       if (z0 <= z1) {
         clear_band(k, cell.camera_margin_px, z0, z1 - z0 + 1, depth);
-        fill_triangles(s.screen, depth, RasterClip{0, z0, std::numeric_limits<int>::max(), z1}, !s.scalar, s.avx512);
+        fill_triangles(s.screen, s.band_screen[static_cast<std::size_t>(b)], depth,
+                       RasterClip{0, z0, std::numeric_limits<int>::max(), z1}, !s.scalar, s.avx512);
         band.cell_triangle = depth.triangle.data();
         band.cells = depth.triangle.size();
         band.cell_base = static_cast<std::int64_t>(depth.row0) * depth.width;

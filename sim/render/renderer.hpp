@@ -49,6 +49,7 @@ FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers&
 struct RenderScratch {
   ArmFrameBuffers arm;
   std::vector<ScreenTriangle> screen;  // the frame's triangles on the camera's image plane
+  std::vector<std::vector<std::int32_t>> band_screen;  // per band of rows: the ones its z-buffer rows meet
   std::vector<float> triangles;  // each triangle's vectors for this pose (shading.hpp)
   std::vector<float> arm_beam_depth;  // the arm's projector depth over Cell::beam
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)

@@ -46,7 +46,14 @@ struct Lanes {
   static void prefetch(const float* p, I i, M m) {
     alignas(64) std::int32_t at[N];
     _mm512_store_si512(at, i);
-    for (unsigned b = m; b != 0; b &= b - 1) _mm_prefetch(reinterpret_cast<const char*>(p + at[__builtin_ctz(b)]), _MM_HINT_T0);
+    // a lane whose line the lane before asks for already is left out (neighbouring pixels'
+    // cells share lines: a row's sixteen ask for two or three)
+    const __m512i line = _mm512_srai_epi32(_mm512_add_epi32(i, _mm512_set1_epi32(static_cast<int>(
+                                                                  (reinterpret_cast<std::uintptr_t>(p) & 63) / 4))),
+                                           4);
+    const __m512i before = _mm512_alignr_epi32(line, _mm512_set1_epi32(-(1 << 30)), 15);
+    unsigned b = m & static_cast<M>(_mm512_cmpneq_epi32_mask(line, before) | static_cast<M>(~(m << 1)));
+    for (; b != 0; b &= b - 1) _mm_prefetch(reinterpret_cast<const char*>(p + at[__builtin_ctz(b)]), _MM_HINT_T0);
   }
   // gatheri where the lanes' indices (those in m) are known to lie in [lo, lo + 32) (lo < 0:
   // not known): two loads and a permutation (a pixel's cells, a lens's rows of 16)

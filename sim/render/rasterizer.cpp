@@ -352,21 +352,26 @@ int closed_orientation(const std::vector<Eigen::Vector3d>& vertices, const std::
 
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
                       const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t, int outward) {
+  const auto base = static_cast<std::int32_t>(t.vertex_w.size());
+  for (const Eigen::Vector3d& v : vertices) t.vertex_w.push_back(world_T_mesh * v);
   const std::array<int, 3>* previous = nullptr;  // the last triangle kept
   for (const auto& tri : triangles) {
-    const Eigen::Vector3d a = world_T_mesh * vertices[tri[0]];
-    const Eigen::Vector3d b = world_T_mesh * vertices[tri[1]];
-    const Eigen::Vector3d c = world_T_mesh * vertices[tri[2]];
+    const Eigen::Vector3d& a = t.vertex_w[static_cast<std::size_t>(base + tri[0])];
+    const Eigen::Vector3d& b = t.vertex_w[static_cast<std::size_t>(base + tri[1])];
+    const Eigen::Vector3d& c = t.vertex_w[static_cast<std::size_t>(base + tri[2])];
     const Eigen::Vector3d n = (b - a).cross(c - a);
     if (n.norm() < 1e-15) continue;  // degenerate: no surface
     t.a.push_back(a);
     t.b.push_back(b);
     t.c.push_back(c);
+    t.corner.push_back({base + tri[0], base + tri[1], base + tri[2]});
     t.normal_w.push_back(n.normalized());
     t.offset.push_back(t.normal_w.back().dot(a));
     t.object.push_back(object);
     t.albedo.push_back(albedo);
     t.outward.push_back(static_cast<std::int8_t>(outward));
+    t.quad_extra.push_back(-1);
+    t.quad_edge.push_back(-1);
     const auto i = static_cast<std::int32_t>(t.a.size() - 1);
     std::int32_t plane = i;
     if (previous) {
@@ -374,8 +379,27 @@ void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::v
       for (int a : tri)
         for (int b : *previous) shared += a == b;
       const std::size_t p = static_cast<std::size_t>(i - 1);
-      if (shared == 2 && t.normal_w[p].dot(t.normal_w.back()) > 1 - 1e-12 && std::abs(t.offset[p] - t.offset.back()) < 1e-12)
+      if (shared == 2 && t.normal_w[p].dot(t.normal_w.back()) > 1 - 1e-12 && std::abs(t.offset[p] - t.offset.back()) < 1e-12) {
         plane = t.plane_of[p];
+        // the quad the two make: the vertices they have in common, by position
+        const Eigen::Vector3d* w[3] = {&t.a[p + 1], &t.b[p + 1], &t.c[p + 1]};
+        const Eigen::Vector3d* mine[3] = {&t.a[p], &t.b[p], &t.c[p]};
+        int extra = -1, in_both = 0;
+        for (int q = 0; q < 3; ++q) {
+          const bool in = *w[q] == *mine[0] || *w[q] == *mine[1] || *w[q] == *mine[2];
+          in_both += in;
+          if (!in) extra = q;
+        }
+        for (int e = 0; e < 3 && in_both == 2; ++e) {
+          const Eigen::Vector3d& from = *mine[e];
+          const Eigen::Vector3d& to = *mine[(e + 1) % 3];
+          if ((from == *w[0] || from == *w[1] || from == *w[2]) && (to == *w[0] || to == *w[1] || to == *w[2])) {
+            t.quad_extra[p] = static_cast<std::int8_t>(extra);
+            t.quad_edge[p] = static_cast<std::int8_t>(e);
+            break;
+          }
+        }
+      }
     }
     t.plane_of.push_back(plane);
     previous = &tri;
@@ -445,50 +469,61 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
   const auto culled = [&](std::size_t i) {
     return cull && faces_away(tris, i, viewer);
   };
-  for (std::size_t i = first; i < tris.a.size(); ++i) {
+  // each vertex of triangles [first, end) once: in the viewer's frame, and on its image where
+  // in front of the near plane
+  const std::size_t end = tris.a.size();
+  // (append_triangles builds them; triangles without them are projected one by one, unpaired)
+  const bool indexed = tris.corner.size() == end && tris.quad_extra.size() == end && tris.quad_edge.size() == end;
+  thread_local std::vector<Eigen::Vector3d> seen;
+  thread_local std::vector<ScreenVertex> screen;
+  std::size_t v_first = tris.vertex_w.size();
+  if (indexed)
+    for (std::size_t i = first; i < end; ++i)
+      for (const std::int32_t v : tris.corner[i]) v_first = std::min(v_first, static_cast<std::size_t>(v));
+  if (indexed) {
+    seen.resize(tris.vertex_w.size());
+    screen.resize(tris.vertex_w.size());
+    for (std::size_t v = v_first; v < tris.vertex_w.size(); ++v) {
+      seen[v] = viewer_T_world * tris.vertex_w[v];
+      if (seen[v].z() >= kNear) screen[v] = to_screen(seen[v]);
+    }
+  }
+  for (std::size_t i = first; i < end; ++i) {
     if (culled(i)) continue;
-    const Eigen::Vector3d v[3] = {viewer_T_world * tris.a[i], viewer_T_world * tris.b[i], viewer_T_world * tris.c[i]};
+    Eigen::Vector3d v[3];
+    if (indexed)
+      for (int q = 0; q < 3; ++q) v[q] = seen[static_cast<std::size_t>(tris.corner[i][q])];
+    else
+      v[0] = viewer_T_world * tris.a[i], v[1] = viewer_T_world * tris.b[i], v[2] = viewer_T_world * tris.c[i];
     const int behind = (v[0].z() < kNear) + (v[1].z() < kNear) + (v[2].z() < kNear);
     if (behind == 3) continue;
     const std::int32_t id = id_of(i);
     if (behind == 0) {
-      const ScreenVertex s[3] = {to_screen(v[0]), to_screen(v[1]), to_screen(v[2])};
+      ScreenVertex s[3];
+      for (int q = 0; q < 3; ++q) s[q] = indexed ? screen[static_cast<std::size_t>(tris.corner[i][q])] : to_screen(v[q]);
       // the next triangle, the other half of a flat quad: one polygon
       const std::size_t j = i + 1;
-      if (by_plane && j < tris.a.size() && tris.plane_of[j] == tris.plane_of[i] && id_of(j) == id && !culled(j)) {
-        const Eigen::Vector3d* w[3] = {&tris.a[j], &tris.b[j], &tris.c[j]};
-        const Eigen::Vector3d* mine[3] = {&tris.a[i], &tris.b[i], &tris.c[i]};
-        int extra = -1, shared = 0;
-        for (int q = 0; q < 3; ++q) {
-          const bool in = *w[q] == *mine[0] || *w[q] == *mine[1] || *w[q] == *mine[2];
-          shared += in;
-          if (!in) extra = q;
-        }
-        const Eigen::Vector3d d = viewer_T_world * *w[extra < 0 ? 0 : extra];
-        if (shared == 2 && d.z() >= kNear) {
+      if (by_plane && indexed && j < end && tris.quad_extra[i] >= 0 && tris.plane_of[j] == tris.plane_of[i] &&
+          id_of(j) == id && !culled(j)) {
+        const auto extra = static_cast<std::size_t>(tris.corner[j][static_cast<std::size_t>(tris.quad_extra[i])]);
+        if (seen[extra].z() >= kNear) {
           // the quad: the new vertex between the shared edge's ends, in this triangle's order
-          for (int e = 0; e < 3; ++e) {
-            const Eigen::Vector3d& from = *mine[e];
-            const Eigen::Vector3d& to = *mine[(e + 1) % 3];
-            const bool edge_shared = (from == *w[0] || from == *w[1] || from == *w[2]) && (to == *w[0] || to == *w[1] || to == *w[2]);
-            if (!edge_shared) continue;
-            const ScreenVertex q[4] = {s[e], to_screen(d), s[(e + 1) % 3], s[(e + 2) % 3]};
-            // convex, turning one way at every corner, and not degenerate
-            double turn_sign = 0;
-            bool convex = true;
-            for (int c = 0; c < 4 && convex; ++c) {
-              const ScreenVertex &o = q[c], &p1 = q[(c + 1) % 4], &p2 = q[(c + 2) % 4];
-              const double cross = (p1.u - o.u) * (p2.v - p1.v) - (p1.v - o.v) * (p2.u - p1.u);
-              if (std::abs(cross) < 1e-9 || (turn_sign != 0 && (cross > 0) != (turn_sign > 0))) convex = false;
-              turn_sign = cross;
-            }
-            if (convex) {
-              add(q, 4, id);
-              ++i;  // the other half is in the quad
-            }
-            break;
+          const int e = tris.quad_edge[i];
+          const ScreenVertex q[4] = {s[e], screen[extra], s[(e + 1) % 3], s[(e + 2) % 3]};
+          // convex, turning one way at every corner, and not degenerate
+          double turn_sign = 0;
+          bool convex = true;
+          for (int c = 0; c < 4 && convex; ++c) {
+            const ScreenVertex &o = q[c], &p1 = q[(c + 1) % 4], &p2 = q[(c + 2) % 4];
+            const double cross = (p1.u - o.u) * (p2.v - p1.v) - (p1.v - o.v) * (p2.u - p1.u);
+            if (std::abs(cross) < 1e-9 || (turn_sign != 0 && (cross > 0) != (turn_sign > 0))) convex = false;
+            turn_sign = cross;
           }
-          if (i == j) continue;
+          if (convex) {
+            add(q, 4, id);
+            ++i;  // the other half is in the quad
+            continue;
+          }
         }
       }
       add(s, 3, id);

@@ -29,6 +29,14 @@ struct SceneTriangles {
   // the first of a run of triangles of one mesh, each sharing an edge with the one before and
   // lying in its plane (a quad's two halves, a flat wall's tiles): the same surface to shade
   std::vector<std::int32_t> plane_of;
+  // the vertices (world frame) and each triangle's three: a = vertex_w[corner[i][0]], b, c the
+  // next two (a vertex that triangles share is projected once a frame)
+  std::vector<Eigen::Vector3d> vertex_w;
+  std::vector<std::array<std::int32_t, 3>> corner;
+  // where triangle i and the next one are a flat quad's halves (one plane, two vertices in
+  // common): the next one's vertex that is not i's (0-2) and i's edge they share (from its
+  // vertex e to e + 1); -1 otherwise
+  std::vector<std::int8_t> quad_extra, quad_edge;
 };
 
 // Where a point `p` of a viewer's frame lands on its image through the ideal pinhole `k` (pixels).

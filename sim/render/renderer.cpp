@@ -41,6 +41,10 @@ SceneTriangles& posed_triangles(const Cell& cell, const LinkPoses& links, ArmFra
   t.albedo.resize(first);
   t.outward.resize(first);
   t.plane_of.resize(first);
+  t.corner.resize(first);
+  t.quad_extra.resize(first);
+  t.quad_edge.resize(first);
+  t.vertex_w.resize(cell.triangles.vertex_w.size());
   for (std::size_t i = 0; i < arm.size(); ++i) {
     const auto l = static_cast<std::size_t>(arm.link(i));
     if (l >= links.size()) continue;

@@ -256,16 +256,31 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
   const Eigen::Isometry3d p_T_c = cell.projector->projector_T_world() * world_T_camera;
   const Eigen::Vector3d C = world_T_camera.translation();
   constexpr double kNearest = 0.01, kGrazing = 0.01, kClear = 1.0;  // metres, cosine, projector pixels
+  // Below, reciprocals and squares stand for divisions and roots: this is a decision with a
+  // pixel to spare, and they move it by 1e-16 of a pixel.
+  // each vertex once: its image, or NaN where before kNearest
+  const bool indexed = tris.corner.size() == tris.a.size();
+  thread_local std::vector<Eigen::Vector2d> vertex_image;
+  const auto image_of = [&](const Eigen::Vector3d& v) {
+    const Eigen::Vector3d x = c_T_w * v;
+    return x.z() >= kNearest ? pinhole_pixel(k, x) : Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  };
+  if (indexed) {
+    vertex_image.resize(tris.vertex_w.size());
+    for (std::size_t v = 0; v < tris.vertex_w.size(); ++v) vertex_image[v] = image_of(tris.vertex_w[v]);
+  }
+  const double inv_fx = 1.0 / k.fx, inv_fy = 1.0 / k.fy;
   for (std::size_t i = 0; i < n; ++i) {
     if (!(cell.beam_gap[i] > kClear)) continue;  // its own image reaches the window: so does the region
     // a face of a closed mesh turned away from the camera is never drawn (project_triangles)
     if (tris.outward.size() == tris.a.size() && faces_away(tris, i, C)) continue;
     Eigen::AlignedBox2d image;
     bool near = false;
-    for (const Eigen::Vector3d* v : {&tris.a[i], &tris.b[i], &tris.c[i]}) {
-      const Eigen::Vector3d x = c_T_w * *v;
-      if (!(x.z() >= kNearest)) near = true;
-      image.extend(pinhole_pixel(k, x));
+    for (int q = 0; q < 3; ++q) {
+      const Eigen::Vector2d x = indexed ? vertex_image[static_cast<std::size_t>(tris.corner[i][q])]
+                                        : image_of(q == 0 ? tris.a[i] : q == 1 ? tris.b[i] : tris.c[i]);
+      if (std::isnan(x.x())) near = true;
+      image.extend(x);
     }
     if (near) continue;  // clipped by the rasteriser: not worth the care
     const Eigen::Vector3d n_c = c_T_w.linear() * tris.normal_w[i];
@@ -275,11 +290,12 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
     for (int corner = 0; corner < 4 && sure; ++corner) {
       const double u = corner & 1 ? image.max().x() + 1 : image.min().x() - 1;
       const double v = corner & 2 ? image.max().y() + 1 : image.min().y() - 1;
-      const Eigen::Vector3d ray((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0);
+      const Eigen::Vector3d ray((u - k.cx) * inv_fx, (v - k.cy) * inv_fy, 1.0);
       const double facing = n_c.dot(ray), t = o_c / facing;
       const Eigen::Vector3d x = p_T_c * (t * ray);
-      sure = std::abs(facing) >= kGrazing * ray.norm() && t > 0 && x.z() > 1e-3;
-      seen.extend(pinhole_pixel(kp, x));
+      sure = facing * facing >= kGrazing * kGrazing * ray.squaredNorm() && t > 0 && x.z() > 1e-3;
+      const double inv_z = 1.0 / x.z();
+      seen.extend(Eigen::Vector2d(kp.fx * x.x() * inv_z + kp.cx, kp.fy * x.y() * inv_z + kp.cy));
     }
     out[i] = sure && gap_beyond(seen, window) > kClear;
   }

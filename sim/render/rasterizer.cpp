@@ -125,16 +125,15 @@ __attribute__((target(SIM_AVX512_TARGET))) void thin_rows(int y, int y1, __m512i
   const __m512i row = _mm512_add_epi32(_mm512_set1_epi32(y - out.row0), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9,
                                                                                            10, 11, 12, 13, 14, 15));
   alignas(64) std::int32_t cell[16], covered[16];
-  alignas(64) float first[16];
   _mm512_store_si512(cell, _mm512_maskz_add_epi32(rows, _mm512_mullo_epi32(row, _mm512_set1_epi32(out.width)), xa));
-  _mm512_store_ps(first, q);
   // (1 << (count + 1)) - 1, 0 for an empty row
   _mm512_store_si512(covered, _mm512_maskz_sub_epi32(rows, _mm512_sllv_epi32(_mm512_set1_epi32(2), count),
                                                     _mm512_set1_epi32(1)));
   const int last = std::min(15, y1 - y);
   for (int r = 0; r <= last; ++r) {
     // lane k: the first 1/z and k additions of dq (the same additions, one rounding each)
-    __m512 qv = _mm512_set1_ps(first[r]);
+    // (row r's first 1/z in every lane, from q's lane r: no trip through memory)
+    __m512 qv = _mm512_permutexvar_ps(_mm512_set1_epi32(r), q);
     for (int j = 1; j < columns; ++j) qv = _mm512_mask_add_ps(qv, static_cast<__mmask16>(0xFFFFu << j), qv, step);
     const __mmask16 in = static_cast<__mmask16>(covered[r]);
     float* inv_depth = out.inv_depth.data() + cell[r];

@@ -140,8 +140,11 @@ struct Lanes {
   static int first(M m) { return m ? __builtin_ctz(m) : -1; }
   static F lut16(const float* t, I i) { return _mm512_permutexvar_ps(i, _mm512_loadu_ps(t)); }
   static F lut32(const float* t, I i) { return _mm512_permutex2var_ps(_mm512_loadu_ps(t), i, _mm512_loadu_ps(t + 16)); }
+  // the bytes narrowed with unsigned saturation: anything from 255 up (INT_MIN too, as unsigned)
+  // is stored as 255, so the kernel need not clamp there
+  static constexpr bool kStoreSaturates = true;
   static void store_rgb(std::uint8_t* out, I r, I g, I b) {
-    const __m128i r8 = _mm512_cvtepi32_epi8(r), g8 = _mm512_cvtepi32_epi8(g), b8 = _mm512_cvtepi32_epi8(b);
+    const __m128i r8 = _mm512_cvtusepi32_epi8(r), g8 = _mm512_cvtusepi32_epi8(g), b8 = _mm512_cvtusepi32_epi8(b);
     // byte j of the 48 is channel j % 3 of pixel j / 3: three shuffles per 16 bytes
     static const Masks masks;
     for (int k = 0; k < 3; ++k) {

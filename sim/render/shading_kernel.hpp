@@ -14,7 +14,8 @@
 // last index, and true; else false); cvtt (truncation, INT_MIN outside int), cvt; addi,
 // subi, muli, mini, maxi;
 // reduce_max, lane (one lane's value), first (the first lane set in a mask, -1: none);
-// lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved);
+// lut16, lut32 (16- and 32-entry float tables); store_rgb (three lanes of bytes, interleaved;
+// with kStoreSaturates, of values from INT_MIN up, unsigned, stored as min(value, 255));
 // optionally noise_offsets (noise_offset for a row's first n chunks, several at a time).
 #pragma once
 
@@ -353,7 +354,13 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
           const float* noise = f.noise_pool + offsets_buf[c * 256 + u / kNoiseChunk] + noise_at;
           level = L::add(value, L::mul(known_sd, L::load(noise)));
         }
-        out[c] = L::cvtt(L::min(L::max(L::add(level, L::set(0.5f)), zero), L::set(255.0f)));
+        // rounded, clamped to [0, 255] (where the unit's byte store saturates, the store clamps
+        // above: the truncation of anything from 255 up is 255 or more, INT_MIN beyond int)
+        const F above_zero = L::max(L::add(level, L::set(0.5f)), zero);
+        if constexpr (requires { L::kStoreSaturates; })
+          out[c] = L::cvtt(above_zero);
+        else
+          out[c] = L::cvtt(L::min(above_zero, L::set(255.0f)));
       }
       if (u + N <= f.width) {
         L::store_rgb(row + 3 * u, out[0], out[1], out[2]);

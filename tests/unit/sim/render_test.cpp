@@ -323,7 +323,7 @@ TEST(Rasterizer, ClosedMeshesAndTheirOrientationAreFoundAtLoad) {
 
 // The frames every scenario gives at its taught and initial poses and at random poses around
 // them, with the arm where it is (its links in the beam on cylinder_occlusion), the scenario's
-// sensor, a noisier one with shot noise and crosstalk, and a quiet one.
+// sensor, a noisier one with shot noise and crosstalk, a quiet one and an overexposed one.
 struct RenderCase {
   std::string scenario, pose;
   std::unique_ptr<Cell>* cell;
@@ -353,10 +353,13 @@ void for_each_render_case(Visit visit) {
     CameraSpec quiet = cell->scenario.camera;
     quiet.noise_sigma = 0;
     quiet.shot_noise = 0;
+    // overexposed: the spots and much of the rest clip at 255 (the vector units' saturating stores)
+    CameraSpec bright = shot;
+    bright.exposure = 6;
     for (std::size_t p = 0; p < poses.size(); ++p) {
       const Eigen::Isometry3d wTc = resolve_pose(cell->scenario, poses[p]);
       robot->reset(wTc);
-      for (const CameraSpec* sensor : std::initializer_list<const CameraSpec*>{nullptr, &shot, &quiet})
+      for (const CameraSpec* sensor : std::initializer_list<const CameraSpec*>{nullptr, &shot, &quiet, &bright})
         visit(RenderCase{name, poses[p], &cell, robot->world_T_camera(), robot->world_T_links(), sensor,
                          frame_seed(cell->scenario.seed, p)});
     }

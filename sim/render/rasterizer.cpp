@@ -451,12 +451,12 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
     return ScreenVertex{s.x(), s.y(), 1.0 / p.z()};
   };
   const auto add = [&](const ScreenVertex* p, int n, std::int32_t id) {
-    ScreenTriangle t{};
+    ScreenTriangle& t = out.emplace_back();  // built in place (a polygon is 250 bytes), zeroed
     for (int i = 0; i < n; ++i) t.u[i] = p[i].u, t.v[i] = p[i].v, t.inv_z[i] = p[i].inv_z;
     t.n = n;
     t.id = id;
     solve_edges(t, margin);
-    if (t.y0 <= t.y1 && t.x0 <= t.x1) out.push_back(t);
+    if (!(t.y0 <= t.y1 && t.x0 <= t.x1)) out.pop_back();
   };
   const Eigen::Vector3d viewer = viewer_T_world.inverse().translation();
   cull = cull && tris.outward.size() == tris.a.size();

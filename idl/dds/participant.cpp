@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -304,6 +305,25 @@ namespace {
 constexpr const char* kShmDir = "/dev/shm/";
 constexpr int kMaxParticipantId = 120;
 
+// Shared memory (Fast DDS 2.9). A sender keeps each buffer it queued into a reader's port until
+// that reader takes it; a reader killed with SIGKILL never does, and the sender reclaims such
+// buffers only when its segment runs short of bytes. In our former 8 MB segment the dead
+// reader's buffers cut the free space into holes smaller than one 64 KB message while the total
+// free stayed above it: every image fragment failed to allocate (thousands of overflows, logged
+// at Info level only) and a restarted servo heard no image again (CI, stop 38). A segment holds
+// at most kShmBuffers buffers (Fast DDS reclaims the oldest when all are taken), so with room
+// for twice that many messages and one more, some hole always fits a message, whatever the
+// others hold. Fewer buffers would shrink the segment but let a starved reader's buffers be
+// reclaimed before it took them (64 lost a test watcher's last pose under load).
+constexpr std::uint32_t kShmBuffers = 512;               // Fast DDS's own port depth
+constexpr std::uint32_t kShmMaxMessageBytes = 65'536;    // a UDP datagram: Fast DDS's message cap
+constexpr std::uint32_t kShmSegmentBytes = (2 * kShmBuffers + 1) * kShmMaxMessageBytes + (1u << 20);
+// Every process with a port open runs a watchdog that calls the port dead when its listener has
+// not checked in for this long; a port called dead is removed and made anew, and a sender still
+// holding the old one sends into a port nobody reads. Fast DDS's 1 s is shorter than a starved
+// process's pause on a loaded 2-core machine (a live cellsim's own port was removed so).
+constexpr std::uint32_t kShmHealthyCheckMs = 10'000;
+
 int unicast_port(int domain, int id, int offset) { return 7400 + 250 * domain + offset + 2 * id; }
 
 bool udp_port_free(int port) {
@@ -323,45 +343,21 @@ bool shm_port_exists(int port) {
   return std::filesystem::exists(kShmDir + std::string("fastrtps_port") + std::to_string(port), ec);
 }
 
-// Once per process, before its first participant: port files that no process maps and whose
-// listener lock nobody holds belong to processes that are gone.
-void remove_orphaned_shm_ports() {
+// Fast DDS's shared-memory files: a port ("fastrtps_port7411") or a sender's segment
+// ("fastrtps_" and 16 hex digits); not their "_el" locks or "_mutex" semaphores.
+bool is_fastdds_shm_file(const std::string& name) {
+  const std::string prefix = "fastrtps_";
+  if (name.rfind(prefix, 0) != 0) return false;
+  const std::string rest = name.substr(prefix.size());
+  if (rest.rfind("port", 0) == 0)
+    return rest.size() > 4 && rest.find_first_not_of("0123456789", 4) == std::string::npos;
+  return rest.size() == 16 && rest.find_first_not_of("0123456789abcdef") == std::string::npos;
+}
+
+// Once per process, before its first participant.
+void remove_orphaned_shm_files_once() {
   static std::once_flag once;
-  std::call_once(once, [] {
-    std::set<std::string> mapped;
-    std::error_code ec;
-    for (const auto& proc : std::filesystem::directory_iterator("/proc", ec)) {
-      std::ifstream maps(proc.path() / "maps");
-      std::string line;
-      while (std::getline(maps, line)) {
-        const auto at = line.find("/dev/shm/fastrtps_port");
-        if (at != std::string::npos) mapped.insert(line.substr(at + 9));
-      }
-    }
-    for (const auto& f : std::filesystem::directory_iterator(kShmDir, ec)) {
-      const std::string name = f.path().filename().string();
-      if (name.rfind("fastrtps_port", 0) != 0 || name.find('_', 13) != std::string::npos || mapped.count(name)) continue;
-      // a port another process is creating right now is not mapped nor locked yet: removing
-      // it would leave that participant deaf to shared memory (seen under parallel tests as
-      // a watcher that received nothing); only files untouched for a minute are candidates
-      const auto age = std::filesystem::file_time_type::clock::now() - std::filesystem::last_write_time(f.path(), ec);
-      if (ec || age < std::chrono::seconds(60)) continue;
-      // the listener holds a lock on <port>_el while it lives
-      const std::string el = std::string(kShmDir) + name + "_el";
-      const int fd = open(el.c_str(), O_RDWR);
-      if (fd >= 0) {
-        struct flock l {};
-        l.l_type = F_WRLCK;
-        l.l_whence = SEEK_SET;
-        const bool held = fcntl(fd, F_GETLK, &l) == 0 && l.l_type != F_UNLCK;
-        close(fd);
-        if (held) continue;
-      }
-      std::filesystem::remove(f.path(), ec);
-      std::filesystem::remove(el, ec);
-      std::filesystem::remove(std::string(kShmDir) + "sem." + name + "_mutex", ec);
-    }
-  });
+  std::call_once(once, [] { remove_orphaned_shm_files(kShmDir, std::chrono::seconds(60)); });
 }
 
 // The lowest participant id at or after `from` that is free on UDP and in shared memory.
@@ -404,7 +400,9 @@ void configure_network(DomainParticipantQos& qos, const ParticipantOptions& o) {
   qos.transport().user_transports.push_back(udp);
   // large frames between processes of one host go through shared memory
   auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
-  shm->segment_size(8 * 1024 * 1024);
+  shm->segment_size(kShmSegmentBytes);
+  shm->port_queue_capacity(kShmBuffers);
+  shm->healthy_check_timeout_ms(kShmHealthyCheckMs);
   qos.transport().user_transports.push_back(shm);
   auto& peers = qos.wire_protocol().builtin.initialPeersList;
   if (d.range == DiscoveryRange::kLocalhost) peers.push_back(peer_locator("127.0.0.1"));
@@ -432,7 +430,7 @@ void configure_network(DomainParticipantQos& qos, const ParticipantOptions& o) {
 DomainParticipant* create_on_free_id(DomainParticipantQos& qos, int domain_id) {
   DomainParticipant* p = nullptr;
   {
-    remove_orphaned_shm_ports();
+    remove_orphaned_shm_files_once();
     // another process may take the same id between the check and the bind: try the next
     for (int attempt = 0, id = 0; attempt < 5 && p == nullptr; ++attempt, ++id) {
       id = free_participant_id(domain_id, id);
@@ -487,6 +485,46 @@ void register_type(DomainParticipant& participant, TypeSupport type) {
   type->auto_fill_type_object(false);
   if (type.register_type(&participant) != ReturnCode_t::RETCODE_OK)
     throw std::runtime_error("cannot register DDS type " + type.get_type_name());
+}
+
+std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& dir, std::chrono::seconds min_age) {
+  std::vector<std::string> removed;
+  std::error_code ec;
+  const std::string prefix = (dir / "fastrtps_").string();
+  std::set<std::string> mapped;
+  for (const auto& proc : std::filesystem::directory_iterator("/proc", ec)) {
+    std::ifstream maps(proc.path() / "maps");
+    std::string line;
+    while (std::getline(maps, line)) {
+      const auto at = line.find(prefix);
+      if (at != std::string::npos) mapped.insert(std::filesystem::path(line.substr(at)).filename().string());
+    }
+  }
+  for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = f.path().filename().string();
+    if (!is_fastdds_shm_file(name) || mapped.count(name)) continue;
+    std::error_code age_ec;
+    const auto age = std::filesystem::file_time_type::clock::now() - std::filesystem::last_write_time(f.path(), age_ec);
+    if (age_ec || age < min_age) continue;
+    // the port's listener, the segment's owner, holds flock on <name>_el while it lives
+    // (Fast DDS's RobustExclusiveLock; an fcntl lock test would not see it)
+    const std::string el = f.path().string() + "_el";
+    // non-blocking, and only a regular file: a FIFO planted as a lock must not hang us
+    const int fd = open(el.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+    if (fd >= 0) {
+      struct stat st {};
+      const bool regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+      const bool held = !regular || flock(fd, LOCK_EX | LOCK_NB) != 0;
+      close(fd);  // releases the lock if this test took it
+      if (held) continue;
+    }
+    std::error_code rm_ec;
+    std::filesystem::remove(f.path(), rm_ec);
+    std::filesystem::remove(el, rm_ec);
+    std::filesystem::remove(dir / ("sem." + name + "_mutex"), rm_ec);
+    removed.push_back(name);
+  }
+  return removed;
 }
 
 }  // namespace cell_dds

@@ -4,6 +4,8 @@
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
+#include <chrono>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -76,6 +78,13 @@ using ParticipantPtr = std::unique_ptr<eprosima::fastdds::dds::DomainParticipant
 
 // Throws std::runtime_error when the participant cannot be created.
 ParticipantPtr make_participant(const ParticipantOptions& options);
+
+// Removes from `dir` (/dev/shm) the shared-memory files Fast DDS leaves behind a process killed
+// with SIGKILL: ports ("fastrtps_port7411") and senders' segments ("fastrtps_" and 16 hex
+// digits), with their "_el" locks and "_mutex" semaphores, when no process maps the file, nobody
+// holds its owner's lock and it is at least `min_age` old (a file being created is neither mapped
+// nor locked yet). Returns the names removed. make_participant calls it once per process.
+std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& dir, std::chrono::seconds min_age);
 
 // Registers a generated type with no type information announced: Fast DDS 2.9 writers
 // that send TypeObject/TypeInformation are rejected by Cyclone DDS 0.10.

@@ -5,6 +5,9 @@
 #include <netinet/in.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
+
+#include <algorithm>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -317,7 +320,18 @@ constexpr int kMaxParticipantId = 120;
 // reclaimed before it took them (64 lost a test watcher's last pose under load).
 constexpr std::uint32_t kShmBuffers = 512;               // Fast DDS's own port depth
 constexpr std::uint32_t kShmMaxMessageBytes = 65'536;    // a UDP datagram: Fast DDS's message cap
-constexpr std::uint32_t kShmSegmentBytes = (2 * kShmBuffers + 1) * kShmMaxMessageBytes + (1u << 20);
+constexpr std::uint32_t kShmSlackBytes = 1u << 20;       // Fast DDS's own records in the segment
+constexpr std::uint32_t shm_segment_bytes(std::uint32_t buffers) {
+  return (2 * buffers + 1) * kShmMaxMessageBytes + kShmSlackBytes;
+}
+constexpr std::uint32_t kShmSegmentBytes = shm_segment_bytes(kShmBuffers);  // 65 MB
+// what this machine's /dev/shm allows (shm_size_for)
+ShmSize shm_size() {
+  struct statvfs v {};
+  if (statvfs(kShmDir, &v) != 0) return {kShmSegmentBytes, kShmBuffers};
+  return shm_size_for(static_cast<std::uint64_t>(v.f_bavail) * v.f_frsize);
+}
+
 // Every process with a port open runs a watchdog that calls the port dead when its listener has
 // not checked in for this long; a port called dead is removed and made anew, and a sender still
 // holding the old one sends into a port nobody reads. Fast DDS's 1 s is shorter than a starved
@@ -400,8 +414,9 @@ void configure_network(DomainParticipantQos& qos, const ParticipantOptions& o) {
   qos.transport().user_transports.push_back(udp);
   // large frames between processes of one host go through shared memory
   auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
-  shm->segment_size(kShmSegmentBytes);
-  shm->port_queue_capacity(kShmBuffers);
+  const ShmSize size = shm_size();
+  shm->segment_size(size.segment_bytes);
+  shm->port_queue_capacity(size.buffers);
   shm->healthy_check_timeout_ms(kShmHealthyCheckMs);
   qos.transport().user_transports.push_back(shm);
   auto& peers = qos.wire_protocol().builtin.initialPeersList;
@@ -525,6 +540,15 @@ std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& 
     removed.push_back(name);
   }
   return removed;
+}
+
+ShmSize shm_size_for(std::uint64_t free_bytes) {
+  const std::uint64_t share = free_bytes / 8;
+  if (share >= kShmSegmentBytes) return {kShmSegmentBytes, kShmBuffers};
+  const std::uint64_t messages = share > kShmSlackBytes ? (share - kShmSlackBytes) / kShmMaxMessageBytes : 0;
+  const std::uint64_t fit = messages > 0 ? (messages - 1) / 2 : 0;  // 2 x fit + 1 messages
+  const std::uint32_t buffers = static_cast<std::uint32_t>(std::max<std::uint64_t>(fit, 16));
+  return {shm_segment_bytes(buffers), buffers};
 }
 
 }  // namespace cell_dds

@@ -5,6 +5,7 @@
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -85,6 +86,16 @@ ParticipantPtr make_participant(const ParticipantOptions& options);
 // holds its owner's lock and it is at least `min_age` old (a file being created is neither mapped
 // nor locked yet). Returns the names removed. make_participant calls it once per process.
 std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& dir, std::chrono::seconds min_age);
+
+// The shared-memory segment a participant makes. A sender's segment holds at most `buffers`
+// buffers; with room for 2 x buffers + 1 messages some hole always fits the next message,
+// whatever a dead reader still holds (docs/topics.md, Stopping): 512 buffers in 65 MB. Where
+// /dev/shm is small (Docker's default is 64 MB) a participant takes at most an eighth of
+// `free_bytes`, with as many buffers as keep that rule, and never fewer than 16.
+struct ShmSize {
+  std::uint32_t segment_bytes = 0, buffers = 0;
+};
+ShmSize shm_size_for(std::uint64_t free_bytes);
 
 // Registers a generated type with no type information announced: Fast DDS 2.9 writers
 // that send TypeObject/TypeInformation are rejected by Cyclone DDS 0.10.

@@ -106,5 +106,20 @@ TEST_F(OrphanedShm, AFifoPlantedAsALockNeitherHangsNorLetsTheFileGo) {
   EXPECT_TRUE(exists("fastrtps_port7415"));
 }
 
+TEST(ShmSize, RoomForTwiceTheBuffersAndOneMessageAndAnEighthOfASmallShmAtMost) {
+  const std::uint64_t kMessage = 65'536, kSlack = 1u << 20;
+  // a machine's /dev/shm (half its memory): Fast DDS's 512 buffers, 2 x 512 + 1 messages
+  const ShmSize big = shm_size_for(12ull << 30);
+  EXPECT_EQ(big.buffers, 512u);
+  EXPECT_EQ(big.segment_bytes, (2 * 512 + 1) * kMessage + kSlack);
+  // Docker's default 64 MB: an eighth, and the rule kept with fewer buffers
+  const ShmSize docker = shm_size_for(64ull << 20);
+  EXPECT_LE(docker.segment_bytes, (64ull << 20) / 8);
+  EXPECT_GE(docker.buffers, 16u);
+  EXPECT_EQ(docker.segment_bytes, (2 * docker.buffers + 1) * kMessage + kSlack);
+  // almost nothing free: 16 buffers still (Fast DDS then reports the segment it cannot make)
+  EXPECT_EQ(shm_size_for(0).buffers, 16u);
+}
+
 }  // namespace
 }  // namespace cell_dds

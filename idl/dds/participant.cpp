@@ -4,19 +4,17 @@
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <sys/file.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
-
-#include <algorithm>
-#include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <fastdds/dds/log/Log.hpp>
-#include <mutex>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -320,7 +318,7 @@ constexpr int kMaxParticipantId = 120;
 // reclaimed before it took them (64 lost a test watcher's last pose under load).
 constexpr std::uint32_t kShmBuffers = 512;               // Fast DDS's own port depth
 constexpr std::uint32_t kShmMaxMessageBytes = 65'536;    // a UDP datagram: Fast DDS's message cap
-constexpr std::uint32_t kShmSlackBytes = 1u << 20;       // Fast DDS's own records in the segment
+constexpr std::uint32_t kShmSlackBytes = 1u << 20;       // the allocator's block headers and alignment
 constexpr std::uint32_t shm_segment_bytes(std::uint32_t buffers) {
   return (2 * buffers + 1) * kShmMaxMessageBytes + kShmSlackBytes;
 }

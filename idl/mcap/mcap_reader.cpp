@@ -1,5 +1,8 @@
 #include "mcap/mcap_reader.hpp"
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstring>
 #include <string_view>
 
@@ -8,14 +11,74 @@
 namespace mcap {
 namespace {
 
+// Where the bytes come from: a file read in order (never whole), or bytes in memory.
+class Source {
+ public:
+  virtual ~Source() = default;
+  virtual std::uint64_t size() const = 0;
+  // the next n bytes into `out` (n is at most what is left: the caller checked)
+  virtual void read(std::string& out, std::uint64_t n) = 0;
+  virtual void skip(std::uint64_t n) = 0;
+};
+
+class MemorySource : public Source {
+ public:
+  explicit MemorySource(const std::string& b) : b_(b) {}
+  std::uint64_t size() const override { return b_.size(); }
+  void read(std::string& out, std::uint64_t n) override {
+    out.assign(b_, static_cast<std::size_t>(at_), static_cast<std::size_t>(n));
+    at_ += n;
+  }
+  void skip(std::uint64_t n) override { at_ += n; }
+
+ private:
+  const std::string& b_;
+  std::uint64_t at_ = 0;
+};
+
+class FileSource : public Source {
+ public:
+  FileSource(const std::filesystem::path& file) : name_(file.string()) {
+    std::uintmax_t size = 0;
+    fd_ = config::open_regular_file(file, ~std::uintmax_t{0}, "recording", size);
+    size_ = size;
+  }
+  ~FileSource() override { ::close(fd_); }
+  FileSource(const FileSource&) = delete;
+  FileSource& operator=(const FileSource&) = delete;
+  std::uint64_t size() const override { return size_; }
+  void read(std::string& out, std::uint64_t n) override {
+    out.resize(static_cast<std::size_t>(n));
+    std::size_t got = 0;
+    while (got < out.size()) {
+      const ssize_t r = ::read(fd_, out.data() + got, out.size() - got);
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0) throw config::FileError(name_ + ": cannot read the recording: " + std::strerror(errno));
+      // the file shrank while it was read: what is missing reads as a truncation would
+      if (r == 0) throw FormatError(name_ + ": the file shrank while it was read");
+      got += static_cast<std::size_t>(r);
+    }
+  }
+  void skip(std::uint64_t n) override {
+    if (::lseek(fd_, static_cast<off_t>(n), SEEK_CUR) < 0)
+      throw config::FileError(name_ + ": cannot read the recording: " + std::strerror(errno));
+  }
+
+ private:
+  std::string name_;
+  int fd_ = -1;
+  std::uint64_t size_ = 0;
+};
+
 // A cursor over one record's content: every read checks what is left.
 class Cursor {
  public:
-  Cursor(std::string_view bytes, std::uint64_t file_offset, const std::string& file, const char* whole = "the record")
-      : b_(bytes), base_(file_offset), file_(file), whole_(whole) {}
+  Cursor(std::string_view bytes, std::uint64_t file_offset, const std::string& file)
+      : b_(bytes), base_(file_offset), file_(file) {}
 
-  [[noreturn]] void fail(const std::string& what) const {
-    throw FormatError(file_ + ": offset " + std::to_string(base_ + at_) + ": " + what);
+  [[noreturn]] void fail(const std::string& what) const { fail_at(base_ + at_, what); }
+  [[noreturn]] void fail_at(std::uint64_t offset, const std::string& what) const {
+    throw FormatError(file_ + ": offset " + std::to_string(offset) + ": " + what);
   }
   std::uint64_t uint(int bytes, const char* field) {
     need(static_cast<std::uint64_t>(bytes), field);
@@ -32,7 +95,9 @@ class Cursor {
   }
   std::string string(const char* field) { return std::string(bytes(uint(4, field), field)); }
   KeyValues key_values(const char* field) {
-    Cursor m(bytes(uint(4, field), field), base_ + at_, file_);
+    const std::uint64_t n = uint(4, field);
+    const std::uint64_t at = offset();  // before bytes() moves past them
+    Cursor m(bytes(n, field), at, file_);
     KeyValues kv;
     while (!m.done()) {
       std::string k = m.string(field);
@@ -47,61 +112,112 @@ class Cursor {
  private:
   void need(std::uint64_t n, const char* field) const {
     if (n > b_.size() - at_)
-      fail(std::string(field) + " claims " + std::to_string(n) + " bytes, past " + whole_ + "'s end (" +
+      fail(std::string(field) + " claims " + std::to_string(n) + " bytes, past the record's end (" +
            std::to_string(b_.size() - at_) + " left)");
   }
   std::string_view b_;
   std::size_t at_ = 0;
   std::uint64_t base_;
   const std::string& file_;
-  const char* whole_;
+};
+
+// The end of a truncated file: thrown inside the reader, turned into ReadSummary::truncated
+// or a FormatError by read().
+struct Truncated {
+  std::uint64_t offset;
+  std::string what;
 };
 
 class LinearReader {
  public:
-  LinearReader(const std::string& bytes, const std::string& name, const MessageCallback& cb, const ReadLimits& l)
-      : all_(bytes), name_(name), cb_(cb), limits_(l) {}
+  LinearReader(Source& src, const std::string& name, const MessageCallback& cb, const ReadLimits& l)
+      : src_(src), name_(name), cb_(cb), limits_(l), top_({}, 0, name) {}
 
   ReadSummary read() {
-    Cursor file(all_, 0, name_, "the file");
-    if (all_.size() > limits_.max_file_bytes) file.fail("file larger than " + std::to_string(limits_.max_file_bytes) + " bytes");
-    if (all_.size() < sizeof kMagic || std::memcmp(all_.data(), kMagic, sizeof kMagic) != 0)
-      file.fail("wrong magic (not an MCAP file of major version 0)");
-    file.bytes(sizeof kMagic, "magic");
-    bool first = true, data_end = false;
-    while (true) {
-      if (file.done()) file.fail("truncated: the file ends before its footer");
-      const std::uint64_t at = file.offset();
-      const auto op = static_cast<std::uint8_t>(file.uint(1, "opcode"));
-      const std::uint64_t len = file.uint(8, "record length");
-      if (op != kChunk && len > limits_.max_record_bytes)
-        Cursor(all_, at, name_).fail("a record of " + std::to_string(len) + " bytes, more than the limit of " +
-                                     std::to_string(limits_.max_record_bytes));
-      Cursor content(file.bytes(len, "record"), at + 9, name_);
-      if (first && op != kHeader) content.fail("the first record is not a header");
-      if (!first && op == kHeader) content.fail("a second header");
-      first = false;
-      if (op == kFooter) {
-        footer(content, file);
-        return std::move(out_);
-      }
-      if (op == kDataEnd) data_end = true;
-      if (data_end && (op == kMessage || op == kChunk)) content.fail("a message after the data end");
-      dispatch(op, content, data_end);
+    std::string magic;
+    if (src_.size() < sizeof kMagic) top_.fail_at(0, "wrong magic (not an MCAP file of major version 0)");
+    src_.read(magic, sizeof kMagic);
+    if (std::memcmp(magic.data(), kMagic, sizeof kMagic) != 0)
+      top_.fail_at(0, "wrong magic (not an MCAP file of major version 0)");
+    pos_ = sizeof kMagic;
+    try {
+      records();
+    } catch (const Truncated& t) {
+      const std::string what = "truncated: " + t.what + "; " + std::to_string(out_.chunks) + " complete chunks (" +
+                               std::to_string(out_.messages) + " messages) before it";
+      if (!limits_.allow_truncated) top_.fail_at(t.offset, what);
+      out_.truncated = name_ + ": offset " + std::to_string(t.offset) + ": " + what;
     }
+    return std::move(out_);
   }
 
  private:
-  void footer(Cursor& content, Cursor& file) {
-    content.uint(8, "summary_start");
-    content.uint(8, "summary_offset_start");
-    content.uint(4, "summary_crc");
-    const std::string_view magic = file.bytes(sizeof kMagic, "trailing magic");
-    if (std::memcmp(magic.data(), kMagic, sizeof kMagic) != 0) file.fail("wrong trailing magic");
-    if (!file.done()) file.fail("bytes after the trailing magic");
+  void records() {
+    bool first = true, data_end = false;
+    while (true) {
+      const std::uint64_t at = pos_;
+      const std::uint64_t left = src_.size() - pos_;
+      if (left == 0) throw Truncated{at, "the file ends before its footer"};
+      if (left < 9) throw Truncated{at, "the file ends inside a record's opcode and length"};
+      std::string head;
+      src_.read(head, 9);
+      pos_ += 9;
+      Cursor h(head, at, name_);
+      const auto op = static_cast<std::uint8_t>(h.uint(1, "opcode"));
+      const std::uint64_t len = h.uint(8, "record length");
+      // opcode 0 is no record: 9 zero bytes would otherwise be read as an empty one, and a
+      // file of zeros would take as long to refuse as it is large
+      if (op == 0) h.fail_at(at, "opcode 0 is not a record");
+      if (op != kChunk && len > limits_.max_record_bytes)
+        h.fail_at(at, "a record of " + std::to_string(len) + " bytes, more than the limit of " +
+                          std::to_string(limits_.max_record_bytes));
+      if (len > src_.size() - pos_)
+        throw Truncated{at, "a record of " + std::to_string(len) + " bytes runs past the file's end (" +
+                                std::to_string(src_.size() - pos_) + " bytes left)"};
+      if (first && op != kHeader) h.fail_at(at, "the first record is not a header");
+      if (!first && op == kHeader) h.fail_at(at, "a second header");
+      first = false;
+      if (op == kDataEnd) data_end = true;
+      if (data_end && (op == kMessage || op == kChunk)) h.fail_at(at, "a message after the data end");
+      if (op == kChunk && len > limits_.max_record_bytes)
+        h.fail_at(at, "a chunk of " + std::to_string(len) + " bytes, more than the limit of " +
+                          std::to_string(limits_.max_record_bytes));
+      if (!needed(op)) {
+        src_.skip(len);  // indexes, attachments, offsets: framing checked, content not needed
+        pos_ += len;
+        if (data_end) out_.has_summary = out_.has_summary || op != kDataEnd;
+        continue;
+      }
+      src_.read(content_, len);
+      pos_ += len;
+      Cursor c(content_, at + 9, name_);
+      if (op == kFooter) {
+        footer(c);
+        return;
+      }
+      dispatch(op, c, at);
+      if (data_end) out_.has_summary = true;
+    }
   }
 
-  void dispatch(std::uint8_t op, Cursor& c, bool in_summary) {
+  static bool needed(std::uint8_t op) {
+    return op == kHeader || op == kFooter || op == kSchema || op == kChannel || op == kMessage || op == kChunk ||
+           op == kStatistics || op == kMetadata;
+  }
+
+  void footer(Cursor& c) {
+    c.uint(8, "summary_start");
+    c.uint(8, "summary_offset_start");
+    c.uint(4, "summary_crc");
+    const std::uint64_t left = src_.size() - pos_;
+    if (left < sizeof kMagic) throw Truncated{pos_, "the file ends inside its trailing magic"};
+    std::string magic;
+    src_.read(magic, sizeof kMagic);
+    if (std::memcmp(magic.data(), kMagic, sizeof kMagic) != 0) top_.fail_at(pos_, "wrong trailing magic");
+    if (left != sizeof kMagic) top_.fail_at(pos_ + sizeof kMagic, "bytes after the trailing magic");
+  }
+
+  void dispatch(std::uint8_t op, Cursor& c, std::uint64_t at) {
     switch (op) {
       case kHeader:
         out_.profile = c.string("profile");
@@ -110,7 +226,7 @@ class LinearReader {
       case kSchema: schema(c); break;
       case kChannel: channel(c); break;
       case kMessage: message(c); break;
-      case kChunk: chunk(c); break;
+      case kChunk: chunk(c, at); break;
       case kStatistics:
         out_.stated_messages = c.uint(8, "message_count");
         break;
@@ -120,9 +236,8 @@ class LinearReader {
         break;
       }
       default:
-        break;  // indexes, attachments, offsets, data end: framing checked above, content not needed
+        break;
     }
-    if (in_summary) out_.has_summary = true;
   }
 
   void schema(Cursor& c) {
@@ -166,7 +281,7 @@ class LinearReader {
     if (cb_) cb_(it->second, m);
   }
 
-  void chunk(Cursor& c) {
+  void chunk(Cursor& c, std::uint64_t at) {
     c.uint(8, "message start time");
     c.uint(8, "message end time");
     const std::uint64_t size = c.uint(8, "uncompressed size");
@@ -175,27 +290,32 @@ class LinearReader {
     const std::uint64_t n = c.uint(8, "records length");
     if (!compression.empty()) c.fail("chunk compression '" + compression.substr(0, 16) + "' is not supported (only none)");
     if (n != size) c.fail("chunk records length " + std::to_string(n) + " differs from its uncompressed size " + std::to_string(size));
-    if (n > limits_.max_record_bytes) c.fail("a chunk of " + std::to_string(n) + " bytes, more than the limit");
     const std::uint64_t start = c.offset();
     const std::string_view records = c.bytes(n, "chunk records");
-    if (crc != 0 && crc32(std::string(records)) != crc) c.fail("chunk CRC mismatch");
+    if (crc != 0 && crc32(std::string(records)) != crc) c.fail_at(at, "chunk CRC mismatch");
     Cursor in(records, start, name_);
     while (!in.done()) {
+      const std::uint64_t record_at = in.offset();
       const auto op = static_cast<std::uint8_t>(in.uint(1, "opcode"));
       const std::uint64_t len = in.uint(8, "record length");
-      Cursor r(in.bytes(len, "record"), in.offset() - len, name_);
+      const std::uint64_t content_at = in.offset();  // before bytes() moves past the content
+      Cursor r(in.bytes(len, "record"), content_at, name_);
       if (op == kSchema) schema(r);
       else if (op == kChannel) channel(r);
       else if (op == kMessage) message(r);
-      else r.fail("record of opcode " + std::to_string(op) + " inside a chunk (only schemas, channels and messages belong there)");
+      else r.fail_at(record_at, "record of opcode " + std::to_string(op) +
+                                    " inside a chunk (only schemas, channels and messages belong there)");
     }
     ++out_.chunks;
   }
 
-  const std::string& all_;
+  Source& src_;
   const std::string& name_;
   const MessageCallback& cb_;
   ReadLimits limits_;
+  Cursor top_;              // for errors at file offsets outside a record
+  std::uint64_t pos_ = 0;   // the source's offset
+  std::string content_;     // the record being read (its buffer reused)
   ReadSummary out_;
 };
 
@@ -203,13 +323,14 @@ class LinearReader {
 
 ReadSummary read_mcap(const std::string& bytes, const std::string& name, const MessageCallback& on_message,
                       const ReadLimits& limits) {
-  return LinearReader(bytes, name, on_message, limits).read();
+  MemorySource src(bytes);
+  return LinearReader(src, name, on_message, limits).read();
 }
 
 ReadSummary read_mcap_file(const std::filesystem::path& file, const MessageCallback& on_message,
                            const ReadLimits& limits) {
-  const std::string bytes = config::read_regular_file(file, limits.max_file_bytes, "recording");
-  return read_mcap(bytes, file.string(), on_message, limits);
+  FileSource src(file);
+  return LinearReader(src, file.string(), on_message, limits).read();
 }
 
 }  // namespace mcap

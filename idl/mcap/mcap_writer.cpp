@@ -1,6 +1,12 @@
 #include "mcap/mcap_writer.hpp"
 
+#include <fcntl.h>
+#include <stdio.h>  // renameat2
+#include <unistd.h>
 #include <zlib.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <stdexcept>
 #include <system_error>
@@ -58,27 +64,50 @@ std::string key_values(const KeyValues& kv) {
 }  // namespace
 
 Writer::Writer(const std::filesystem::path& file, WriterOptions options) : file_(file), options_(std::move(options)) {
+  if (file.empty()) throw std::runtime_error("the recording's file name is empty");
   std::error_code ec;
-  const auto st = std::filesystem::symlink_status(file, ec);
-  if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
-    throw std::runtime_error(file.string() + ": not a regular file (a recording is written only to one)");
-  out_ = std::fopen(file.c_str(), "wb");
-  if (!out_) throw std::runtime_error(file.string() + ": cannot write the recording");
-  std::string head(kMagic, sizeof kMagic);
-  std::string header;
-  put_string(header, options_.profile);
-  put_string(header, options_.library);
-  head += record(kHeader, header);
-  put(head);
+  if (std::filesystem::exists(std::filesystem::symlink_status(file, ec)))
+    throw std::runtime_error(file.string() + ": exists; a recording never replaces a file (name another, or move it away)");
+  const std::filesystem::path partial = partial_file();
+  // O_EXCL: never a file that exists (another recorder's, a killed one's, a link planted there)
+  fd_ = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW | O_NOCTTY, 0644);
+  if (fd_ < 0) {
+    const int e = errno;
+    if (e == EEXIST)
+      throw std::runtime_error(partial.string() + ": exists: another recording is being written there, or a stopped "
+                               "one left it (servo replay reads it; move it away to record here)");
+    throw std::runtime_error(partial.string() + ": cannot create the recording: " + std::strerror(e));
+  }
+  try {
+    std::string head(kMagic, sizeof kMagic);
+    std::string header;
+    put_string(header, options_.profile);
+    put_string(header, options_.library);
+    head += record(kHeader, header);
+    put(head);
+    commit();
+  } catch (...) {
+    abandon();
+    throw;
+  }
 }
 
 Writer::~Writer() {
   try {
     close();
   } catch (...) {
-    // a destructor must not throw; close() already said what failed when it was called
+    // a destructor must not throw; close() reports what failed in its summary
   }
-  if (out_) std::fclose(out_);
+}
+
+std::filesystem::path Writer::partial_file() const { return std::filesystem::path(file_.string() + ".partial"); }
+
+void Writer::abandon() {
+  if (closed_) return;
+  closed_ = true;
+  ::close(fd_);
+  fd_ = -1;
+  ::unlink(partial_file().c_str());  // ours: created above with O_EXCL
 }
 
 void Writer::fail(const std::string& what) const { throw std::runtime_error(file_.string() + ": " + what); }
@@ -86,19 +115,62 @@ void Writer::fail(const std::string& what) const { throw std::runtime_error(file
 void Writer::put(const std::string& bytes) { put(bytes.data(), bytes.size()); }
 
 void Writer::put(const char* bytes, std::size_t n) {
-  if (std::fwrite(bytes, 1, n, out_) != n) fail("write failed (disk full?)");
+  buffer_.append(bytes, n);
   offset_ += n;
+  if (buffer_.size() >= (1u << 20)) flush_buffer();
+}
+
+void Writer::flush_buffer() {
+  std::size_t done = 0;
+  while (done < buffer_.size()) {
+    const ssize_t w = ::write(fd_, buffer_.data() + done, buffer_.size() - done);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) write_failed(w < 0 ? errno : ENOSPC);
+    done += static_cast<std::size_t>(w);
+  }
+  buffer_.clear();
+}
+
+void Writer::commit() {
+  flush_buffer();
+  committed_ = offset_;
+  committed_stats_ = stats_;
+  committed_start_ns_ = start_ns_;
+  committed_end_ns_ = end_ns_;
+}
+
+void Writer::write_failed(int error) {
+  if (failure_.empty())
+    failure_ = file_.string() + ": write failed: " + std::strerror(error) + (error == ENOSPC ? " (the disk is full)" : "") +
+               "; the recording keeps its first " + std::to_string(committed_ >> 20) + " MB";
+  // back to the last complete record: the open chunk, and whatever of it reached the disk, go
+  buffer_.clear();
+  chunk_open_ = false;
+  chunk_index_.clear();
+  stats_ = committed_stats_;
+  start_ns_ = committed_start_ns_;
+  end_ns_ = committed_end_ns_;
+  offset_ = committed_;
+  if (::ftruncate(fd_, static_cast<off_t>(committed_)) != 0 || ::lseek(fd_, static_cast<off_t>(committed_), SEEK_SET) < 0) {
+    // nothing more to do: the reader stops at the first record that runs past the end
+  }
+  throw std::runtime_error(failure_);
 }
 
 // The open chunk's records go straight to the file behind a header that flush_chunk()
 // completes: an image is copied once (into the file), and read once (for the chunk's CRC).
+// Until then the header claims a chunk that runs past any file's end: a reader of a file
+// whose writer was killed stops there, a truncation, having read every complete chunk.
 void Writer::chunk_put(const char* bytes, std::size_t n) {
   if (!chunk_open_) {
     chunk_open_ = true;
     chunk_at_ = offset_;
     chunk_size_ = 0;
     chunk_crc_ = 0;
-    put(std::string(kChunkHeaderBytes, '\0'));
+    std::string placeholder(kChunkHeaderBytes, '\0');
+    placeholder[0] = static_cast<char>(kChunk);
+    for (int i = 1; i <= 8; ++i) placeholder[i] = '\xff';
+    put(placeholder);
   }
   put(bytes, n);
   chunk_crc_ = static_cast<std::uint32_t>(::crc32(chunk_crc_, reinterpret_cast<const Bytef*>(bytes), static_cast<uInt>(n)));
@@ -139,6 +211,7 @@ std::uint16_t Writer::add_channel(std::uint16_t schema_id, const std::string& to
 void Writer::write_message(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time_ns,
                            std::uint64_t publish_time_ns, const std::uint8_t* data, std::size_t size) {
   if (closed_) fail("message after close");
+  if (!failure_.empty()) throw std::runtime_error(failure_);
   if (channel_id == 0 || channel_id > channels_.size()) fail("message on an unknown channel");
   if (size > 0xffffffffu) fail("a message of more than 4 GB");
   if (chunk_open_ && chunk_size_ > 0 && chunk_size_ + size > options_.chunk_bytes) flush_chunk();
@@ -163,14 +236,17 @@ void Writer::write_message(std::uint16_t channel_id, std::uint32_t sequence, std
 }
 
 void Writer::add_metadata(const std::string& name, const KeyValues& values) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
   flush_chunk();  // metadata records are not allowed inside a chunk
   std::string c;
   put_string(c, name);
   c += key_values(values);
   const std::string r = record(kMetadata, c);
-  metadata_index_.emplace_back(name, offset_);
-  metadata_lengths_.push_back(r.size());
+  const std::uint64_t at = offset_;
   put(r);
+  commit();
+  metadata_index_.emplace_back(name, at);
+  metadata_lengths_.push_back(r.size());
 }
 
 // Completes the open chunk's header, then writes its Message Index records (one per channel).
@@ -191,9 +267,9 @@ void Writer::flush_chunk() {
   put_u32(head, chunk_crc_);
   put_string(head, "");  // uncompressed: Debian has zstd and lz4, but a 2-core loop has no time to spare
   put_u64(head, chunk_size_);
-  if (fseeko(out_, static_cast<off_t>(chunk_at_), SEEK_SET) != 0 ||
-      std::fwrite(head.data(), 1, head.size(), out_) != head.size() || fseeko(out_, 0, SEEK_END) != 0)
-    fail("write failed (disk full?)");
+  flush_buffer();  // the header's bytes are in the file before they are written over
+  if (::pwrite(fd_, head.data(), head.size(), static_cast<off_t>(chunk_at_)) != static_cast<ssize_t>(head.size()))
+    write_failed(errno != 0 ? errno : ENOSPC);
   ix.length = offset_ - ix.offset;
   const std::uint64_t index_start = offset_;
   for (const auto& [channel, entries] : chunk_index_) {
@@ -208,9 +284,11 @@ void Writer::flush_chunk() {
     put(record(kMessageIndex, m));
   }
   ix.message_index_length = offset_ - index_start;
+  chunk_index_.clear();
+  flush_buffer();  // the chunk and its indexes whole in the file before they are indexed
   chunk_indexes_.push_back(std::move(ix));
   ++stats_.chunks;
-  chunk_index_.clear();
+  commit();
 }
 
 // The summary's records, grouped by opcode (each group's bytes and opcode returned for the
@@ -280,7 +358,37 @@ std::string Writer::summary_section(std::vector<std::string>& groups, std::vecto
 WriteSummary Writer::close() {
   if (closed_) return stats_;
   closed_ = true;
-  flush_chunk();
+  try {
+    flush_chunk();
+  } catch (const std::exception&) {
+    // failure_ says it; the open chunk is dropped, the summary is still tried
+  }
+  try {
+    finish();
+    stats_.complete = true;
+  } catch (const std::exception&) {
+    // failure_ says it; the file ends at its last complete record
+  }
+  ::close(fd_);
+  fd_ = -1;
+  stats_.bytes = offset_;
+  stats_.problem = failure_;
+  stats_.file = partial_file();
+  // renameat2's RENAME_NOREPLACE: a file that appeared at the name meanwhile is not replaced
+  if (::renameat2(AT_FDCWD, partial_file().c_str(), AT_FDCWD, file_.c_str(), RENAME_NOREPLACE) == 0) {
+    stats_.file = file_;
+  } else {
+    const int e = errno;
+    stats_.problem += (stats_.problem.empty() ? "" : "; ") + file_.string() +
+                      (e == EEXIST ? ": appeared while recording, and is not replaced"
+                                   : std::string(": cannot be named so: ") + std::strerror(e)) +
+                      "; the recording is " + partial_file().string();
+  }
+  for (const auto& [ch, n] : stats_.channel_messages) stats_.topic_messages[channel_topics_[ch]] += n;
+  return stats_;
+}
+
+void Writer::finish() {
   std::string end;
   // 0: "not available". Every chunk carries its CRC; a second pass over every byte would
   // cost the lockstep loop more than the recording is allowed to (docs/performance.md)
@@ -311,10 +419,7 @@ WriteSummary Writer::close() {
   tail += footer;
   tail.append(kMagic, sizeof kMagic);
   put(tail);
-  if (std::fflush(out_) != 0) fail("write failed (disk full?)");
-  stats_.bytes = offset_;
-  for (const auto& [ch, n] : stats_.channel_messages) stats_.topic_messages[channel_topics_[ch]] += n;
-  return stats_;
+  flush_buffer();
 }
 
 }  // namespace mcap

@@ -7,7 +7,6 @@
 #pragma once
 
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -26,6 +25,9 @@ struct WriterOptions {
 
 // What was written, as the summary's statistics record says it.
 struct WriteSummary {
+  std::filesystem::path file;  // where the recording is (its own name, or NAME.partial: `problem`)
+  bool complete = false;       // summary and footer written; false: truncated, its complete chunks readable
+  std::string problem;         // why the recording is short, truncated or left as .partial (empty: none)
   std::uint64_t messages = 0;
   std::uint32_t chunks = 0;
   std::uint64_t bytes = 0;  // the file's size
@@ -33,12 +35,22 @@ struct WriteSummary {
   std::map<std::string, std::uint64_t> topic_messages;      // the same by topic
 };
 
+// A recording never replaces a file (issue 40, item 1): `file` must not exist; the bytes go to
+// `file.partial`, created here and never if it exists (another recorder is writing it, or a
+// killed one left it), and it becomes `file` when closed, by a rename that does not replace
+// a `file` that appeared meanwhile. A killed recorder leaves `file.partial`, whose complete
+// chunks a reader reads (ReadLimits::allow_truncated): an open chunk's header says it runs
+// to the end of the file until it is complete.
+//
+// A failed write (a full disk) drops the open chunk, cuts the file back to the last complete
+// record and refuses every later message; close() then writes the summary and footer if the
+// disk has room again, and leaves the file cut at a record's end if not: readable either way.
 class Writer {
  public:
-  // Creates (or truncates) `file`; throws std::runtime_error naming it when it cannot, or
-  // when it exists and is not a regular file.
+  // Throws std::runtime_error naming the file when it exists, when `file.partial` exists or
+  // cannot be created, or when the name is empty.
   Writer(const std::filesystem::path& file, WriterOptions options = {});
-  ~Writer();  // closes (summary and footer) if close() was not called; never throws
+  ~Writer();  // closes (summary and footer) if neither close() nor abandon() was called; never throws
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
 
@@ -53,18 +65,29 @@ class Writer {
   // A metadata record (written between chunks, indexed in the summary).
   void add_metadata(const std::string& name, const KeyValues& values);
 
-  // Writes the last chunk, the data end, the summary and the footer. Idempotent.
+  // Writes the last chunk, the data end, the summary and the footer, and renames the file to
+  // its name. Idempotent; never throws for a write or a rename that fails: the summary's
+  // `problem` says what happened and `file` where the bytes are.
   WriteSummary close();
+  // Start-up failed: the partial file this writer created is removed (nothing else is).
+  void abandon();
   const std::filesystem::path& file() const { return file_; }
+  std::filesystem::path partial_file() const;
   std::uint64_t bytes_written() const { return offset_; }
+  // why writing stopped (the disk is full), in one line; empty while it has not
+  const std::string& failure() const { return failure_; }
 
  private:
   struct ChunkIndex {
     std::uint64_t start_ns, end_ns, offset, length, message_index_length, records_size;
     std::map<std::uint16_t, std::uint64_t> message_index_offsets;
   };
-  void put(const std::string& bytes);  // to the end of the file
+  void put(const std::string& bytes);  // to the end of the file (buffered)
   void put(const char* bytes, std::size_t n);
+  void flush_buffer();                 // the buffer to the file
+  void commit();                       // flushes: what is written so far is whole records
+  [[noreturn]] void write_failed(int error);  // cuts back to the last commit, refuses what follows
+  void finish();                       // data end, summary, footer (close's part that can fail)
   void chunk_put(const char* bytes, std::size_t n);  // into the open chunk (opened if need be)
   void flush_chunk();
   // opcode, length, start, end, uncompressed size, CRC, compression "", records length
@@ -74,8 +97,11 @@ class Writer {
 
   std::filesystem::path file_;
   WriterOptions options_;
-  std::FILE* out_ = nullptr;
-  std::uint64_t offset_ = 0;
+  int fd_ = -1;
+  std::string buffer_;  // bytes not yet in the file (flushed at 1 MB and at every commit)
+  std::uint64_t offset_ = 0;     // the file's size once the buffer is flushed
+  std::uint64_t committed_ = 0;  // the end of the last complete record in the file
+  std::string failure_;
   bool closed_ = false;
   std::vector<std::string> schemas_, channels_;  // their records, for the summary
   std::map<std::uint16_t, std::string> channel_topics_;
@@ -90,6 +116,9 @@ class Writer {
   std::vector<ChunkIndex> chunk_indexes_;
   WriteSummary stats_;
   std::uint64_t start_ns_ = 0, end_ns_ = 0;
+  // the statistics at the last commit: a dropped chunk's messages are not counted
+  WriteSummary committed_stats_;
+  std::uint64_t committed_start_ns_ = 0, committed_end_ns_ = 0;
 };
 
 // Serialisation of the spec's primitive types, little-endian (shared with the reader's tests).

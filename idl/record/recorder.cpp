@@ -122,7 +122,8 @@ Recorder::~Recorder() {
 }
 
 bool Recorder::wanted(const std::string& dds_topic) const {
-  return options_.images || dds_topic.find("camera/image_raw") == std::string::npos;
+  // the camera's topic exactly: under the namespace "camera/image_raw" every topic contains it
+  return options_.images || dds_topic != options_.image_topic;
 }
 
 void Recorder::enqueue(Pending&& p) {
@@ -151,8 +152,11 @@ void Recorder::drain() {
       write(p);
     } catch (const std::exception& e) {
       // a full disk: the run goes on, the recording stops, said once
-      std::fprintf(stderr, "cellsim: %s; recording stopped\n", e.what());
-      full_ = true;
+      if (!stopped_) {
+        stop_reason_ = e.what();
+        stopped_ = true;
+        std::fprintf(stderr, "cellsim: %s; recording stopped, the run goes on\n", e.what());
+      }
     }
     l.lock();
     queued_bytes_ -= p.bytes->length;
@@ -161,11 +165,11 @@ void Recorder::drain() {
 }
 
 void Recorder::write(const Pending& p) {
-  if (full_) return;
+  if (stopped_) return;
   if (writer_->bytes_written() + p.bytes->length > options_.max_bytes) {
-    full_ = true;
-    std::fprintf(stderr, "cellsim: %s: recording stopped at %llu MB (the limit); the run goes on\n",
-                 options_.file.c_str(), static_cast<unsigned long long>(options_.max_bytes >> 20));
+    stop_reason_ = "stopped at the size limit (" + std::to_string(options_.max_bytes >> 20) + " MB)";
+    stopped_ = true;
+    std::fprintf(stderr, "cellsim: %s: recording %s; the run goes on\n", options_.file.c_str(), stop_reason_.c_str());
     return;
   }
   auto ch = channels_.find(p.dds_topic);
@@ -195,6 +199,21 @@ mcap::WriteSummary Recorder::close() {
   return summary_;
 }
 
+void Recorder::abandon() {
+  {
+    std::lock_guard<std::mutex> l(m_);
+    if (closed_) return;
+    closed_ = true;
+    stopping_ = true;
+    queue_.clear();
+    queued_bytes_ = 0;
+  }
+  queued_.notify_all();
+  room_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  writer_->abandon();
+}
+
 std::string Recorder::topic_counts(const mcap::WriteSummary& s) {
   std::string counts;
   for (const auto& [t, n] : s.topic_messages) counts += (counts.empty() ? "" : ", ") + t + " " + std::to_string(n);
@@ -203,10 +222,14 @@ std::string Recorder::topic_counts(const mcap::WriteSummary& s) {
 
 std::string Recorder::describe(const mcap::WriteSummary& s) const {
   char buf[160];
-  std::snprintf(buf, sizeof buf, " (%.1f MB, %llu messages on %zu topics%s)", static_cast<double>(s.bytes) / 1e6,
-                static_cast<unsigned long long>(s.messages), s.topic_messages.size(),
-                full_ ? "; stopped at the size limit" : "");
-  return options_.file.string() + buf;
+  std::snprintf(buf, sizeof buf, " (%.1f MB, %llu messages on %zu topics)", static_cast<double>(s.bytes) / 1e6,
+                static_cast<unsigned long long>(s.messages), s.topic_messages.size());
+  std::string out = s.file.string() + buf;
+  // the size limit is said here; a failed write is in the writer's problem, said once
+  if (stopped_ && s.problem.empty()) out += "; recording " + stop_reason_;
+  if (!s.problem.empty()) out += s.problem == stop_reason_ ? "; recording stopped when a write failed (said above)" : "; " + s.problem;
+  if (!s.complete) out += "; truncated: servo replay reads its complete chunks";
+  return out;
 }
 
 }  // namespace cell_record

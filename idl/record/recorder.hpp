@@ -29,7 +29,8 @@ namespace cell_record {
 
 struct RecordOptions {
   std::filesystem::path file;
-  bool images = true;  // false: rt/camera/image_raw is left out (--record-no-images), for long runs
+  bool images = true;  // false: the image topic is left out (--record-no-images), for long runs
+  std::string image_topic = cell_dds::kImageTopic;  // the camera's topic, namespaced as the cell's
   // recording stops (said once) when the file reaches this size; the run goes on
   std::uint64_t max_bytes = 16ull << 30;
 };
@@ -53,6 +54,8 @@ class Recorder {
  public:
   // Opens the file; throws std::runtime_error (one line naming it) when it cannot.
   // `metadata` goes into a "cellsim" metadata record (scenario, seed, mode).
+  // The file is written as mcap::Writer writes it: never over a file that exists, into
+  // FILE.partial until closed.
   Recorder(RecordOptions options, const mcap::KeyValues& metadata);
 
   ~Recorder();
@@ -75,11 +78,14 @@ class Recorder {
     enqueue({dds_topic, cell_dds::ros_type_name(type.getName()), stream, std::move(payload), log_ns, publish_ns});
   }
 
-  // Writes what is queued, the summary and the footer; what was recorded, per topic. Idempotent.
+  // Writes what is queued, the summary and the footer; what was recorded, per topic. Idempotent;
+  // never throws: a recording that failed says so in the summary's `problem`.
   mcap::WriteSummary close();
+  // Start-up failed: nothing was recorded, and the partial file is removed.
+  void abandon();
   static constexpr std::size_t kMaxQueuedBytes = 256u << 20;
   const std::filesystem::path& file() const { return options_.file; }
-  // "FILE (N.N MB, M messages; recording stopped at the size limit)" for the summary line
+  // "FILE (N.N MB, M messages on K topics)", and why it stopped or is short, for the summary line
   std::string describe(const mcap::WriteSummary& s) const;
   // "/camera/image_raw 324, /clock 324, ...": what an MCAP reader must find, per topic
   static std::string topic_counts(const mcap::WriteSummary& s);
@@ -108,7 +114,8 @@ class Recorder {
   std::map<std::string, std::uint16_t> schemas_;   // by ROS type
   std::map<std::string, std::uint16_t> channels_;  // by DDS topic
   std::map<std::uint16_t, std::uint32_t> sequences_;
-  std::atomic<bool> full_{false};
+  std::atomic<bool> stopped_{false};  // by the size limit or a failed write: stop_reason_ says which
+  std::string stop_reason_;           // written by the writer thread before stopped_
   mcap::WriteSummary summary_;
   bool closed_ = false;
 };

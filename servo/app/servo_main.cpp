@@ -456,6 +456,7 @@ struct ReplayCommand {
     law.apply_to(replay.config);
     replay.plot = !no_plot;
     const servo::ReplayResult r = servo::run_replay(replay);
+    if (r.truncated) std::printf("servo replay: %s; replayed what it holds\n", r.truncated->c_str());
     std::printf("servo replay: %s: %ld images, %ld recorded twists compared", replay.recording.c_str(), r.images,
                 r.compared);
     if (r.differing == 0)

@@ -176,12 +176,16 @@ class Replay {
 
 ReplayResult run_replay(const ReplayOptions& options) {
   Replay replay(options);
+  mcap::ReadLimits limits;
+  limits.allow_truncated = true;  // a killed recorder's file: its complete chunks are replayed
   const mcap::ReadSummary s = mcap::read_mcap_file(
-      options.recording, [&](const mcap::Channel& c, const mcap::MessageView& m) { replay.on_message(c, m); });
+      options.recording, [&](const mcap::Channel& c, const mcap::MessageView& m) { replay.on_message(c, m); }, limits);
   if (s.profile != "ros2")
     std::fprintf(stderr, "servo replay: %s: profile '%s', not ros2; read as the cell's topics anyway\n",
                  options.recording.c_str(), s.profile.c_str());
-  return replay.compare_and_write();
+  ReplayResult r = replay.compare_and_write();
+  r.truncated = s.truncated;
+  return r;
 }
 
 }  // namespace servo

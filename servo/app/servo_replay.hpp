@@ -33,10 +33,14 @@ struct ReplayResult {
   std::optional<double> first_differing_s;  // the stamp of the first that differs (s)
   long recorded_only = 0;       // recorded twists the replay did not answer
   long replayed_only = 0;       // replayed twists the recording does not hold (its writer was not matched yet)
+  // the recording ends before its footer (its recorder was killed, or the disk filled): where,
+  // in one line; what its complete chunks hold was replayed
+  std::optional<std::string> truncated;
 };
 
 // Throws std::runtime_error (one line naming the file) for a recording that cannot be read
-// or a message that does not decode as its topic's type.
+// or a message that does not decode as its topic's type. A truncated recording is replayed
+// as far as its complete chunks go, and ReplayResult::truncated says so.
 ReplayResult run_replay(const ReplayOptions& options);
 
 }  // namespace servo

@@ -312,6 +312,7 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
 int run_servo_service(const ServiceOptions& options) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);  // a closed terminal or ssh session: stop as cleanly as on Ctrl-C
   ServoService s(options);
   return s.run();
 }

@@ -56,6 +56,7 @@ cv::Mat annotated(sensor_msgs::msg::dds_::Image_& img, const std::optional<cell_
 int run_viewer(const ViewOptions& o) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);  // a closed terminal or ssh session: stop as cleanly as on Ctrl-C
   const bool window = o.output.empty() && std::getenv("DISPLAY") != nullptr;
   if (!window && o.output.empty()) throw std::runtime_error("no display: give --output DIR for a PNG sequence");
   if (!o.output.empty()) std::filesystem::create_directories(o.output);

@@ -98,6 +98,11 @@ std::string read_regular_file(const std::filesystem::path& file, std::uintmax_t 
   return data;
 }
 
+int open_regular_file(const std::filesystem::path& file, std::uintmax_t max_bytes, const std::string& what,
+                      std::uintmax_t& size) {
+  return open_checked(file, max_bytes, what, size);
+}
+
 std::uintmax_t check_regular_file(const std::filesystem::path& file, std::uintmax_t max_bytes,
                                   const std::string& what) {
   std::uintmax_t size = 0;

@@ -23,6 +23,12 @@ class FileError : public std::runtime_error {
 std::string read_regular_file(const std::filesystem::path& file, std::uintmax_t max_bytes,
                               const std::string& what = "file");
 
+// The same checks, and the file left open for reading (a reader that streams a file larger
+// than memory: a recording). Returns the descriptor, which the caller closes; `size` is the
+// file's size as fstat gave it.
+int open_regular_file(const std::filesystem::path& file, std::uintmax_t max_bytes, const std::string& what,
+                      std::uintmax_t& size);
+
 // The same checks without keeping the bytes, for a library that opens the path itself; returns
 // the file's size.
 std::uintmax_t check_regular_file(const std::filesystem::path& file, std::uintmax_t max_bytes,

@@ -297,6 +297,11 @@ struct CampaignFlags {
   }
 };
 
+// --record "": refused, not taken as "no recording"
+const CLI::Validator non_empty_file(
+    [](std::string& v) { return v.empty() ? std::string("an empty file name (name the MCAP file to write)") : std::string(); },
+    "FILE");
+
 int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const ConditionFlags& conditions,
                        const std::string& source, int max_iterations, const std::string& initial,
                        const std::string& out_dir, bool plot, const cell_record::RecordOptions& record) {
@@ -460,7 +465,9 @@ struct ExperimentCommand {
     c->add_flag("--no-plot", no_plot, "do not draw the plots");
     conditions.add(c);
     c->add_option("--record", record.file,
-                  "record the run as cellsim serve --record would, into this MCAP file (simulated time)");
+                  "record the run as cellsim serve --record would, into this MCAP file (simulated time; never "
+                  "over a file that exists: written as FILE.partial, renamed when the run ends)")
+        ->check(non_empty_file);
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording");
     add_render_threads(c, render_threads);
     return c;
@@ -634,7 +641,8 @@ struct ServeCommand {
                   "the folder LOAD_SCENARIO may read scenarios from, links resolved (default: the served scenario's)");
     c->add_option("--record", svc.record,
                   "record every message on the wire into this MCAP file (ROS 2 profile: ros2 bag info, Foxglove, "
-                  "servo replay)");
+                  "servo replay; never over a file that exists: written as FILE.partial, renamed when the run ends)")
+        ->check(non_empty_file);
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording (long runs)");
     add_render_threads(c, render_threads);
     return c;

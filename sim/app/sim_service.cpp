@@ -152,10 +152,16 @@ class SimService {
     machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cell_params(o), sim::make_robot(*cell_));
     allowed_dir_ = allowed_scenarios_dir(o);
     open_recording(o);
-    make_endpoints(o);
-    publish_camera_info();
-    publish_description();
-    open_trace(o);
+    try {
+      make_endpoints(o);
+      publish_camera_info();
+      publish_description();
+      open_trace(o);
+    } catch (...) {
+      // start-up failed: the recording's partial file goes, and no file was touched
+      if (recorder_) recorder_->abandon();
+      throw;
+    }
   }
 
   int run() {
@@ -325,6 +331,7 @@ class SimService {
     cell_record::RecordOptions r;
     r.file = o.record;
     r.images = o.record_images;
+    r.image_topic = topic(cell_dds::kImageTopic);
     recorder_ = std::make_unique<cell_record::Recorder>(
         r, mcap::KeyValues{{"scenario", cell_->scenario.name},
                            {"scenario_file", o.scenario.string()},
@@ -548,6 +555,7 @@ class SimService {
 int run_sim_service(const ServiceOptions& options) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);  // a closed terminal or ssh session: stop as cleanly as on Ctrl-C
   SimService service(options);
   return service.run();
 }

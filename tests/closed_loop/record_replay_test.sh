@@ -80,14 +80,59 @@ report=$(node "$src/tests/interop/mcap/check_mcap.mjs" "$build/mcap-check" "$tmp
 grep -q '"/camera/image_raw"' <<<"$report" && fail "images in a --record-no-images recording: $report"
 echo "experiment: --record-no-images leaves the images out ($(stat -c %s "$tmp/noimg.mcap") bytes for 20 iterations)"
 
-# a broken recording: one line naming the file and the offset, no crash, no hang
+# a truncated recording (a recorder killed, a disk that filled): its complete chunks replay,
+# and the replay says it is truncated
 size=$(stat -c %s "$mcap")
 head -c $((size / 2)) "$mcap" >"$tmp/truncated.mcap"
-one_line_error "a truncated recording" "truncated.mcap: offset [0-9]*: " \
-  timeout 60 "$bin/servo" replay "$tmp/truncated.mcap" --pattern "$pattern" --no-plot
+out=$(timeout 60 "$bin/servo" replay "$tmp/truncated.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical 2>&1) ||
+  fail "a truncated recording does not replay its complete chunks: $out"
+grep -q "truncated.mcap: offset [0-9]*: truncated: .* complete chunks" <<<"$out" || fail "a truncated recording is not named so: $out"
+grep -q "every one identical bit for bit" <<<"$out" || fail "a truncated recording's twists differ: $out"
+echo "replay: $(head -1 <<<"$out")"
+
+# a recording killed with SIGKILL mid-run: FILE.partial holds its complete chunks
+"$bin/servo" run --pattern "$pattern" --z-hat 0.9 >"$tmp/k_servo.log" 2>&1 &
+k_servo=$!
+"$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --max-frames 100000 --record "$tmp/killed.mcap" \
+  >"$tmp/k_sim.log" 2>&1 &
+k_sim=$!
+for ((i = 0; i < 600; i++)); do
+  [ "$(stat -c %s "$tmp/killed.mcap.partial" 2>/dev/null || echo 0)" -gt 30000000 ] && break
+  kill -0 $k_sim 2>/dev/null || break
+  sleep 0.1
+done
+kill -KILL $k_sim 2>/dev/null; wait $k_sim 2>/dev/null
+kill -INT $k_servo 2>/dev/null; wait $k_servo 2>/dev/null
+[ -e "$tmp/killed.mcap" ] && fail "a killed recorder left a file under the recording's own name"
+[ -s "$tmp/killed.mcap.partial" ] || fail "no killed.mcap.partial: $(tail -3 "$tmp/k_sim.log")"
+out=$(timeout 120 "$bin/servo" replay "$tmp/killed.mcap.partial" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical 2>&1) ||
+  fail "a recording killed mid-run does not replay its complete chunks: $out"
+grep -q "truncated: " <<<"$out" || fail "a killed recording is not named truncated: $out"
+grep -q "[1-9][0-9]* images, [1-9][0-9]* recorded twists compared: every one identical" <<<"$out" ||
+  fail "a killed recording replayed nothing: $out"
+echo "replay after SIGKILL: $(tail -1 <<<"$out")"
+
+# a recording never replaces a file: an existing one, a scenario, stays as it was
+cp "$src/sim/scenarios/plane.yaml" "$tmp/plane.yaml"
+one_line_error "--record onto an existing file" "plane.yaml: exists" \
+  "$bin/cellsim" experiment "$src/sim/scenarios/plane.yaml" --max-iterations 2 --no-plot --record "$tmp/plane.yaml"
+cmp -s "$src/sim/scenarios/plane.yaml" "$tmp/plane.yaml" || fail "--record changed the file it was refused"
+one_line_error "--record ''" "--record: an empty file name" \
+  "$bin/cellsim" experiment "$src/sim/scenarios/plane.yaml" --max-iterations 2 --no-plot --record ""
+one_line_error "serve --record onto an existing file" "plane.yaml: exists" \
+  "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --max-frames 1 --record "$tmp/plane.yaml"
+cmp -s "$src/sim/scenarios/plane.yaml" "$tmp/plane.yaml" || fail "serve --record changed the file it was refused"
+# start-up that fails (security files missing) leaves neither the file nor its .partial
+out=$(ROS_SECURITY_ENABLE=true ROS_SECURITY_STRATEGY=Enforce ROS_SECURITY_KEYSTORE="$tmp/no_keystore" \
+      "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --max-frames 1 --record "$tmp/nostart.mcap" 2>&1) &&
+  fail "cellsim started with no keystore: $out"
+[ -e "$tmp/nostart.mcap" ] || [ -e "$tmp/nostart.mcap.partial" ] && fail "a start-up that failed left a recording"
+echo "record: an existing file, an empty name and a failed start-up leave every file as it was"
+
+# a broken recording: one line naming the file and the offset, no crash, no hang
 printf 'NOTMCAP!' | cat - <(tail -c +9 "$mcap" | head -c 100000) >"$tmp/magic.mcap"
 one_line_error "a wrong magic" "magic.mcap: offset 0: wrong magic" \
   timeout 60 "$bin/servo" replay "$tmp/magic.mcap" --pattern "$pattern" --no-plot
 mkfifo "$tmp/fifo.mcap"
 one_line_error "a FIFO" "fifo.mcap" timeout 60 "$bin/servo" replay "$tmp/fifo.mcap" --pattern "$pattern" --no-plot
-echo "replay: a truncated recording, a wrong magic and a FIFO are one line each"
+echo "replay: a wrong magic and a FIFO are one line each"

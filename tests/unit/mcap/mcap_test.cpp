@@ -2,8 +2,12 @@
 // every malformed file the issue names (truncated, wrong magic, a length past the end, a
 // 4 GB claimed length, an unknown schema or channel) is one error naming the file and offset.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <cstdio>
 #include <filesystem>
@@ -14,6 +18,8 @@
 #include "mcap/mcap_writer.hpp"
 
 namespace {
+
+int last_child_code = 0;
 
 std::filesystem::path temp_file(const std::string& name) {
   const auto dir = std::filesystem::temp_directory_path() / ("mcap_test_" + std::to_string(::getpid()));
@@ -30,6 +36,7 @@ std::string slurp(const std::filesystem::path& f) {
 
 // Two channels, `n` messages alternating between them, in chunks of `chunk_bytes`.
 mcap::WriteSummary write_sample(const std::filesystem::path& f, int n, std::size_t chunk_bytes) {
+  std::filesystem::remove(f);
   mcap::WriterOptions o;
   o.chunk_bytes = chunk_bytes;
   mcap::Writer w(f, o);
@@ -196,6 +203,184 @@ TEST(Mcap, AFifoIsRefusedNotWaitedOn) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   EXPECT_THROW(mcap::read_mcap_file(fifo, nullptr), std::runtime_error);
   EXPECT_THROW(mcap::Writer(fifo, {}), std::runtime_error);
+}
+
+// issue 40, item 1: a recording never replaces a file, and start-up that fails leaves none
+TEST(Mcap, ARecordingNeverReplacesAFileAndIsPartialUntilClosed) {
+  const auto f = temp_file("precious.mcap");
+  { std::ofstream(f) << "precious"; }
+  try {
+    mcap::Writer w(f, {});
+    ADD_FAILURE() << "an existing file was opened for writing";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("exists"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(slurp(f), "precious");
+  EXPECT_THROW(mcap::Writer(std::filesystem::path(), {}), std::runtime_error);
+
+  const auto g = temp_file("new.mcap");
+  std::filesystem::remove(g);
+  {
+    mcap::Writer w(g, {});
+    EXPECT_FALSE(std::filesystem::exists(g));
+    EXPECT_TRUE(std::filesystem::exists(temp_file("new.mcap.partial")));
+    // a second recorder given the same name is refused, and the first's file is untouched
+    EXPECT_THROW(mcap::Writer(g, {}), std::runtime_error);
+    const mcap::WriteSummary s = w.close();
+    EXPECT_TRUE(s.complete);
+    EXPECT_EQ(s.file, g);
+    EXPECT_TRUE(s.problem.empty()) << s.problem;
+  }
+  EXPECT_TRUE(std::filesystem::exists(g));
+  EXPECT_FALSE(std::filesystem::exists(temp_file("new.mcap.partial")));
+  EXPECT_NO_THROW(mcap::read_mcap_file(g, nullptr));
+
+  // a file that appears at the name while recording is not replaced: the recording stays .partial
+  const auto h = temp_file("raced.mcap");
+  std::filesystem::remove(h);
+  mcap::Writer w(h, {});
+  { std::ofstream(h) << "someone else's"; }
+  const mcap::WriteSummary s = w.close();
+  EXPECT_EQ(slurp(h), "someone else's");
+  EXPECT_EQ(s.file, temp_file("raced.mcap.partial"));
+  EXPECT_NE(s.problem.find("not replaced"), std::string::npos) << s.problem;
+  EXPECT_NO_THROW(mcap::read_mcap_file(s.file, nullptr));
+
+  // start-up failed: the partial file goes, nothing else does
+  const auto a = temp_file("abandoned.mcap");
+  std::filesystem::remove(a);
+  mcap::Writer ab(a, {});
+  ab.abandon();
+  EXPECT_FALSE(std::filesystem::exists(a));
+  EXPECT_FALSE(std::filesystem::exists(temp_file("abandoned.mcap.partial")));
+}
+
+// Writes `n` messages of 1000 bytes into chunks of 4 kB in a child that then dies without
+// closing (SIGKILL's effect on the file), or with its file size limited to `fsize_limit` (a
+// full disk) and raised again before close when `space_back`. Returns the child's file.
+std::filesystem::path write_in_child(const std::string& name, int n, rlim_t fsize_limit, bool close, bool space_back,
+                                     std::size_t payload_bytes = 1000, std::size_t chunk_bytes = 4096) {
+  const auto f = temp_file(name);
+  std::filesystem::remove(f);
+  std::filesystem::remove(temp_file(name + ".partial"));
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);  // a write past the limit fails with EFBIG, as ENOSPC would
+    mcap::WriterOptions o;
+    o.chunk_bytes = chunk_bytes;
+    mcap::Writer w(f, o);
+    const auto s = w.add_schema("std_msgs/msg/String", "ros2msg", "string data\n");
+    const auto c = w.add_channel(s, "/a", "cdr", {});
+    rlimit lim{fsize_limit, RLIM_INFINITY};
+    ::setrlimit(RLIMIT_FSIZE, &lim);
+    const std::string payload(payload_bytes, 'p');
+    int failures = 0;
+    for (int i = 0; i < n; ++i) {
+      try {
+        w.write_message(c, static_cast<std::uint32_t>(i), 1000 + i, 1000 + i,
+                        reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size());
+      } catch (const std::runtime_error&) {
+        ++failures;
+      }
+    }
+    if (!close) ::_exit(0);  // no close, no destructor: what SIGKILL leaves
+    // space back, or none at all: not even for the summary
+    rlimit now{space_back ? RLIM_INFINITY : static_cast<rlim_t>(std::filesystem::file_size(w.partial_file())),
+               RLIM_INFINITY};
+    ::setrlimit(RLIMIT_FSIZE, &now);
+    const mcap::WriteSummary done = w.close();
+    // 10: a failure said; 11: a complete file; 12: a problem named
+    ::_exit((failures > 0 ? 1 : 0) | (done.complete ? 2 : 0) | (done.problem.empty() ? 0 : 4) | 8);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  EXPECT_TRUE(WIFEXITED(status));
+  last_child_code = WEXITSTATUS(status);
+  return f;
+}
+
+TEST(Mcap, AKilledRecordingReadsAsTruncatedWithItsCompleteChunks) {
+  const auto f = write_in_child("killed.mcap", 40, RLIM_INFINITY, false, false);
+  const auto partial = temp_file("killed.mcap.partial");
+  ASSERT_TRUE(std::filesystem::exists(partial));
+  EXPECT_FALSE(std::filesystem::exists(f));
+  try {
+    mcap::read_mcap_file(partial, nullptr);
+    ADD_FAILURE() << "a truncated file read as whole";
+  } catch (const mcap::FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+  }
+  mcap::ReadLimits l;
+  l.allow_truncated = true;
+  std::uint32_t next = 0;
+  const mcap::ReadSummary r = mcap::read_mcap_file(
+      partial, [&](const mcap::Channel&, const mcap::MessageView& m) { EXPECT_EQ(m.sequence, next++); }, l);
+  ASSERT_TRUE(r.truncated);
+  EXPECT_NE(r.truncated->find("truncated"), std::string::npos);
+  // four messages a 4 kB chunk: every complete one read, the open one (and the buffer) lost
+  EXPECT_GE(r.chunks, 8u);
+  EXPECT_EQ(r.messages, next);
+  EXPECT_GE(r.messages, 32u);
+  EXPECT_LT(r.messages, 40u);
+
+  // killed with an open chunk partly on disk (its messages past the writer's 1 MB buffer):
+  // the chunk's header still claims to run past the end, so it is a truncation, not garbage
+  write_in_child("killed_mid_chunk.mcap", 25, RLIM_INFINITY, false, false, 300000, 4u << 20);
+  const mcap::ReadSummary mid = mcap::read_mcap_file(temp_file("killed_mid_chunk.mcap.partial"), nullptr, l);
+  ASSERT_TRUE(mid.truncated);
+  EXPECT_NE(mid.truncated->find("runs past the file's end"), std::string::npos) << *mid.truncated;
+  EXPECT_EQ(mid.chunks, 1u);   // 13 messages of 300 kB fill the first 4 MB chunk
+  EXPECT_EQ(mid.messages, 13u);
+}
+
+TEST(Mcap, AFullDiskKeepsAReadableFileAndSaysWhy) {
+  // space back before close: the file is whole, with the messages before the failure
+  write_in_child("full_then_back.mcap", 60, 20000, true, true);
+  EXPECT_EQ(last_child_code, 1 | 2 | 4 | 8);
+  const mcap::ReadSummary back = mcap::read_mcap_file(temp_file("full_then_back.mcap"), nullptr);
+  EXPECT_FALSE(back.truncated);
+  EXPECT_GE(back.messages, 8u);
+  EXPECT_LT(back.messages, 20u);
+  EXPECT_EQ(back.stated_messages, back.messages);
+  // full to the end: a file cut at its last complete record, read as truncated
+  write_in_child("full.mcap", 60, 20000, true, false);
+  EXPECT_EQ(last_child_code, 1 | 4 | 8);
+  mcap::ReadLimits l;
+  l.allow_truncated = true;
+  const mcap::ReadSummary full = mcap::read_mcap_file(temp_file("full.mcap"), nullptr, l);
+  ASSERT_TRUE(full.truncated);
+  EXPECT_NE(full.truncated->find("ends before its footer"), std::string::npos) << *full.truncated;
+  EXPECT_GE(full.messages, 8u);
+}
+
+TEST(Mcap, OpcodeZeroIsRefusedAtOnce) {
+  std::string file(mcap::kMagic, 8);
+  std::string header;
+  mcap::put_string(header, "ros2");
+  mcap::put_string(header, "test");
+  file += mcap::record(mcap::kHeader, header);
+  expect_format_error(file + std::string(1 << 20, '\0'), "offset " + std::to_string(file.size()) + ": opcode 0");
+}
+
+TEST(Mcap, AnErrorInsideAChunkNamesTheRecordsOwnOffset) {
+  std::string file(mcap::kMagic, 8);
+  std::string header;
+  mcap::put_string(header, "ros2");
+  mcap::put_string(header, "test");
+  file += mcap::record(mcap::kHeader, header);
+  std::string inner;
+  inner += mcap::record(mcap::kMetadata, std::string(8, '\0'));  // not allowed inside a chunk
+  std::string chunk;
+  mcap::put_u64(chunk, 0);
+  mcap::put_u64(chunk, 0);
+  mcap::put_u64(chunk, inner.size());
+  mcap::put_u32(chunk, 0);
+  mcap::put_string(chunk, "");
+  mcap::put_u64(chunk, inner.size());
+  const std::size_t inner_at = file.size() + 9 + chunk.size();
+  chunk += inner;
+  file += mcap::record(mcap::kChunk, chunk);
+  expect_format_error(file, "offset " + std::to_string(inner_at) + ": record of opcode 12 inside a chunk");
 }
 
 }  // namespace

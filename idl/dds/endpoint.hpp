@@ -18,15 +18,31 @@
 #include <string>
 
 #include "dds/participant.hpp"
+#include "dds/topics.hpp"
 #include "dds/type_hash.hpp"
 
 namespace cell_dds {
+
+// A generated type whose received samples are bounded in bytes (max_sample_bytes): a longer
+// one is refused before it is deserialised, and Fast DDS drops it (issue 40, item 4).
+template <typename PubSubType>
+class BoundedType : public PubSubType {
+ public:
+  BoundedType() : max_bytes_(max_sample_bytes(PubSubType().getName())) {}
+  bool deserialize(eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data) override {
+    if (payload == nullptr || payload->length > max_bytes_) return false;
+    return PubSubType::deserialize(payload, data);
+  }
+
+ private:
+  std::uint32_t max_bytes_;
+};
 
 // The topic of that name, created (with its type registered) on first use.
 template <typename PubSubType>
 eprosima::fastdds::dds::Topic* topic_for(eprosima::fastdds::dds::DomainParticipant& p, const std::string& name) {
   using namespace eprosima::fastdds::dds;
-  eprosima::fastdds::dds::TypeSupport type(new PubSubType());
+  eprosima::fastdds::dds::TypeSupport type(new BoundedType<PubSubType>());
   if (!p.find_type(type.get_type_name()).empty()) {
     // already registered
   } else {
@@ -107,6 +123,11 @@ class Reader : private eprosima::fastdds::dds::DataReaderListener {
     if (!subscriber_) throw std::runtime_error("cannot create a DDS subscriber for " + topic);
     eprosima::fastdds::dds::DataReaderQos q = qos;
     q.user_data().data_vec(type_hash_user_data(PubSubType().getName()));
+    // small messages: each sample's buffer is freed once taken. The default pool keeps every
+    // buffer at the largest size it ever held (64 statuses of 10 MB were 640 MB until exit);
+    // images keep it, one VGA frame a buffer, allocated once
+    if (max_sample_bytes(PubSubType().getName()) <= (4u << 20))
+      q.endpoint().history_memory_policy = eprosima::fastrtps::rtps::DYNAMIC_RESERVE_MEMORY_MODE;
     // no resource_limits below the history: KEEP_LAST already bounds what a flood can queue,
     // and a reliable reader whose max_samples equals its depth stalls (it refused samples and
     // a writer's KEEP_LAST 1 history no longer had them to repair: statuses stopped arriving)

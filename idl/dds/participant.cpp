@@ -139,9 +139,13 @@ void check_discovery_servers(const char* value) {
         throw bad(entry, "has no port from 1 to 65535 after its ':'");
     }
     in_addr addr{};
+    // digits and dots alone are an address or nothing: "999.999.999.999" is no host name
+    const bool numeric = !host.empty() && host.find_first_not_of("0123456789.") == std::string::npos;
     if (inet_pton(AF_INET, host.c_str(), &addr) == 1) {
       const std::uint32_t a4 = ntohl(addr.s_addr);
       if ((a4 >> 28) == 0xE || a4 == 0xFFFFFFFFu || a4 == 0) throw bad(entry, "is not a unicast address");
+    } else if (numeric) {
+      throw bad(entry, "is not an IPv4 address (four numbers from 0 to 255)");
     } else if (host.empty() || host.size() > 253 ||
                host.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-") !=
                    std::string::npos) {
@@ -149,6 +153,7 @@ void check_discovery_servers(const char* value) {
     }
     if (++servers > 64) throw bad(entry, "is past the 64th server");
   }
+  if (servers == 0) throw bad(list.substr(0, 20), "names no server (unset it for no discovery server)");
 }
 
 Discovery discovery_from_env() {
@@ -258,8 +263,12 @@ OneLineLog& one_line_log() {
 bool add_security(DomainParticipantQos& qos, const Security& sec, const std::string& enclave_name) {
   std::string enclave = sec.enclave_override.empty() ? enclave_name : sec.enclave_override;
   while (!enclave.empty() && enclave.front() == '/') enclave.erase(enclave.begin());
-  if (enclave.empty() || enclave.find("..") != std::string::npos)
-    throw std::invalid_argument("security enclave '" + enclave + "': not an enclave name");
+  // an enclave is a ROS 2 name: letters, digits, '_' and '/' (never printed raw: it may come
+  // from ROS_SECURITY_ENCLAVE_OVERRIDE with control bytes in it)
+  if (enclave.empty() || enclave.size() > 255 || enclave.find("..") != std::string::npos ||
+      enclave.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_/") != std::string::npos)
+    throw std::invalid_argument("security enclave '" + config_printable(enclave) +
+                                "': not an enclave name (letters, digits, '_' and '/'; ROS_SECURITY_ENCLAVE_OVERRIDE)");
   const std::filesystem::path dir = std::filesystem::path(sec.keystore) / "enclaves" / enclave;
   const char* files[] = {"identity_ca.cert.pem", "cert.pem", "key.pem", "permissions_ca.cert.pem", "governance.p7s",
                          "permissions.p7s"};
@@ -500,41 +509,80 @@ void register_type(DomainParticipant& participant, TypeSupport type) {
     throw std::runtime_error("cannot register DDS type " + type.get_type_name());
 }
 
-std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& dir, std::chrono::seconds min_age) {
-  std::vector<std::string> removed;
+namespace {
+
+// The names under `dir` that a live process maps or holds open (/proc/PID/maps and the links
+// in /proc/PID/fd): a file in use is never an orphan, whatever its lock says.
+std::set<std::string> files_in_use(const std::filesystem::path& dir) {
+  std::set<std::string> used;
+  const std::string prefix = dir.string() + (dir.string().empty() || dir.string().back() == '/' ? "" : "/");
+  const auto note = [&](const std::string& path) {
+    if (path.rfind(prefix, 0) != 0) return;
+    std::string name = path.substr(prefix.size());
+    if (const auto sp = name.find(" (deleted)"); sp != std::string::npos) name.resize(sp);
+    if (name.find('/') == std::string::npos) used.insert(name);
+  };
   std::error_code ec;
-  const std::string prefix = (dir / "fastrtps_").string();
-  std::set<std::string> mapped;
   for (const auto& proc : std::filesystem::directory_iterator("/proc", ec)) {
     std::ifstream maps(proc.path() / "maps");
     std::string line;
-    while (std::getline(maps, line)) {
-      const auto at = line.find(prefix);
-      if (at != std::string::npos) mapped.insert(std::filesystem::path(line.substr(at)).filename().string());
+    while (std::getline(maps, line))
+      if (const auto at = line.find(prefix); at != std::string::npos) note(line.substr(at));
+    std::error_code fd_ec;
+    for (const auto& fd : std::filesystem::directory_iterator(proc.path() / "fd", fd_ec)) {
+      std::error_code link_ec;
+      note(std::filesystem::read_symlink(fd.path(), link_ec).string());
     }
   }
+  return used;
+}
+
+// This user's regular file (not a link, a folder, a FIFO or another user's), old enough.
+bool ours_and_regular(const std::filesystem::path& p, std::chrono::seconds min_age) {
+  struct stat st {};
+  if (lstat(p.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_uid != geteuid()) return false;
+  return std::chrono::system_clock::now() - std::chrono::system_clock::from_time_t(st.st_mtime) >= min_age;
+}
+
+// The owner of a Fast DDS file holds flock on its "<name>_el" while it lives (Fast DDS's
+// RobustExclusiveLock; an fcntl lock test would not see it). Free: the lock is this user's
+// regular file (a link may lead to a lock some process holds, a FIFO would hang the open) and
+// flock can take it now.
+bool lock_free(const std::filesystem::path& el) {
+  if (!ours_and_regular(el, std::chrono::seconds(0))) return false;
+  const int fd = open(el.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+  if (fd < 0) return false;
+  struct stat st {};
+  const bool free = fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && flock(fd, LOCK_EX | LOCK_NB) == 0;
+  close(fd);  // releases the lock if this test took it
+  return free;
+}
+
+bool is_datasharing_file(const std::string& name) {
+  const std::string prefix = "fast_datasharing_";
+  return name.size() > prefix.size() && name.rfind(prefix, 0) == 0 &&
+         name.find_first_not_of("0123456789abcdef._", prefix.size()) == std::string::npos;
+}
+
+}  // namespace
+
+std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& dir, std::chrono::seconds min_age) {
+  std::vector<std::string> removed;
+  const std::set<std::string> used = files_in_use(dir);
+  std::error_code ec;
   for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
     const std::string name = f.path().filename().string();
-    if (!is_fastdds_shm_file(name) || mapped.count(name)) continue;
-    std::error_code age_ec;
-    const auto age = std::filesystem::file_time_type::clock::now() - std::filesystem::last_write_time(f.path(), age_ec);
-    if (age_ec || age < min_age) continue;
-    // the port's listener, the segment's owner, holds flock on <name>_el while it lives
-    // (Fast DDS's RobustExclusiveLock; an fcntl lock test would not see it)
-    const std::string el = f.path().string() + "_el";
-    // non-blocking, and only a regular file: a FIFO planted as a lock must not hang us
-    const int fd = open(el.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
-    if (fd >= 0) {
-      struct stat st {};
-      const bool regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
-      const bool held = !regular || flock(fd, LOCK_EX | LOCK_NB) != 0;
-      close(fd);  // releases the lock if this test took it
-      if (held) continue;
-    }
+    const bool port_or_segment = is_fastdds_shm_file(name), datasharing = is_datasharing_file(name);
+    if ((!port_or_segment && !datasharing) || used.count(name) || !ours_and_regular(f.path(), min_age)) continue;
+    // a data-sharing pool has no lock: that no process maps or holds it is what makes it an orphan
+    const std::filesystem::path el = f.path().string() + "_el";
+    if (port_or_segment && (used.count(name + "_el") || !lock_free(el))) continue;
     std::error_code rm_ec;
     std::filesystem::remove(f.path(), rm_ec);
-    std::filesystem::remove(el, rm_ec);
-    std::filesystem::remove(dir / ("sem." + name + "_mutex"), rm_ec);
+    if (port_or_segment) std::filesystem::remove(el, rm_ec);
+    // the port's semaphore, when it is this user's regular file (a folder planted there stays)
+    const std::filesystem::path sem = dir / ("sem." + name + "_mutex");
+    if (port_or_segment && ours_and_regular(sem, std::chrono::seconds(0))) std::filesystem::remove(sem, rm_ec);
     removed.push_back(name);
   }
   return removed;

@@ -82,9 +82,12 @@ ParticipantPtr make_participant(const ParticipantOptions& options);
 
 // Removes from `dir` (/dev/shm) the shared-memory files Fast DDS leaves behind a process killed
 // with SIGKILL: ports ("fastrtps_port7411") and senders' segments ("fastrtps_" and 16 hex
-// digits), with their "_el" locks and "_mutex" semaphores, when no process maps the file, nobody
-// holds its owner's lock and it is at least `min_age` old (a file being created is neither mapped
-// nor locked yet). Returns the names removed. make_participant calls it once per process.
+// digits), with their "_el" locks and "_mutex" semaphores, and data-sharing pools
+// ("fast_datasharing_..."). Only this user's regular files at least `min_age` old (a file being
+// created is neither mapped nor locked yet) that no live process maps or holds open, and for a
+// port or segment only when its lock is this user's regular file and free: never a folder, a
+// FIFO, a link, another user's file, or a semaphore that is not a regular file (issue 40,
+// item 9). Returns the names removed. make_participant calls it once per process.
 std::vector<std::string> remove_orphaned_shm_files(const std::filesystem::path& dir, std::chrono::seconds min_age);
 
 // The shared-memory segment a participant makes. A sender's segment holds at most `buffers`

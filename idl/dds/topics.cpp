@@ -51,6 +51,16 @@ DataWriterQos writer_qos(Stream s) {
   return q;
 }
 
+std::uint32_t max_sample_bytes(const std::string& type) {
+  const auto is = [&](const char* name) { return type == name; };
+  if (is("sensor_msgs::msg::dds_::Image_")) return 4096u * 2304u * 4u + (64u << 10);
+  if (is("std_msgs::msg::dds_::String_") || is("cell_msgs::msg::dds_::DecodedSpots_") ||
+      is("cell_msgs::msg::dds_::SpotTruthArray_") || is("tf2_msgs::msg::dds_::TFMessage_") ||
+      is("rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"))
+    return 4u << 20;
+  return 64u << 10;
+}
+
 DataReaderQos reader_qos(Stream s) {
   DataReaderQos q = DATAREADER_QOS_DEFAULT;
   configure(q, s);

@@ -4,6 +4,7 @@
 
 #include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <cstdint>
 #include <string>
 
 #include "builtin_interfaces.h"
@@ -32,6 +33,12 @@ std::string namespaced(const std::string& ns, const char* topic);
 // underscores, not starting with a digit, joined by '/', at most 64 characters; a leading
 // '/' is dropped. Throws std::invalid_argument (one line) otherwise.
 std::string checked_namespace(const std::string& ns);
+
+// The most bytes a received sample of this DDS type ("cell_msgs::msg::dds_::ServoStatus_")
+// may have on the wire (issue 40, item 4): a longer one is dropped before it is deserialised,
+// so a peer's 10 MB string costs no memory past the transport. The largest legitimate image
+// (4096 x 2304 rgba8), a URDF of 4 MB, 4 MB of spots; 64 kB for every small message.
+std::uint32_t max_sample_bytes(const std::string& dds_type_name);
 
 inline constexpr const char* kCameraFrame = "camera_optical";
 inline constexpr const char* kWorldFrame = "world";

@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
                   "minimum Hamming distance between windows: 1 (the paper's), 2, or 3 (3 colours, 3 x 3 windows: the "
                   "algebraic GF(3^6) array, up to 20 x 20)")
       ->capture_default_str();
-  gen->add_option("--seed", gp.seed, "random seed")->required();
+  gen->add_option("--seed", gp.seed, "random seed")->required()->check(config::whole_number());
   gen->add_option("--time-budget", gp.time_budget_s, "give up after this many CPU seconds")->capture_default_str();
   gen->add_option("-o,--output", out, "pattern file to write")->required();
 

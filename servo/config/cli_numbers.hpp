@@ -12,6 +12,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "servo/config/decimal_number.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -28,9 +30,9 @@ inline CLI::Validator finite_in(double lo, double hi) {
   std::snprintf(desc, sizeof desc, "finite in [%g, %g]", lo, hi);
   return CLI::Validator(
       [lo, hi](std::string& text) -> std::string {
-        char* end = nullptr;
-        const double v = std::strtod(text.c_str(), &end);
-        if (text.empty() || *end != '\0' || !std::isfinite(v) || v < lo || v > hi) {
+        const std::optional<double> parsed = decimal_number(text);  // not strtod's "0x10" or "inf"
+        const double v = parsed.value_or(0);
+        if (!parsed || v < lo || v > hi) {
           char why[160];
           std::snprintf(why, sizeof why, "'%.40s' is not a finite number in [%g, %g]", text.c_str(), lo, hi);
           return why;
@@ -38,6 +40,19 @@ inline CLI::Validator finite_in(double lo, double hi) {
         return "";
       },
       desc);
+}
+
+// A whole number in [0, 2^64): digits only. CLI11 reads "-1" into an unsigned flag as 2^64 - 1
+// and "0x10" as 16; a seed given so is a typo, not a draw.
+inline CLI::Validator whole_number() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        const bool digits = !text.empty() && text.size() <= 20 && text.find_first_not_of("0123456789") == std::string::npos;
+        if (!digits || (text.size() == 20 && text > "18446744073709551615"))
+          return "'" + text.substr(0, 40) + "' is not a whole number from 0 to 18446744073709551615";
+        return "";
+      },
+      "WHOLE");
 }
 
 // A flag's value checked after parsing (flags are untrusted input like any file: NaN and

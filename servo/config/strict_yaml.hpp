@@ -12,6 +12,7 @@
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
+#include <optional>
 #include <string_view>
 
 namespace config {

@@ -70,7 +70,7 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
   try {
     robot->reset(wTc);
   } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("--pose '" + pose_spec + "': " + e.what());
+    throw std::invalid_argument(scenario_file + ": --pose '" + config::printable(pose_spec) + "': " + e.what());
   }
   const sim::LinkPoses links = robot->world_T_links();
   Eigen::Isometry3d view = wTc;
@@ -258,7 +258,7 @@ struct CampaignFlags {
   void add(CLI::App* c) {
     c->add_option("--runs", o.runs, "initial poses per model")->capture_default_str()->check(CLI::Range(1, 1000000));
     c->add_option("--models", models, "comma-separated models")->capture_default_str();
-    c->add_option("--seed", o.seed, "seed of the initial-pose draw")->capture_default_str();
+    c->add_option("--seed", o.seed, "seed of the initial-pose draw")->capture_default_str()->check(config::whole_number());
     c->add_option("--scale", o.scale, "initial offsets drawn in [-scale, scale] x the scenario's")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 100.0));
@@ -381,7 +381,7 @@ struct DecodeSweepCommand {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
     c->add_option("scenario", scenario, "scenario YAML file")->required();
     c->add_option("--poses", sweep.poses, "random poses")->capture_default_str()->check(CLI::PositiveNumber);
-    c->add_option("--seed", sweep.seed, "seed of the pose draw and the noise")->capture_default_str();
+    c->add_option("--seed", sweep.seed, "seed of the pose draw and the noise")->capture_default_str()->check(config::whole_number());
     c->add_option("--noise", sweep.noise_sigmas, "sensor noise sigmas to cycle through (8-bit units)");
     c->add_option("--min-votes", sweep.decoder.min_votes, "windows that must name a spot")->capture_default_str();
     c->add_option("--min-island", sweep.decoder.min_island, "smallest island of decoded spots kept (0: off)")
@@ -490,7 +490,7 @@ struct Fig5SearchCommand {
                                  "L(s*, Z-hat) diverges and L(s*, Z*), L(s, Z) converge (ideal features)");
     c->add_option("scenario", scenario, "scenario YAML file (the cylinder, projector and desired pose)")->required();
     c->add_option("--tries", search.tries, "configurations drawn")->capture_default_str()->check(CLI::Range(1, 100000));
-    c->add_option("--seed", search.seed, "seed of the draw")->capture_default_str();
+    c->add_option("--seed", search.seed, "seed of the draw")->capture_default_str()->check(config::whole_number());
     c->add_option("--z-hat", search.z_hat_m, "depth of the constant-depth model (m)")
         ->capture_default_str()
         ->check(CLI::Range(0.01, 100.0));

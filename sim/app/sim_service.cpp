@@ -55,6 +55,11 @@ struct Inbox {
   std::deque<SimControl_> commands;
   std::deque<ServoStatus_> statuses;
   long dropped = 0;
+  // statuses are taken only for frames already sent, and no older than the state machine
+  // keeps: a peer's flood of future or ancient stamps cannot push the real one out of the
+  // queue (issue 40, item 3). The service loop moves the window as it sends frames.
+  std::uint64_t newest_sent_ns = 0, kept_window_ns = 0;
+  long statuses_refused = 0;
   bool servo_seen = false;
   bool taught_seen = false;
   template <typename T>
@@ -297,8 +302,15 @@ class SimService {
     status_in_ = recorded_reader<cell_msgs::msg::dds_::ServoStatus_PubSubType>(
         p, topic(cell_dds::kStatusTopic), Stream::kLatched,
         [this](ServoStatus_&& s) {
+          if (s.reason().size() > kMaxReasonBytes) s.reason().resize(kMaxReasonBytes);
           {
             std::lock_guard<std::mutex> l(inbox_.m);
+            const auto& st = s.header().stamp();
+            const std::uint64_t ns = st.sec() < 0 ? ~0ull : static_cast<std::uint64_t>(st.sec()) * 1000000000ull + st.nanosec();
+            if (ns > inbox_.newest_sent_ns || ns + inbox_.kept_window_ns < inbox_.newest_sent_ns) {
+              ++inbox_.statuses_refused;
+              return;
+            }
             inbox_.servo_seen = true;
             if (s.reason().rfind("taught", 0) == 0) inbox_.taught_seen = true;
           }
@@ -418,6 +430,11 @@ class SimService {
     }
     cell_ = std::move(r.cell);
     machine_->loaded(cell_->scenario, std::move(r.robot));
+    {
+      // another scenario, another frame period: the window of statuses starts again
+      std::lock_guard<std::mutex> l(inbox_.m);
+      inbox_.newest_sent_ns = 0;
+    }
     announce_conditions(cell_->scenario, o_.mode);
     publish_camera_info();
     publish_description();
@@ -457,6 +474,12 @@ class SimService {
   // stamp; the status and the pose before the image (the servo pairs them by stamp).
   void publish_frame(const sim::FrameOrder& f) {
     const auto stamp = cell_dds::stamp_of(f.index, dt());
+    {
+      std::lock_guard<std::mutex> l(inbox_.m);
+      const std::uint64_t ns = static_cast<std::uint64_t>(stamp.sec()) * 1000000000ull + stamp.nanosec();
+      inbox_.newest_sent_ns = std::max(inbox_.newest_sent_ns, ns);
+      inbox_.kept_window_ns = static_cast<std::uint64_t>(std::llround(dt() * 1e9)) * sim::CellStateMachine::kMaxKeptStatuses;
+    }
     // the scene the image shows (a frame ago or more, with an acquisition delay)
     const cv::Mat rgb = sim::render_image(*cell_, f.scene_world_T_camera, sim::frame_seed(cell_->scenario.seed, f.index),
                                           &scratch_, nullptr, &f.scene_world_T_links);
@@ -540,6 +563,7 @@ class SimService {
   std::unique_ptr<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>> tf_;
   std::unique_ptr<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>> description_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>> control_out_;
+  static constexpr std::size_t kMaxReasonBytes = 256;  // of a received status's reason: what the summary shows
   // the latest refusals, as rt/sim/status says them (the IDL's bound)
   static constexpr std::size_t kRecentRefusals = 8;
   std::deque<std::string> recent_refusals_;

@@ -87,6 +87,7 @@ void CellStateMachine::load_failed(const std::string& reason) {
 }
 
 bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
+  now_s_ = now_s;
   ++counters_.commands;
   // the teach frame is rendered at the desired pose and (lockstep) answered before anything
   // else happens (the servo takes s* from it); what comes meanwhile waits, in a bounded queue
@@ -123,7 +124,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       try {
         place_robot(c.pose ? *c.pose : resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument));
       } catch (const std::exception& e) {
-        return refuse(e.what());
+        return refuse(scenario_.file.filename().string() + ": " + e.what());  // which scenario's arm
       }
       return;
     }
@@ -131,7 +132,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       try {
         place_robot(scenario_.world_T_desired);
       } catch (const std::exception& e) {
-        return refuse(e.what());
+        return refuse(scenario_.file.filename().string() + ": " + e.what());
       }
       teach_requested_ = true;
       return;
@@ -250,10 +251,22 @@ bool CellStateMachine::on_twist(const TwistMsg& t, double now_s) {
   return true;
 }
 
-void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
+void CellStateMachine::on_servo_status(const ServoReport& report, double now_s) {
+  now_s_ = now_s;
   std::string why;
-  const std::optional<std::uint64_t> k = frame_of(s.stamp_sec, s.stamp_nanosec, why);
+  const std::optional<std::uint64_t> k = frame_of(report.stamp_sec, report.stamp_nanosec, why);
   if (!k) return;
+  // a status for a frame not made yet answers nothing: kept, 64 of them would push out every
+  // real status as it came and stall each lockstep step for its grace time (issue 40, item 3)
+  const std::uint64_t newest = frame_ == 0 ? 0 : frame_ - 1;
+  if (*k > newest) {
+    if (worth_logging(++counters_.statuses_refused))
+      log("cellsim: rt/servo/status: refused a status for frame " + std::to_string(*k) + ", not sent yet (" +
+          std::to_string(counters_.statuses_refused) + " so far)");
+    return;
+  }
+  ServoReport s = report;
+  if (s.reason.size() > kMaxReasonBytes) s.reason.resize(kMaxReasonBytes);  // what is kept is bounded in bytes
   statuses_[*k] = s;
   peer_sends_statuses_ = true;
   while (statuses_.size() > kMaxKeptStatuses) statuses_.erase(statuses_.begin());
@@ -263,8 +276,23 @@ void CellStateMachine::on_servo_status(const ServoReport& s, double /*now_s*/) {
     end_session(SessionEnd::kServoStopped, shown(s.reason, 200));
 }
 
+// One escaping rule and one length for the log and rt/sim/status, and a flood of bad commands
+// said at most kRefusalsPerSecond a second (a burst of kRefusalBurst), the rest counted and
+// named with the next line said: a 50 s flood of refused loads once wrote 158 MB of log.
 void CellStateMachine::refused(std::string line) {
   ++counters_.commands_refused;
+  line = shown(line, kMaxRefusalChars);
+  refusal_tokens_ = std::min(kRefusalBurst, refusal_tokens_ + std::max(0.0, now_s_ - refusal_tokens_at_s_) * kRefusalsPerSecond);
+  refusal_tokens_at_s_ = std::max(refusal_tokens_at_s_, now_s_);
+  if (refusal_tokens_ < 1) {
+    ++refusals_unsaid_;
+    return;
+  }
+  refusal_tokens_ -= 1;
+  if (refusals_unsaid_ > 0) {
+    line = "(" + std::to_string(refusals_unsaid_) + " refusals not said) " + line;
+    refusals_unsaid_ = 0;
+  }
   log("cellsim: " + line);
   out_.refusals.push_back(std::move(line));
 }
@@ -510,6 +538,7 @@ void CellStateMachine::realtime(double now_s) {
 }
 
 CellOutput CellStateMachine::poll(double now_s) {
+  now_s_ = now_s;
   if (last_poll_s_ && moving_at_last_poll_ && now_s > *last_poll_s_) counters_.stepping_s += now_s - *last_poll_s_;
   if (p_.timing == Timing::kLockstep) lockstep(now_s);
   else realtime(now_s);

@@ -147,6 +147,8 @@ struct CellCounters {
   // lockstep: answers that came after their frame was stepped (a repeated frame answered twice,
   // a frame given up): normal traffic, counted and not logged (issue 18, item 6)
   long late_answers = 0;
+  // statuses for frames not sent yet: refused (issue 40, item 3)
+  long statuses_refused = 0;
   // wall time during which the robot was asked to move (running, stepping, or a frame awaited
   // whose twist applies): the loop rate is measured over it, not over idle time
   double stepping_s = 0;
@@ -197,6 +199,10 @@ class CellStateMachine {
   // Limits on what is kept between polls.
   static constexpr std::size_t kMaxQueuedCommands = 16;
   static constexpr std::size_t kMaxKeptStatuses = 64;
+  // refusals said (logged and on rt/sim/status): a token bucket over the inputs' time
+  static constexpr double kRefusalsPerSecond = 10, kRefusalBurst = 20;
+  static constexpr std::size_t kMaxRefusalChars = 300;  // rt/sim/status's bound for a refusal
+  static constexpr std::size_t kMaxReasonBytes = 256;   // of a kept status's reason
   static constexpr double kStatusGraceS = 0.5;  // lockstep: how long an answer waits for its status
   static constexpr std::uint64_t kMaxSteps = 1'000'000;
 
@@ -225,6 +231,9 @@ class CellStateMachine {
   void log(std::string line) { out_.log.push_back(std::move(line)); }
   void end_session(SessionEnd kind, std::string reason);
   void refused(std::string line);
+  double now_s_ = 0;  // the latest input's time
+  double refusal_tokens_ = kRefusalBurst, refusal_tokens_at_s_ = 0;
+  long refusals_unsaid_ = 0;
 
   Scenario scenario_;
   CellParams p_;

@@ -203,6 +203,10 @@ class Experiment {
       }
       for (const auto& line : out.refusals) refused_reset(line);
       if (!res_.stop_reason.empty()) return res_;
+      if (o_.cancelled && o_.cancelled()) {
+        res_.stop_reason = "cancelled";
+        break;
+      }
       if (out.done) break;
       // the cell ordered nothing: after the teach frame it waits for commands; more is a stall
       idle_rounds = exchanges.empty() ? idle_rounds + 1 : 0;

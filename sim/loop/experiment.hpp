@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,6 +35,8 @@ struct ExperimentOptions {
   // the renderer's threads: 0 OpenCV's pool (cv::setNumThreads), 1 the run's own thread only
   // (campaigns, whose runs already keep every core busy)
   int render_threads = 0;
+  // asked once a round: true stops the run there, stop reason "cancelled" (Python's Ctrl-C)
+  std::function<bool()> cancelled;
 };
 
 struct IterationRecord {

@@ -1,5 +1,7 @@
 #include "sim/loop/study.hpp"
 
+#include "servo/config/decimal_number.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -131,14 +133,9 @@ StudyAxis parse_study_axis(const std::string& spec) {
   a.name = spec.substr(0, eq);
   std::stringstream list(spec.substr(eq + 1));
   for (std::string item; std::getline(list, item, ',');) {
-    std::size_t used = 0;
-    double v = std::nan("");
-    try {
-      v = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(v))
+    const std::optional<double> parsed = config::decimal_number(item);  // "0x10" is not 16
+    const double v = parsed.value_or(0);
+    if (!parsed)
       throw std::invalid_argument("study axis " + config::printable(a.name.substr(0, 60)) + ": '" +
                                   config::printable(item.substr(0, 40)) + "' is not a number");
     if (std::find(a.values.begin(), a.values.end(), v) != a.values.end())

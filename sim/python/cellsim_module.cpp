@@ -62,21 +62,32 @@ U8Array image_array(const cv::Mat& rgb) {
 }
 
 // An H x W x 3 uint8 array as the decoder takes it (the servo's own checks on sizes apply).
+// A crop, a flipped view (img[..., ::-1]) or a Fortran-order array is copied to C order: only
+// the dtype is checked (a non-contiguous uint8 array is not an array_t<uint8, c_style>).
 cv::Mat image_of(const py::array& a) {
-  if (!py::isinstance<U8Array>(a) || a.dtype().kind() != 'u' || a.itemsize() != 1)
+  if (a.dtype().kind() != 'u' || a.itemsize() != 1)
     throw py::value_error("image: dtype must be uint8, got " + std::string(py::str(a.dtype())));
   if (a.ndim() != 3 || a.shape(2) != 3)
     throw py::value_error("image: shape must be (height, width, 3), RGB");
   if (a.shape(0) < 1 || a.shape(1) < 1 || a.shape(0) > servo::kMaxImageSide || a.shape(1) > servo::kMaxImageSide)
     throw py::value_error("image: each side must be in [1, " + std::to_string(servo::kMaxImageSide) + "] pixels");
-  const U8Array c = U8Array::ensure(a);  // C-contiguous
+  if (static_cast<std::uint64_t>(a.shape(0)) * static_cast<std::uint64_t>(a.shape(1)) > servo::kMaxImagePixels)
+    throw py::value_error("image: " + std::to_string(a.shape(1)) + " x " + std::to_string(a.shape(0)) +
+                          " pixels, more than 4096 x 2304");
+  const U8Array c = U8Array::ensure(a);  // C-contiguous (a copy when it was not)
+  if (!c) throw py::value_error("image: cannot be read as a C-ordered uint8 array");
   return cv::Mat(static_cast<int>(c.shape(0)), static_cast<int>(c.shape(1)), CV_8UC3, const_cast<std::uint8_t*>(c.data()))
       .clone();
 }
 
 // A loaded scenario and its compiled cell (meshes, Bullet world, projector).
 struct Scenario {
-  explicit Scenario(const std::string& file) : cell(sim::build_cell(sim::load_scenario(file))) {}
+  explicit Scenario(const std::string& file) : cell(sim::build_cell(sim::load_scenario(checked_path(file)))) {}
+  // a path with a NUL byte would be cut there by the file system's calls: refused whole
+  static const std::string& checked_path(const std::string& file) {
+    if (file.find('\0') != std::string::npos) throw py::value_error("file: the path has a NUL byte");
+    return file;
+  }
   std::shared_ptr<const sim::Cell> cell;
 
   Eigen::Isometry3d pose(const py::object& p) const {
@@ -90,6 +101,9 @@ servo::ServoConfig servo_config(const Scenario& s, const std::string& model, dou
                                 const std::string& robust) {
   servo::ServoConfig cfg = cellsim::servo_config_for(*s.cell);
   cfg.law.model = control::parse_interaction_model(model);
+  // as the CLI's --z-hat: finite, in [0, 100] m, 0 the scenario's desired depth
+  if (!(std::isfinite(z_hat) && z_hat >= 0 && z_hat <= 100))
+    throw py::value_error("z_hat must be in [0, 100] m (0: the scenario's desired depth), got " + std::to_string(z_hat));
   cfg.law.z_hat_m = z_hat > 0 ? z_hat : cellsim::desired_depth(*s.cell);
   if (!(gain > 0 && gain < 100)) throw py::value_error("gain must be in (0, 100)");
   cfg.law.gain = {gain, gain, 0};
@@ -121,7 +135,11 @@ py::dict truth_dict(const std::vector<sim::SpotTruth>& truth) {
 py::tuple render(const Scenario& s, const py::object& pose_spec, std::uint64_t frame) {
   const Eigen::Isometry3d wTc = s.pose(pose_spec);
   const std::unique_ptr<sim::Robot> robot = sim::make_robot(*s.cell);
-  robot->reset(wTc);  // the arm's links drawn, as `cellsim render` draws them
+  try {
+    robot->reset(wTc);  // the arm's links drawn, as `cellsim render` draws them
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(s.cell->scenario.file.string() + ": pose: " + e.what());  // the in-collision message names the file
+  }
   const sim::LinkPoses links = robot->world_T_links();
   const cv::Mat rgb =
       sim::render_image(*s.cell, wTc, sim::frame_seed(s.cell->scenario.seed, frame), nullptr, nullptr, &links);
@@ -177,11 +195,19 @@ py::dict experiment(const Scenario& s, const std::string& model, double z_hat, d
   o.servo = servo_config(s, model, z_hat, gain, robust);
   o.source = cellsim::parse_feature_source(features);
   o.max_iterations = max_iterations;
+  // Ctrl-C stops the run at the next round (a signal reaches Python only when it holds the GIL)
+  bool interrupted = false;
+  o.cancelled = [&interrupted] {
+    py::gil_scoped_acquire gil;
+    interrupted = interrupted || PyErr_CheckSignals() != 0;
+    return interrupted;
+  };
   cellsim::ExperimentResult r;
   {
     py::gil_scoped_release release;  // a long run: other Python threads go on
     r = cellsim::run_experiment(*s.cell, o);
   }
+  if (interrupted) throw py::error_already_set();  // the KeyboardInterrupt PyErr_CheckSignals raised
   using I = cellsim::IterationRecord;
   const auto& tr = r.trace;
   py::array_t<double> twist({static_cast<py::ssize_t>(tr.size()), py::ssize_t{6}});

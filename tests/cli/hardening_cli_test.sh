@@ -31,8 +31,26 @@ for d in -1 232 233 1e3 " 7" 4294967296; do
   one_line_error "ROS_DOMAIN_ID='$d'" "is not a domain id" env ROS_DOMAIN_ID="$d" timeout 30 "$bin/servo" run --pattern "$pattern"
 done
 # malformed discovery servers are named, not ignored
-for s in "abc:xyz" "127.0.0.1:99999" "224.0.0.1:11811" "bad host:11811"; do
+for s in "abc:xyz" "127.0.0.1:99999" "224.0.0.1:11811" "bad host:11811" "999.999.999.999" "300.1.1.1:11811" ";;"; do
   one_line_error "ROS_DISCOVERY_SERVER='$s'" "ROS_DISCOVERY_SERVER=" env ROS_DISCOVERY_SERVER="$s" \
     timeout 30 "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --max-frames 1
 done
 echo "hardening: no shell from a scenario; unicast peers, domain ids and discovery servers checked"
+
+# issue 40, item 11: cell_client names the domains there are
+out=$(ROS_DOMAIN_ID=232 "$bin/cell_client" 2>&1) && fail "cell_client took domain 232"
+grep -q "0 to 231" <<<"$out" || fail "cell_client's domain range: $out"
+# an enclave override with a control byte is refused, and printed escaped
+err=$(ROS_SECURITY_ENABLE=true ROS_SECURITY_STRATEGY=Enforce ROS_SECURITY_KEYSTORE="$tmp/ks" \
+      ROS_SECURITY_ENCLAVE_OVERRIDE=$'/cell\x01\x1b[31m' timeout 30 "$bin/servo" run --pattern "$pattern" 2>&1) &&
+  fail "an enclave with control bytes was taken"
+grep -q $'\x01' <<<"$err" && fail "the enclave was printed raw: $err"
+grep -q 'not an enclave name' <<<"$err" || fail "the enclave's refusal does not say why: $err"
+# seeds and numbers are written in decimal: not -1 (2^64 - 1 once), not 0x10 (16 once)
+one_line_error "fig5-search --seed -1" "--seed" "$bin/cellsim" fig5-search "$src/sim/scenarios/fig5.yaml" --seed -1 --tries 1
+one_line_error "decode-sweep --seed 0x10" "--seed" "$bin/cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --seed 0x10 --poses 1
+one_line_error "pattern generate --seed 1e3" "--seed" "$bin/pattern" generate --rows 4 --cols 4 --seed 1e3 -o "$tmp/p.txt"
+one_line_error "experiment --gain 0x10" "--gain" "$bin/cellsim" experiment "$src/sim/scenarios/plane.yaml" --gain 0x10
+one_line_error "study axis gain=0x10" "0x10' is not a number" \
+  "$bin/cellsim" study "$src/sim/scenarios/plane.yaml" --axis gain=0x10 --runs 1
+echo "hardening: domain range, enclave names, decimal seeds and numbers"

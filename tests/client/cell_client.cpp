@@ -83,10 +83,12 @@ bool parse_int(const char* text, long lo, long hi, long& out) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // 232: the largest domain whose RTPS ports (7400 + 250 d + ...) fit in 16 bits
+  // 231, the cell's kMaxDomainId (idl/dds/participant.hpp; this client is written as an outside
+  // one, on the generated types alone): the largest domain whose participants' ports fit in 16 bits
+  constexpr long kMaxDomainId = 231;
   long domain = 0;
-  if (const char* env = std::getenv("ROS_DOMAIN_ID"); env && *env && !parse_int(env, 0, 232, domain)) {
-    std::fprintf(stderr, "cell_client: ROS_DOMAIN_ID '%.40s' is not a domain id (0 to 232)\n", env);
+  if (const char* env = std::getenv("ROS_DOMAIN_ID"); env && *env && !parse_int(env, 0, kMaxDomainId, domain)) {
+    std::fprintf(stderr, "cell_client: ROS_DOMAIN_ID '%.40s' is not a domain id (0 to %ld)\n", env, kMaxDomainId);
     return 2;
   }
   double timeout_s = 120;
@@ -101,8 +103,8 @@ int main(int argc, char** argv) {
       return 2;
     }
     if (a == "--domain") {
-      if (!parse_int(argv[++i], 0, 232, domain)) {
-        std::fprintf(stderr, "cell_client: --domain '%.40s' is not a domain id (0 to 232)\n", argv[i]);
+      if (!parse_int(argv[++i], 0, kMaxDomainId, domain)) {
+        std::fprintf(stderr, "cell_client: --domain '%.40s' is not a domain id (0 to %ld)\n", argv[i], kMaxDomainId);
         return 2;
       }
     } else if (a == "--timeout") {

@@ -5,7 +5,10 @@
 
 #include <sys/stat.h>
 
+#include <atomic>
 #include <filesystem>
+#include <sstream>
+#include <thread>
 #include <fstream>
 #include <mutex>
 
@@ -232,6 +235,99 @@ TEST(Hardening, TwistFloodAtAnIdleSimIsBounded) {
   }
   sim.kill(SIGINT);
   EXPECT_EQ(sim.wait_exit(10s), 0);
+}
+
+// Issue 40, items 3 and 4: a peer floods rt/servo/status with statuses stamped for frames not
+// sent yet (which once filled the statuses cellsim keeps and stalled every lockstep step for
+// its grace time) and with 10 MB reasons (which once held 640 MB until exit). The run still
+// converges with a status on every trace row, and cellsim's memory stays within 50 MB.
+TEST(Hardening, StatusFloodNeitherStallsLockstepNorHoldsMemory) {
+  const int domain = unique_domain(25);
+  const std::string dir = tmp_dir("status_flood");
+  Watcher w(domain);
+  cell_dds::Writer<cell_msgs::msg::dds_::ServoStatus_PubSubType> rogue(
+      *w.participant, cell_dds::kStatusTopic, cell_dds::writer_qos(cell_dds::Stream::kLatched));
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep", "--autorun", "--exit-on-converged",
+               "--max-frames", "3000", "--trace", dir},
+              domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return rogue.matched() > 0 && w.pose->matched() > 0; }, 60s));
+  const long before = rss_kb(sim.pid());
+  cell_msgs::msg::dds_::ServoStatus_ big;
+  big.reason(std::string(10u << 20, 'r'));
+  for (int i = 0; i < 64; ++i) rogue.write(big);
+  rogue.flush(30s);
+  const long after = rss_kb(sim.pid());
+  EXPECT_GT(before, 0);
+  EXPECT_LT(after - before, 50 * 1024) << "RSS " << before << " kB -> " << after << " kB";
+  // future stamps, 64 at a time, all through the run
+  std::atomic<bool> stop{false};
+  std::thread flood([&] {
+    cell_msgs::msg::dds_::ServoStatus_ future;
+    future.state(SS::CONVERGED);
+    for (std::uint32_t k = 0; !stop; ++k) {
+      future.header().stamp().sec(static_cast<std::int32_t>(100000 + k % 64));
+      rogue.write(future);
+      if (k % 64 == 63) std::this_thread::sleep_for(2ms);
+    }
+  });
+  Process servo(servo_args("0.9"), domain, dir + "/servo.log");
+  const int code = sim.wait_exit(120s);
+  stop = true;
+  flood.join();
+  ASSERT_EQ(code, 0) << "the run stalled or did not converge; see " << dir;
+  std::ifstream trace(dir + "/trace.csv");
+  std::string line;
+  long rows = 0, without_status = 0;
+  while (std::getline(trace, line)) {
+    if (line.empty() || line[0] == '#' || line[0] == 't') continue;
+    ++rows;
+    // error_norm, the 8th column: blank when the step went on without its status
+    std::stringstream cells(line);
+    std::string cell;
+    for (int c = 0; c < 8 && std::getline(cells, cell, ','); ++c) {
+    }
+    if (cell.empty()) ++without_status;
+  }
+  EXPECT_GT(rows, 100);
+  EXPECT_EQ(without_status, 0) << "of " << rows << " rows; see " << dir;
+}
+
+// item 4: a flood of refused loads with 4 kB paths of control, DEL and C1 bytes: what is said
+// is bounded (log and rt/sim/status), escaped, and the loop goes on
+TEST(Hardening, AFloodOfRefusedCommandsIsSaidBoundedAndEscaped) {
+  const int domain = unique_domain(26);
+  const std::string dir = tmp_dir("refusal_flood");
+  Watcher w(domain);
+  Rogue rogue(w);
+  Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep"}, domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() > 0 && w.sim_status->matched() > 0; }, 60s));
+  std::string path = "/nowhere/";
+  while (path.size() < 4000) path += "a\x7f\x85\xc2" "b";
+  for (int i = 0; i < 3000; ++i) rogue.send(SC::LOAD_SCENARIO, path);
+  rogue.control.flush(30s);
+  // the last word, said once the bucket has refilled (sent again until it is heard)
+  bool heard = false;
+  for (int i = 0; i < 300 && !heard; ++i) {
+    rogue.send(99);
+    heard = w.wait_for([&] { return w.refused("unknown command 99"); }, 200ms);
+  }
+  ASSERT_TRUE(heard);
+  {
+    std::lock_guard<std::mutex> l(w.m);
+    EXPECT_LT(w.sim_statuses, 400) << "a NOTICE for every refusal";
+    for (const auto& r : w.refusals) {
+      EXPECT_LE(r.size(), 310u) << r.substr(0, 80);
+      EXPECT_EQ(r.find('\x7f'), std::string::npos);
+      EXPECT_EQ(r.find('\x85'), std::string::npos);
+    }
+  }
+  sim.kill(SIGINT);
+  EXPECT_EQ(sim.wait_exit(20s), 0);
+  const std::string log = read_file(dir + "/sim.log");
+  EXPECT_LT(log.size(), 24u * 1024) << "the log said every refusal";
+  EXPECT_EQ(log.find('\x7f'), std::string::npos);
+  EXPECT_EQ(log.find('\x85'), std::string::npos);
+  EXPECT_NE(log.find("refusals not said"), std::string::npos);
 }
 
 // item 12: in realtime, a twist stamped long ago is not applied

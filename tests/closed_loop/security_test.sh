@@ -27,8 +27,16 @@ if [ -n "$cyclone" ]; then
   eavesdropper=$!
 fi
 "${secure[@]}" timeout 120 "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --exit-on-converged \
-  --max-frames 800 > "$tmp/sim1.log" 2>&1 || fail "secured run: cellsim exit $? ($(tail -1 "$tmp/sim1.log"))"
+  --max-frames 800 --record "$tmp/secured.mcap" > "$tmp/sim1.log" 2>&1 ||
+  fail "secured run: cellsim exit $? ($(tail -1 "$tmp/sim1.log"))"
 converged_at_goal "$tmp/sim1.log" || fail "secured run did not converge: $final"
+# issue 40, item 2: the secured run was recorded (the cellsim enclave may read what it records),
+# the servo's spots included, and replays bit for bit
+grep -q "^cellsim: recorded messages: .*/servo/spots [1-9]" "$tmp/sim1.log" ||
+  fail "the secured recording lacks the servo's spots: $(grep recorded "$tmp/sim1.log")"
+out=$("$bin/servo" replay "$tmp/secured.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical 2>&1) ||
+  fail "the secured recording does not replay bit for bit: $out"
+echo "security: recorded and replayed: $out"
 grep -o "loop rate [0-9]* iterations/s" "$tmp/sim1.log"
 # issue 18, item 6: a secured run says so
 grep -q "cellsim: DDS-Security on: enclave /cellsim, Enforce" "$tmp/sim1.log" || fail "the secured cellsim never said security is on"

@@ -113,6 +113,22 @@ cmp -s "$tmp/whole/campaign.csv" "$tmp/slurm/all/campaign.csv" || fail "the merg
 cmp -s "$tmp/whole/summary.md" "$tmp/slurm/all/summary.md" || fail "the merged summary.md differs from the unsharded one"
 echo "slurm: 3 shards as a job array and a dependent merge: campaign.csv and summary.md equal the unsharded run's"
 
+# ordinary paths that sbatch's #SBATCH lines could not hold (issue 40, item 8): a space, '$', a
+# backtick and a '#' run and merge; a file at the path before the '#' is left as it was; '%'
+# (a Slurm replacement symbol) is refused before anything is made
+odd="$tmp/odd dir \$HOME \`x\` a#b"
+printf 'keep\n%.0s' {1..1000} >"$tmp/odd dir \$HOME \`x\` a"
+out=$(BUILD_DIR="$build" run timeout 240 "$src/bin/campaign-slurm" --shards 2 -o "$odd" --wait -- "${args[@]}" 2>&1) ||
+  fail "bin/campaign-slurm under '$odd': $out; merge log: $(cat "$odd/merge.log" 2>/dev/null)"
+cmp -s "$tmp/whole/campaign.csv" "$odd/all/campaign.csv" || fail "the merged campaign under '$odd' differs"
+[ -s "$odd/shard_1.log" ] && [ -s "$odd/shard_2.log" ] && [ -s "$odd/merge.log" ] || fail "no logs under '$odd': $(ls "$odd")"
+[ "$(wc -l <"$tmp/odd dir \$HOME \`x\` a")" -eq 1000 ] || fail "the file before the '#' was written to"
+err=$(BUILD_DIR="$build" run "$src/bin/campaign-slurm" --shards 2 -o "$tmp/pct%jdir" -- "${args[@]}" 2>&1) &&
+  fail "a path with '%' was submitted: $err"
+[ -e "$tmp/pct%jdir" ] && fail "a refused path was made: $err"
+grep -q "'%'" <<<"$err" || fail "the refusal of '%' does not say why: $err"
+echo "slurm: a space, \$, a backtick and a '#' in the output path run and merge; '%' is refused before anything is made"
+
 # a shard killed: the array held, task 2 cancelled, the rest released; the merge names shard 2
 out=$(BUILD_DIR="$build" run "$src/bin/campaign-slurm" --shards 3 -o "$tmp/killed" --hold -- "${args[@]}" 2>&1) ||
   fail "bin/campaign-slurm --hold: $out"

@@ -147,6 +147,48 @@ def test_bad_inputs_raise_a_one_line_python_exception(plane):
     one_line(e)
 
 
+def test_views_checked_depths_paths_and_sizes(plane):
+    """Issue 40, item 10: a crop, a flipped view or a Fortran-order array decodes as the array
+    it shows; z_hat is checked as --z-hat is; a path with a NUL byte and an image over
+    4096 x 2304 pixels are refused."""
+    image, _ = plane.render("desired")
+    decoder = plane.decoder()
+    whole = decoder.decode(image)
+    bgr = np.ascontiguousarray(image[..., ::-1])
+    assert np.array_equal(decoder.decode(bgr[..., ::-1])["row"], whole["row"])  # a flipped view
+    assert np.array_equal(decoder.decode(np.asfortranarray(image))["u"], whole["u"])
+    crop = decoder.decode(image[10:400, 20:600])
+    assert len(crop["row"]) > 50
+    for bad in (float("nan"), -1.0, 1e9):
+        with pytest.raises(ValueError) as e:
+            cellsim.Servo(plane, z_hat=bad)
+        assert "z_hat" in one_line(e)
+        with pytest.raises(ValueError):
+            cellsim.experiment(plane, z_hat=bad, max_iterations=1)
+    with pytest.raises(ValueError) as e:
+        cellsim.Scenario(PLANE + "\0.ignored")
+    assert "NUL" in one_line(e)
+    with pytest.raises(ValueError) as e:
+        decoder.decode(np.zeros((4096, 4096, 3), dtype=np.uint8))
+    assert "4096 x 2304" in one_line(e)
+
+
+def test_ctrl_c_stops_an_experiment_at_once():
+    """Issue 40, item 10: experiment() heard Ctrl-C only after its whole run (30 s)."""
+    code = ("import cellsim, signal, threading, time, os\n"
+            "s = cellsim.Scenario(%r)\n"
+            "threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()\n"
+            "t = time.monotonic()\n"
+            "try:\n"
+            "    cellsim.experiment(s, z_hat=0.9, gain=0.001, max_iterations=100000)\n"
+            "    print('finished')\n"
+            "except KeyboardInterrupt:\n"
+            "    print('interrupted')\n" % PLANE)
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(cellsim.__file__))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
+    assert out.stdout.strip() == "interrupted", out.stdout + out.stderr
+
+
 def test_the_example_controller_runs_as_a_user_runs_it():
     env = dict(os.environ, PYTHONPATH=os.path.dirname(cellsim.__file__))
     r = subprocess.run(["/usr/bin/python3", os.path.join(SRC, "sim", "python", "example_controller.py"), PLANE],

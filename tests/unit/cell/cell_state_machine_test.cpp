@@ -244,6 +244,49 @@ TEST_F(Lockstep, AnAnswerWaitsForItsStatusWhateverTheDeliveryOrder) {
   EXPECT_TRUE(frame1);
 }
 
+// Issue 40, item 3: statuses for frames not sent yet are refused, however many: the real
+// status of the awaited frame is kept and the step does not wait its grace time; a forged
+// CONVERGED from the future does not end the session.
+TEST_F(Lockstep, StatusesForFramesNotSentYetAreRefusedAndCannotStallAStep) {
+  CellParams p;
+  p.exit_on_converged = true;
+  auto m = make(Timing::kLockstep, p);
+  m->on_command(cmd(cell_dds::SimCommand::kStep, "", 3), 0);
+  ASSERT_EQ(m->poll(0).frames.size(), 1u);
+  m->on_servo_status(status_for(0, dt, 2), 0);
+  ASSERT_TRUE(m->on_twist(twist_for(0, dt, vx(0.01)), 0));
+  ASSERT_EQ(m->poll(0.001).frames.size(), 1u);
+  for (std::uint64_t k = 100000; k < 100000 + 200; ++k) m->on_servo_status(status_for(k, dt, 3), 0.002);
+  EXPECT_EQ(m->counters().statuses_refused, 200);
+  ServoReport real = status_for(1, dt, 2);
+  real.reason = std::string(1 << 20, 'x');  // kept, but not all of it
+  m->on_servo_status(real, 0.003);
+  ASSERT_TRUE(m->on_twist(twist_for(1, dt, vx(0.01)), 0.003));
+  const CellOutput o = m->poll(0.004);  // well inside the grace time
+  EXPECT_EQ(o.frames.size(), 1u) << "the step waited for a status it already had";
+  EXPECT_EQ(m->counters().applied, 2);
+  EXPECT_FALSE(o.done);
+}
+
+// Issue 40, item 4: a flood of refused commands is said at most ten times a second (after a
+// burst), each line escaped and cut, and the next line said counts those that were not.
+TEST_F(Lockstep, RefusalsAreSaidBoundedEscapedAndCounted) {
+  auto m = make(Timing::kLockstep);
+  const std::string path = "/x/" + std::string(4096 - 3, '\x7f');
+  for (int i = 0; i < 1000; ++i) m->on_command(cmd(cell_dds::SimCommand::kReset, path), 0);
+  CellOutput o = m->poll(0);
+  EXPECT_EQ(m->counters().commands_refused, 1000);
+  EXPECT_EQ(o.refusals.size(), static_cast<std::size_t>(CellStateMachine::kRefusalBurst));
+  for (const auto& r : o.refusals) {
+    EXPECT_LE(r.size(), CellStateMachine::kMaxRefusalChars + 3);
+    EXPECT_EQ(r.find('\x7f'), std::string::npos);
+  }
+  m->on_command(cmd(cell_dds::SimCommand::kReset, path), 1.0);
+  o = m->poll(1.0);
+  ASSERT_EQ(o.refusals.size(), 1u);
+  EXPECT_EQ(o.refusals[0].rfind("(980 refusals not said) ", 0), 0u) << o.refusals[0].substr(0, 60);
+}
+
 TEST_F(Lockstep, UnansweredFrameIsSentAgain) {
   CellParams p;
   p.republish_s = 1.0;

@@ -121,5 +121,58 @@ TEST(ShmSize, RoomForTwiceTheBuffersAndOneMessageAndAnEighthOfASmallShmAtMost) {
   EXPECT_EQ(shm_size_for(0).buffers, 16u);
 }
 
+// Issue 40, item 9: of 11 entries named like Fast DDS files, each case here was once removed.
+TEST_F(OrphanedShm, OnlyThisUsersFreeRegularFilesGo) {
+  const auto old = [&](const std::string& n) {
+    fs::last_write_time(dir_ / n, fs::file_time_type::clock::now() - std::chrono::seconds(600));
+  };
+  // an empty folder and a FIFO under a port's name
+  fs::create_directory(dir_ / "fastrtps_0123456789abcde0");
+  ASSERT_EQ(mkfifo((dir_ / "fastrtps_port7420").c_str(), 0600), 0);
+  old("fastrtps_port7420");
+  std::ofstream(dir_ / "fastrtps_port7420_el") << "x";
+  // a file this process holds open, not mapped
+  make("fastrtps_port7421");
+  const int held = open((dir_ / "fastrtps_port7421").c_str(), O_RDONLY);
+  ASSERT_GE(held, 0);
+  // a port whose lock is a link to a lock this process holds
+  make("fastrtps_port7422");
+  fs::remove(dir_ / "fastrtps_port7422_el");
+  std::ofstream(dir_ / "real_lock") << "x";
+  const int lock = open((dir_ / "real_lock").c_str(), O_RDONLY);
+  ASSERT_EQ(flock(lock, LOCK_EX | LOCK_NB), 0);
+  fs::create_symlink(dir_ / "real_lock", dir_ / "fastrtps_port7422_el");
+  // an orphaned port whose semaphore is a folder: the port goes, the folder stays
+  make("fastrtps_port7423");
+  fs::create_directory(dir_ / "sem.fastrtps_port7423_mutex");
+  // a killed process's data-sharing pool goes; one this process holds stays
+  const std::string pool = "fast_datasharing_01.0f.78.fd.07.25.f5.b2.01.00.00.00_0.0.6.3";
+  const std::string live_pool = "fast_datasharing_01.0f.78.fd.07.25.f5.b3.01.00.00.00_0.0.6.3";
+  for (const auto& n : {pool, live_pool}) {
+    std::ofstream(dir_ / n) << std::string(1676, '\0');
+    old(n);
+  }
+  const int pool_fd = open((dir_ / live_pool).c_str(), O_RDONLY);
+  ASSERT_GE(pool_fd, 0);
+  // another user's file (root can make one; elsewhere that case is not made)
+  make("fastrtps_port7424");
+  const bool others = chown((dir_ / "fastrtps_port7424").c_str(), 65534, 65534) == 0;
+
+  const auto removed = remove_orphaned_shm_files(dir_, std::chrono::seconds(60));
+  close(held);
+  close(lock);
+  close(pool_fd);
+  for (const char* kept : {"fastrtps_0123456789abcde0", "fastrtps_port7420", "fastrtps_port7421",
+                           "fastrtps_port7421_el", "fastrtps_port7422", "fastrtps_port7422_el", "real_lock",
+                           "sem.fastrtps_port7423_mutex"})
+    EXPECT_TRUE(exists(kept)) << kept << " was removed";
+  EXPECT_TRUE(exists(live_pool));
+  EXPECT_TRUE(fs::is_directory(dir_ / "fastrtps_0123456789abcde0"));
+  EXPECT_FALSE(exists("fastrtps_port7423"));
+  EXPECT_FALSE(exists(pool));
+  if (others) EXPECT_TRUE(exists("fastrtps_port7424")) << "another user's file was removed";
+  EXPECT_EQ(removed.size(), others ? 2u : 3u);
+}
+
 }  // namespace
 }  // namespace cell_dds

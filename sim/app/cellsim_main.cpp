@@ -1,6 +1,7 @@
 // `cellsim`: the robot-cell simulator's command line. `render` renders one frame offline.
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <functional>
 #include <tuple>
@@ -695,6 +696,9 @@ struct CalibrationCommand {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // a write past a file-size limit (ulimit -f) fails with EFBIG, which the recorder handles as
+  // a full disk; the signal's default would kill the run
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"cellsim: simulator of a camera-projector robot cell"};
   app.require_subcommand(1);
   RenderCommand render;

@@ -124,7 +124,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       try {
         place_robot(c.pose ? *c.pose : resolve_pose(scenario_, c.argument.empty() ? "initial" : c.argument));
       } catch (const std::exception& e) {
-        return refuse(scenario_.file.filename().string() + ": " + e.what());  // which scenario's arm
+        return refuse(e.what());
       }
       return;
     }
@@ -132,7 +132,7 @@ void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
       try {
         place_robot(scenario_.world_T_desired);
       } catch (const std::exception& e) {
-        return refuse(scenario_.file.filename().string() + ": " + e.what());
+        return refuse(e.what());
       }
       teach_requested_ = true;
       return;

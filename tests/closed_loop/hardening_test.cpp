@@ -237,33 +237,43 @@ TEST(Hardening, TwistFloodAtAnIdleSimIsBounded) {
   EXPECT_EQ(sim.wait_exit(10s), 0);
 }
 
-// Issue 40, items 3 and 4: a peer floods rt/servo/status with statuses stamped for frames not
-// sent yet (which once filled the statuses cellsim keeps and stalled every lockstep step for
-// its grace time) and with 10 MB reasons (which once held 640 MB until exit). The run still
-// converges with a status on every trace row, and cellsim's memory stays within 50 MB.
-TEST(Hardening, StatusFloodNeitherStallsLockstepNorHoldsMemory) {
+// One lockstep plane run to convergence (servo and cellsim, autorun), with or without a peer
+// that floods rt/servo/status: first 64 statuses with 10 MB reasons, then statuses stamped for
+// frames not sent yet, 64 at a time, all through the run. Its exit code, loop rate (cellsim's
+// summary), cellsim's largest resident memory (sampled) and its trace's rows with no status.
+struct FloodRun {
+  int code = -1;
+  double loop_rate = 0;
+  long peak_rss_kb = 0, rows = 0, without_status = 0;
+};
+
+FloodRun run_with_status_flood(bool flood, const std::string& dir) {
+  FloodRun r;
   const int domain = unique_domain(25);
-  const std::string dir = tmp_dir("status_flood");
   Watcher w(domain);
   cell_dds::Writer<cell_msgs::msg::dds_::ServoStatus_PubSubType> rogue(
       *w.participant, cell_dds::kStatusTopic, cell_dds::writer_qos(cell_dds::Stream::kLatched));
   Process sim({kBin + "cellsim", "serve", kPlane, "--mode", "lockstep", "--autorun", "--exit-on-converged",
                "--max-frames", "3000", "--trace", dir},
               domain, dir + "/sim.log");
-  ASSERT_TRUE(w.wait_for([&] { return rogue.matched() > 0 && w.pose->matched() > 0; }, 60s));
-  const long before = rss_kb(sim.pid());
-  cell_msgs::msg::dds_::ServoStatus_ big;
-  big.reason(std::string(10u << 20, 'r'));
-  for (int i = 0; i < 64; ++i) rogue.write(big);
-  rogue.flush(30s);
-  const long after = rss_kb(sim.pid());
-  EXPECT_GT(before, 0);
-  EXPECT_LT(after - before, 50 * 1024) << "RSS " << before << " kB -> " << after << " kB";
-  // future stamps, 64 at a time, all through the run
+  EXPECT_TRUE(w.wait_for([&] { return rogue.matched() > 0 && w.pose->matched() > 0; }, 60s));
   std::atomic<bool> stop{false};
-  std::thread flood([&] {
+  std::thread sampler([&] {
+    while (!stop) {
+      r.peak_rss_kb = std::max(r.peak_rss_kb, rss_kb(sim.pid()));
+      std::this_thread::sleep_for(20ms);
+    }
+  });
+  if (flood) {
+    cell_msgs::msg::dds_::ServoStatus_ big;
+    big.reason(std::string(10u << 20, 'r'));
+    for (int i = 0; i < 64; ++i) rogue.write(big);
+    rogue.flush(30s);  // the 10 MB statuses delivered before the servo starts
+  }
+  std::thread flooder([&] {
+    if (!flood) return;
     cell_msgs::msg::dds_::ServoStatus_ future;
-    future.state(SS::CONVERGED);
+    future.state(SS::CONVERGED);  // a forged CONVERGED from the future once ended the run
     for (std::uint32_t k = 0; !stop; ++k) {
       future.header().stamp().sec(static_cast<std::int32_t>(100000 + k % 64));
       rogue.write(future);
@@ -271,25 +281,45 @@ TEST(Hardening, StatusFloodNeitherStallsLockstepNorHoldsMemory) {
     }
   });
   Process servo(servo_args("0.9"), domain, dir + "/servo.log");
-  const int code = sim.wait_exit(120s);
+  r.code = sim.wait_exit(120s);
   stop = true;
-  flood.join();
-  ASSERT_EQ(code, 0) << "the run stalled or did not converge; see " << dir;
+  flooder.join();
+  sampler.join();
+  const std::string log = read_file(dir + "/sim.log");
+  if (const auto at = log.find("loop rate "); at != std::string::npos) r.loop_rate = std::stod(log.substr(at + 10));
   std::ifstream trace(dir + "/trace.csv");
   std::string line;
-  long rows = 0, without_status = 0;
   while (std::getline(trace, line)) {
     if (line.empty() || line[0] == '#' || line[0] == 't') continue;
-    ++rows;
+    ++r.rows;
     // error_norm, the 8th column: blank when the step went on without its status
     std::stringstream cells(line);
     std::string cell;
     for (int c = 0; c < 8 && std::getline(cells, cell, ','); ++c) {
     }
-    if (cell.empty()) ++without_status;
+    if (cell.empty()) ++r.without_status;
   }
-  EXPECT_GT(rows, 100);
-  EXPECT_EQ(without_status, 0) << "of " << rows << " rows; see " << dir;
+  return r;
+}
+
+// Issue 40, items 3 and 4: statuses stamped for frames not sent once filled the statuses
+// cellsim keeps and stalled every lockstep step for its grace time (214 -> 2 iterations/s), and
+// 64 reasons of 10 MB were held until exit (+756 MB). Flooded, the run converges with a status
+// on every trace row, and cellsim's memory stays within 50 MB of an unflooded run's, measured
+// in the same test. The two loop rates are printed, not compared (no timed asserts).
+TEST(Hardening, StatusFloodNeitherStallsLockstepNorHoldsMemory) {
+  const FloodRun quiet = run_with_status_flood(false, tmp_dir("status_quiet"));
+  const std::string dir = tmp_dir("status_flood");
+  const FloodRun flooded = run_with_status_flood(true, dir);
+  std::printf("status flood: loop rate %.0f iterations/s unflooded, %.0f flooded (ratio %.2f); cellsim's peak RSS "
+              "%ld kB unflooded, %ld kB flooded\n",
+              quiet.loop_rate, flooded.loop_rate, quiet.loop_rate > 0 ? flooded.loop_rate / quiet.loop_rate : 0,
+              quiet.peak_rss_kb, flooded.peak_rss_kb);
+  ASSERT_EQ(quiet.code, 0);
+  ASSERT_EQ(flooded.code, 0) << "the run stalled or did not converge; see " << dir;
+  EXPECT_GT(flooded.rows, 100);
+  EXPECT_EQ(flooded.without_status, 0) << "of " << flooded.rows << " rows; see " << dir;
+  EXPECT_LT(flooded.peak_rss_kb, quiet.peak_rss_kb + 50 * 1024);
 }
 
 // item 4: a flood of refused loads with 4 kB paths of control, DEL and C1 bytes: what is said
@@ -303,8 +333,13 @@ TEST(Hardening, AFloodOfRefusedCommandsIsSaidBoundedAndEscaped) {
   ASSERT_TRUE(w.wait_for([&] { return rogue.control.matched() > 0 && w.sim_status->matched() > 0; }, 60s));
   std::string path = "/nowhere/";
   while (path.size() < 4000) path += "a\x7f\x85\xc2" "b";
-  for (int i = 0; i < 3000; ++i) rogue.send(SC::LOAD_SCENARIO, path);
-  rogue.control.flush(30s);
+  // in batches the cell acknowledges (its inbox holds 64): the refusals reach it, however
+  // loaded the machine is, and it counts them on rt/sim/status
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < 600; ++i) {
+    rogue.send(SC::LOAD_SCENARIO, path);
+    if (i % 16 == 15) rogue.control.flush(30s);
+  }
   // the last word, said once the bucket has refilled (sent again until it is heard)
   bool heard = false;
   for (int i = 0; i < 300 && !heard; ++i) {
@@ -312,9 +347,10 @@ TEST(Hardening, AFloodOfRefusedCommandsIsSaidBoundedAndEscaped) {
     heard = w.wait_for([&] { return w.refused("unknown command 99"); }, 200ms);
   }
   ASSERT_TRUE(heard);
+  long refused = 0;
   {
     std::lock_guard<std::mutex> l(w.m);
-    EXPECT_LT(w.sim_statuses, 400) << "a NOTICE for every refusal";
+    refused = w.commands_refused;
     for (const auto& r : w.refusals) {
       EXPECT_LE(r.size(), 310u) << r.substr(0, 80);
       EXPECT_EQ(r.find('\x7f'), std::string::npos);
@@ -323,11 +359,21 @@ TEST(Hardening, AFloodOfRefusedCommandsIsSaidBoundedAndEscaped) {
   }
   sim.kill(SIGINT);
   EXPECT_EQ(sim.wait_exit(20s), 0);
+  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::string log = read_file(dir + "/sim.log");
-  EXPECT_LT(log.size(), 24u * 1024) << "the log said every refusal";
   EXPECT_EQ(log.find('\x7f'), std::string::npos);
   EXPECT_EQ(log.find('\x85'), std::string::npos);
-  EXPECT_NE(log.find("refusals not said"), std::string::npos);
+  long said = 0;
+  for (std::size_t at = 0; (at = log.find("LOAD_SCENARIO refused", at)) != std::string::npos; ++at) ++said;
+  // the bucket's bound: a burst of 20, then 10 a second over the test's whole time
+  const double bound = 20 + 10 * elapsed_s + 1;
+  std::printf("refusal flood: %ld refused, %ld said in %.1f s (bound %.0f); log %zu bytes\n", refused, said, elapsed_s,
+              bound, log.size());
+  EXPECT_GT(refused, 400) << "the flood did not reach the cell";
+  EXPECT_LE(said, bound) << "the log said every refusal";
+  if (refused > bound) {
+    EXPECT_NE(log.find("refusals not said"), std::string::npos);
+  }
 }
 
 // item 12: in realtime, a twist stamped long ago is not applied

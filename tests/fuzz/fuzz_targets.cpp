@@ -19,6 +19,8 @@
 #include "cell_msgsPubSubTypes.h"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
+#include "dds/topics.hpp"
+#include "servo/app/servo_replay.hpp"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/arm/arm_robot.hpp"
@@ -516,14 +518,18 @@ struct McapTarget : Target {
     }
     seed = read(file.string());
     std::filesystem::remove(file);
-    // the same file with its chunk CRCs off (0), so that mutations get past them into the records
-    unchecked = seed;
-    for (std::size_t at = 8; at + 9 <= unchecked.size();) {
+    unchecked = without_crcs(seed);
+  }
+  // the same file with its chunk CRCs off (0), so that mutations get past them into the records
+  static std::string without_crcs(std::string file) {
+    for (std::size_t at = 8; at + 9 <= file.size();) {
       std::uint64_t len = 0;
-      for (int i = 0; i < 8; ++i) len |= static_cast<std::uint64_t>(static_cast<unsigned char>(unchecked[at + 1 + i])) << (8 * i);
-      if (static_cast<unsigned char>(unchecked[at]) == mcap::kChunk) unchecked.replace(at + 9 + 24, 4, 4, '\0');
+      for (int i = 0; i < 8; ++i) len |= static_cast<std::uint64_t>(static_cast<unsigned char>(file[at + 1 + i])) << (8 * i);
+      if (static_cast<unsigned char>(file[at]) == mcap::kChunk) file.replace(at + 9 + 24, 4, 4, '\0');
+      if (len > file.size()) break;
       at += 9 + len;
     }
+    return file;
   }
   std::string unchecked;
   void one(std::mt19937_64& rng) override {
@@ -539,6 +545,90 @@ struct McapTarget : Target {
         }
       });
     } catch (const mcap::FormatError&) {
+    }
+  }
+};
+
+// A recording through `servo replay` (issue 40, item 10): a small cell's camera_info, a TEACH,
+// frames of status, pose, image and twist, mutated and replayed through the servo's state
+// machine from a file, as a user replays one: every record decoded as its topic's type.
+struct ReplayTarget : Target {
+  std::string seed;
+  std::filesystem::path file = std::filesystem::temp_directory_path() / ("fuzz_replay_" + std::to_string(getpid()) + ".mcap");
+  template <typename PubSubType>
+  static void put(mcap::Writer& w, std::uint16_t channel, std::uint32_t k, typename PubSubType::type& m) {
+    const std::string b = CdrTarget::serialized<PubSubType>(m);
+    w.write_message(channel, k, 100 + k, 100 + k, reinterpret_cast<const std::uint8_t*>(b.data()), b.size());
+  }
+  ReplayTarget() {
+    std::filesystem::remove(file);
+    {
+      mcap::WriterOptions o;
+      o.chunk_bytes = 2048;
+      mcap::Writer w(file, o);
+      const auto sc = w.add_schema("x", "ros2msg", "");
+      const auto info = w.add_channel(sc, "/camera/camera_info", "cdr", {});
+      const auto control = w.add_channel(sc, "/sim/control", "cdr", {});
+      const auto status = w.add_channel(sc, "/sim/status", "cdr", {});
+      const auto pose = w.add_channel(sc, "/sim/camera_pose", "cdr", {});
+      const auto image = w.add_channel(sc, "/camera/image_raw", "cdr", {});
+      const auto twist = w.add_channel(sc, "/servo/cmd_twist", "cdr", {});
+      sensor_msgs::msg::dds_::CameraInfo_ ci;
+      ci.width(64);
+      ci.height(48);
+      ci.k({80, 0, 31.5, 0, 80, 23.5, 0, 0, 1});
+      put<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(w, info, 0, ci);
+      cell_msgs::msg::dds_::SimControl_ teach;
+      teach.command(2);  // TEACH
+      put<cell_msgs::msg::dds_::SimControl_PubSubType>(w, control, 0, teach);
+      std::mt19937_64 rng(7);
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const auto stamp = cell_dds::stamp_of(k, 0.04);
+        cell_msgs::msg::dds_::SimStatus_ st;
+        st.header().stamp(stamp);
+        st.state(k == 0 ? 3 : 1);  // TEACHING, then RUNNING
+        put<cell_msgs::msg::dds_::SimStatus_PubSubType>(w, status, k, st);
+        geometry_msgs::msg::dds_::PoseStamped_ p;
+        p.header().stamp(stamp);
+        p.pose().orientation().w(1);
+        put<geometry_msgs::msg::dds_::PoseStamped_PubSubType>(w, pose, k, p);
+        sensor_msgs::msg::dds_::Image_ img;
+        img.header().stamp(stamp);
+        img.encoding("rgb8");
+        img.width(64);
+        img.height(48);
+        img.step(192);
+        img.data().resize(64 * 48 * 3);
+        for (auto& b : img.data()) b = static_cast<std::uint8_t>(rng() % 4 == 0 ? 255 : 0);
+        put<sensor_msgs::msg::dds_::Image_PubSubType>(w, image, k, img);
+        geometry_msgs::msg::dds_::TwistStamped_ t;
+        t.header().stamp(stamp);
+        put<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(w, twist, k, t);
+      }
+    }
+    seed = McapTarget::without_crcs(read(file.string()));
+  }
+  ~ReplayTarget() override { std::filesystem::remove(file); }
+  void one(std::mt19937_64& rng) override {
+    std::filesystem::remove(file);
+    // half of the inputs keep every record's length (bytes changed in place), so that they
+    // reach the messages, their decoding and the servo; the rest are cut, grown and spliced
+    std::string input = seed;
+    if (rng() % 2) {
+      for (int n = 1 + static_cast<int>(rng() % 4); n > 0; --n)
+        input[rng() % input.size()] = static_cast<char>(rng() % 3 ? rng() : (rng() % 2 ? 0 : 0xff));
+    } else {
+      input = mutated(seed, rng);
+    }
+    std::ofstream(file, std::ios::binary) << input;
+    servo::ReplayOptions o;
+    o.recording = file;
+    o.pattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt";
+    o.plot = false;
+    try {
+      servo::run_replay(o);
+    } catch (const std::exception& e) {
+      if (std::getenv("FUZZ_VERBOSE")) std::fprintf(stderr, "%s\n", e.what());
     }
   }
 };
@@ -570,8 +660,9 @@ int main(int argc, char** argv) {
   else if (target == "cdr") t = std::make_unique<CdrTarget>();
   else if (target == "campaign") t = std::make_unique<CampaignTarget>();
   else if (target == "mcap") t = std::make_unique<McapTarget>();
+  else if (target == "replay") t = std::make_unique<ReplayTarget>();
   else {
-    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign|mcap\n");
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign|mcap|replay\n");
     return 2;
   }
   std::mt19937_64 rng(seed);

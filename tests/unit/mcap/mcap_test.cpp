@@ -353,6 +353,43 @@ TEST(Mcap, AFullDiskKeepsAReadableFileAndSaysWhy) {
   EXPECT_GE(full.messages, 8u);
 }
 
+// Issue 40, item 7: a file past the former 8 GB bound is read, streamed: a sparse 9 GB file of
+// 45 attachments of 200 MB between a header and a summary (attachments are skipped, not read)
+TEST(Mcap, AFileOverEightGigabytesIsStreamed) {
+  const auto f = temp_file("large.mcap");
+  std::filesystem::remove(f);
+  {
+    std::string head(mcap::kMagic, 8);
+    std::string header;
+    mcap::put_string(header, "ros2");
+    mcap::put_string(header, "test");
+    head += mcap::record(mcap::kHeader, header);
+    std::ofstream out(f, std::ios::binary);
+    out << head;
+    const std::uint64_t len = 200ull << 20;
+    for (int i = 0; i < 48; ++i) {
+      std::string r(1, static_cast<char>(mcap::kAttachment));
+      mcap::put_u64(r, len);
+      out << r;
+      out.seekp(static_cast<std::streamoff>(len), std::ios::cur);  // a hole: no disk
+    }
+    std::string end;
+    mcap::put_u32(end, 0);
+    out << mcap::record(mcap::kDataEnd, end);
+    std::string footer(1, static_cast<char>(mcap::kFooter));
+    mcap::put_u64(footer, 20);
+    mcap::put_u64(footer, 0);
+    mcap::put_u64(footer, 0);
+    mcap::put_u32(footer, 0);
+    out << footer << std::string(mcap::kMagic, 8);
+  }
+  ASSERT_GT(std::filesystem::file_size(f), 8ull << 30);
+  const mcap::ReadSummary r = mcap::read_mcap_file(f, nullptr);
+  EXPECT_FALSE(r.truncated);
+  EXPECT_EQ(r.profile, "ros2");
+  std::filesystem::remove(f);
+}
+
 TEST(Mcap, OpcodeZeroIsRefusedAtOnce) {
   std::string file(mcap::kMagic, 8);
   std::string header;

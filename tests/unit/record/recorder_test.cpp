@@ -77,6 +77,7 @@ TEST(Recorder, MessagesReadBackAsTheSamplesRecordedAndImagesCanBeLeftOut) {
   for (const bool images : {true, false}) {
     cell_record::RecordOptions o;
     o.file = dir / (images ? "with.mcap" : "without.mcap");
+    std::filesystem::remove(o.file);
     o.images = images;
     cell_record::Recorder r(o, {{"scenario", "plane"}});
     sensor_msgs::msg::dds_::Image_ img;
@@ -112,6 +113,29 @@ TEST(Recorder, MessagesReadBackAsTheSamplesRecordedAndImagesCanBeLeftOut) {
     EXPECT_EQ(s.metadata.at("cellsim").at("scenario"), "plane");
     EXPECT_NE(r.describe(w).find(o.file.string()), std::string::npos);
   }
+}
+
+// Issue 40, item 10: --record-no-images leaves out the camera's topic exactly; under the valid
+// namespace "camera/image_raw" every topic contains that text, and all were once left out.
+TEST(Recorder, NoImagesLeavesOutTheImageTopicExactlyUnderAnyNamespace) {
+  const auto dir = std::filesystem::temp_directory_path() / ("recorder_ns_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  cell_record::RecordOptions o;
+  o.file = dir / "ns.mcap";
+  std::filesystem::remove(o.file);
+  o.images = false;
+  const std::string ns = "camera/image_raw";
+  o.image_topic = cell_dds::namespaced(ns, cell_dds::kImageTopic);
+  cell_record::Recorder r(o, {});
+  sensor_msgs::msg::dds_::Image_ img;
+  cell_msgs::msg::dds_::SimStatus_ st;
+  r.record<sensor_msgs::msg::dds_::Image_PubSubType>(cell_dds::namespaced(ns, cell_dds::kImageTopic),
+                                                     cell_dds::Stream::kFrame, img, 1);
+  r.record<cell_msgs::msg::dds_::SimStatus_PubSubType>(cell_dds::namespaced(ns, cell_dds::kSimStatusTopic),
+                                                       cell_dds::Stream::kFrame, st, 2);
+  const mcap::WriteSummary w = r.close();
+  EXPECT_EQ(w.messages, 1u);
+  EXPECT_EQ(w.topic_messages.count("/camera/image_raw/sim/status"), 1u);
 }
 
 }  // namespace

@@ -4,6 +4,13 @@
 //   elliptic_cylinder.obj  semi-axes 0.20 m (X) x 0.10 m (Y), height 0.60 m along Z, closed
 //   ham.obj                a leg of ham along Z (0.45 m): a broad, flattened butt end, a
 //                          curved axis and a narrow shank; closed, asymmetric
+// and the held-out shapes of the decoder's evaluation (docs/decoding.md, Held-out test: never
+// tuned on), each with depth edges or a silhouette all around the pattern:
+//   heldout/sphere.obj     radius 0.12 m, closed
+//   heldout/torus.obj      ring radius 0.14 m, tube radius 0.05 m, in XY, closed
+//   heldout/cone.obj       base radius 0.13 m, height 0.26 m along Z, closed
+//   heldout/box.obj        0.26 x 0.20 x 0.16 m, closed
+//   heldout/step.obj       a 0.9 m x 0.9 m floor with a 0.10 m step across it (open, like the wall)
 // and, with --robots, the link meshes of the shipped arms (sim/robots/<arm>/meshes/), each
 // link a union of closed cylinders between the joint centres in the link's URDF frame:
 //   ur5e/    base, shoulder, upper_arm, forearm, wrist_1, wrist_2, wrist_3, camera
@@ -118,6 +125,90 @@ Mesh make_ham(double length, double bulb, double shank, int around, int levels) 
   return close_tube(rings, {0, 0, 0}, {0.06, 0, length});
 }
 
+// Rings of a surface of revolution about Z: radius r(t) at height z(t), t in (0, 1) strictly,
+// closed by its two end points.
+Mesh revolve(double (*r)(double), double (*z)(double), int around, int levels) {
+  std::vector<std::vector<V3>> rings;
+  for (int k = 1; k < levels; ++k) {
+    const double t = static_cast<double>(k) / levels;
+    std::vector<V3> ring;
+    for (int i = 0; i < around; ++i) {
+      const double th = 2 * kPi * i / around;
+      ring.push_back({r(t) * std::cos(th), r(t) * std::sin(th), z(t)});
+    }
+    rings.push_back(ring);
+  }
+  return close_tube(rings, {0, 0, z(0)}, {0, 0, z(1)});
+}
+
+Mesh make_sphere() {
+  return revolve([](double t) { return 0.12 * std::sin(kPi * t); }, [](double t) { return -0.12 * std::cos(kPi * t); },
+                 72, 48);
+}
+
+// a cone from its base (z = 0, radius 0.13 m) to its tip (z = 0.26 m); the base ring sits a hair
+// inside the base's edge so that the base cap is flat
+Mesh make_cone() {
+  return revolve([](double t) { return t < 0.02 ? 0.13 * t / 0.02 : 0.13 * (1 - t) / 0.98; },
+                 [](double t) { return t < 0.02 ? 0.0 : 0.26 * (t - 0.02) / 0.98; }, 72, 50);
+}
+
+Mesh make_torus(double ring, double tube, int around, int sides) {
+  Mesh m;
+  for (int i = 0; i < around; ++i)
+    for (int j = 0; j < sides; ++j) {
+      const double a = 2 * kPi * i / around, b = 2 * kPi * j / sides;
+      const double r = ring + tube * std::cos(b);
+      m.v.push_back({r * std::cos(a), r * std::sin(a), tube * std::sin(b)});
+    }
+  const auto id = [&](int i, int j) { return (i % around) * sides + (j % sides); };
+  for (int i = 0; i < around; ++i)
+    for (int j = 0; j < sides; ++j) {
+      m.f.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.f.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  return m;
+}
+
+// A grid of `cells` x `cells` quads spanning o + u s + v t (s, t in [0, 1]), facing u x v.
+void add_grid(Mesh& m, V3 o, V3 u, V3 v, int cells) {
+  const int base = static_cast<int>(m.v.size());
+  for (int j = 0; j <= cells; ++j)
+    for (int i = 0; i <= cells; ++i) {
+      const double s = static_cast<double>(i) / cells, t = static_cast<double>(j) / cells;
+      m.v.push_back({o.x + u.x * s + v.x * t, o.y + u.y * s + v.y * t, o.z + u.z * s + v.z * t});
+    }
+  const auto id = [&](int i, int j) { return base + j * (cells + 1) + i; };
+  for (int j = 0; j < cells; ++j)
+    for (int i = 0; i < cells; ++i) {
+      m.f.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.f.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+}
+
+// a box centred on the origin, each face its own grid, facing out
+Mesh make_box(double x, double y, double z, int cells) {
+  Mesh m;
+  const double a = x / 2, b = y / 2, c = z / 2;
+  add_grid(m, {-a, -b, c}, {x, 0, 0}, {0, y, 0}, cells);    // +Z
+  add_grid(m, {-a, b, -c}, {x, 0, 0}, {0, -y, 0}, cells);   // -Z
+  add_grid(m, {a, -b, -c}, {0, y, 0}, {0, 0, z}, cells);    // +X
+  add_grid(m, {-a, b, -c}, {0, -y, 0}, {0, 0, z}, cells);   // -X
+  add_grid(m, {a, b, -c}, {-x, 0, 0}, {0, 0, z}, cells);    // +Y
+  add_grid(m, {-a, -b, -c}, {x, 0, 0}, {0, 0, z}, cells);   // -Y
+  return m;
+}
+
+// a floor in XY facing +Z whose half x > 0 is raised by `rise`, joined by a riser facing -X
+Mesh make_step(double size, double rise, int cells) {
+  Mesh m;
+  const double h = size / 2;
+  add_grid(m, {-h, -h, 0}, {h, 0, 0}, {0, size, 0}, cells);
+  add_grid(m, {0, -h, rise}, {h, 0, 0}, {0, size, 0}, cells);
+  add_grid(m, {0, h, 0}, {0, -size, 0}, {0, 0, rise}, cells);
+  return m;
+}
+
 // A closed cylinder of radius r from p to q, appended to m.
 void add_cylinder(Mesh& m, V3 p, V3 q, double r, int around = 24) {
   const double dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
@@ -217,10 +308,18 @@ int main(int argc, char** argv) {
                             "elliptic cylinder: semi-axes 0.20 m (X), 0.10 m (Y), height 0.60 m (Z), centred") &&
                   write_obj(dir / "ham.obj", make_ham(0.45, 0.12, 0.035, 72, 60),
                             "ham: 0.45 m along Z, bulb radius 0.12 m, shank radius 0.035 m");
-  if (!ok) {
+  const std::filesystem::path held = dir / "heldout";
+  std::filesystem::create_directories(held, ec);
+  const bool heldout_ok =
+      ok && write_obj(held / "sphere.obj", make_sphere(), "sphere: radius 0.12 m, centred") &&
+      write_obj(held / "torus.obj", make_torus(0.14, 0.05, 96, 32), "torus: ring radius 0.14 m, tube 0.05 m, in XY") &&
+      write_obj(held / "cone.obj", make_cone(), "cone: base radius 0.13 m at z = 0, tip at z = 0.26 m") &&
+      write_obj(held / "box.obj", make_box(0.26, 0.20, 0.16, 8), "box: 0.26 x 0.20 x 0.16 m, centred") &&
+      write_obj(held / "step.obj", make_step(0.9, 0.10, 12), "step: 0.9 m floor, its x > 0 half raised 0.10 m");
+  if (!heldout_ok) {
     std::fprintf(stderr, "make_meshes: cannot write into %s\n", dir.c_str());
     return 1;
   }
-  std::printf("wrote plane.obj, elliptic_cylinder.obj, ham.obj into %s\n", dir.c_str());
+  std::printf("wrote plane.obj, elliptic_cylinder.obj, ham.obj and heldout/ into %s\n", dir.c_str());
   return 0;
 }

@@ -234,6 +234,25 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
   }
 }
 
+// Each triangle's tint (World::Object::tint: its channels' share of its albedo), in the layout
+// of the triangles' fields, at i and at its copy n + i; false, and nothing written, when every
+// surface is grey (the kernel then multiplies nothing: a grey scene's bytes are as before).
+bool prepare_tint(const Cell& cell, const SceneTriangles& tris, std::vector<float>& out) {
+  const auto& objects = cell.world.objects();
+  const bool tinted = std::any_of(objects.begin(), objects.end(),
+                                  [](const World::Object& o) { return o.tint != Eigen::Vector3d::Ones(); });
+  if (!tinted) return false;
+  const std::size_t n = tris.normal_w.size();
+  const std::size_t stride = shading::triangle_stride(2 * n);
+  out.assign(stride * 3, 1.0f);  // the arm's links, after the objects: grey
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto o = static_cast<std::size_t>(tris.object[i]);
+    if (o >= objects.size()) continue;
+    for (int c = 0; c < 3; ++c) out[c * stride + i] = out[c * stride + n + i] = static_cast<float>(objects[o].tint[c]);
+  }
+  return true;
+}
+
 }  // namespace
 
 // A pixel the z-buffer gives to a triangle looks along a ray within half a pixel of the
@@ -337,6 +356,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   f.ray_x = cell.lens.ray_x.data();
   f.ray_y = cell.lens.ray_y.data();
   f.triangles = s.triangles.data();
+  f.tint = prepare_tint(cell, tris, s.tint) ? s.tint.data() : nullptr;
   f.triangle_count = 2 * tris.normal_w.size();
   f.outside_from = n_tris;
   f.projector_depth = beam_view(cell, cell.beam_depth);

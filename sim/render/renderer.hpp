@@ -51,6 +51,7 @@ struct RenderScratch {
   std::vector<ScreenTriangle> screen;  // the frame's triangles on the camera's image plane
   std::vector<std::vector<std::int32_t>> band_screen;  // per band of rows: the ones its z-buffer rows meet
   std::vector<float> triangles;  // each triangle's vectors for this pose (shading.hpp)
+  std::vector<float> tint;       // each triangle's colour (Frame::tint), when a surface is coloured
   std::vector<float> arm_beam_depth;  // the arm's projector depth over Cell::beam
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
   bool scalar = false;

@@ -72,6 +72,10 @@ struct Frame {
   std::int64_t cell_base = 0;
   std::size_t cells = 0;
   const float* triangles = nullptr;    // kTriangleFields x triangle_stride(triangle_count)
+  // a coloured surface's channels: 3 x triangle_stride(triangle_count), each channel's share of
+  // the triangle's albedo (the ambient and K above carry its brightest channel's); null where
+  // every surface is grey
+  const float* tint = nullptr;
   std::size_t triangle_count = 0;
   // ids from here on: a plane's triangles outside the projector's beam this frame (their
   // numbers: the ambient light, G = 0); the kernel gives their pixels the ambient light alone

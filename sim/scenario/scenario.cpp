@@ -143,7 +143,15 @@ void read_objects(const Reader& top, Scenario& s) {
     const auto r = o.has("rotation_deg") ? o.at("rotation_deg").numbers_in<3>(-kMaxAngleDeg, kMaxAngleDeg)
                                          : std::array<double, 3>{0, 0, 0};
     spec.world_T_object = pose_from_xyz_rxyz(p.x(), p.y(), p.z(), r[0] * kDeg, r[1] * kDeg, r[2] * kDeg);
-    if (o.has("albedo")) spec.albedo = o.at("albedo").in_range(0, 1);
+    if (o.has("albedo")) {
+      const Reader a = o.at("albedo");
+      if (a.node().IsSequence()) {
+        const auto rgb = a.numbers_in<3>(0, 1);  // [r, g, b]
+        spec.albedo = {rgb[0], rgb[1], rgb[2]};
+      } else {
+        spec.albedo = Eigen::Vector3d::Constant(a.in_range(0, 1));  // grey
+      }
+    }
     if (o.has("scale")) {
       const auto k = o.at("scale").numbers_in<3>(0.01, 100);
       spec.scale = {k[0], k[1], k[2]};

@@ -47,7 +47,9 @@ struct ObjectSpec {
   std::string name;
   std::filesystem::path mesh;            // absolute (resolved against the scenario file)
   Eigen::Isometry3d world_T_object = Eigen::Isometry3d::Identity();
-  double albedo = 0.8;                   // Lambertian reflectance, 0..1
+  // Lambertian reflectance per channel (R, G, B), each 0..1: `albedo: 0.8` is grey, `albedo:
+  // [0.8, 0.5, 0.45]` a coloured surface (a spot's colour is its light times this)
+  Eigen::Vector3d albedo = Eigen::Vector3d::Constant(0.8);
   Eigen::Vector3d scale = Eigen::Vector3d::Ones();  // of the mesh, along its own axes
 };
 

@@ -23,7 +23,7 @@ World::~World() {
   for (auto& o : bullet_->objects) bullet_->world.removeCollisionObject(o.get());
 }
 
-int World::add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T_object, double albedo) {
+int World::add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T_object, const Eigen::Vector3d& albedo) {
   if (mesh.triangles.empty()) throw std::invalid_argument("World::add_object: mesh has no triangles");
   const int id = static_cast<int>(objects_.size());
 
@@ -50,7 +50,8 @@ int World::add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T
   bullet_->objects.push_back(std::move(obj));
 
   Object o;
-  o.albedo = albedo;
+  o.albedo = albedo.maxCoeff();
+  if (o.albedo > 0) o.tint = albedo / o.albedo;  // exactly 1 per channel where grey
   o.triangles = mesh.triangles;
   o.vertices_w.reserve(mesh.vertices.size());
   for (const auto& v : mesh.vertices) o.vertices_w.push_back(world_T_object * v);

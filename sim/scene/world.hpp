@@ -29,7 +29,8 @@ class World {
   World& operator=(const World&) = delete;
 
   // Returns the object's index. Throws std::invalid_argument for an empty mesh.
-  int add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T_object, double albedo);
+  // `albedo`: per channel (R, G, B), 0..1
+  int add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T_object, const Eigen::Vector3d& albedo);
 
   // Closest hit on the segment from -> to, if any.
   std::optional<RayHit> ray_test(const Eigen::Vector3d& from_w, const Eigen::Vector3d& to_w) const;
@@ -37,7 +38,10 @@ class World {
   struct Object {
     std::vector<Eigen::Vector3d> vertices_w;
     std::vector<std::array<int, 3>> triangles;
-    double albedo = 0.8;
+    double albedo = 0.8;  // the brightest channel's: the light it returns
+    // each channel's share of it (albedo_c / albedo), 1 for a grey surface: the renderer
+    // multiplies a pixel's light by it, per channel
+    Eigen::Vector3d tint = Eigen::Vector3d::Ones();
   };
   const std::vector<Object>& objects() const { return objects_; }
 

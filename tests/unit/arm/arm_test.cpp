@@ -232,7 +232,7 @@ TEST_F(Ur5e, ScriptedCollisionStopsTheArmAndIsReported) {
   wall.triangles = {{0, 1, 2}, {0, 2, 3}};
   Eigen::Isometry3d at = Eigen::Isometry3d::Identity();
   at.translation() = Eigen::Vector3d(0.75, 0, 0.5);
-  world.add_object(wall, at, 0.8);
+  world.add_object(wall, at, Eigen::Vector3d::Constant(0.8));
   ArmRobot robot(std::make_shared<RobotModel>(model), Eigen::Isometry3d::Identity(), world, {"wall"}, {}, home());
   Workspace ws;
   Vector6d forward = Vector6d::Zero();

@@ -121,7 +121,7 @@ TEST(Render, SpotBehindAnOccluderIsInvisibleAndAbsent) {
   occluder.name = "occluder";
   occluder.mesh = std::string(CELL_SOURCE_DIR) + "/meshes/elliptic_cylinder.obj";
   occluder.world_T_object = pose_from_xyz_rxyz(0.85, -0.02, 0.4, 0, 0, 0);
-  occluder.albedo = 0.5;
+  occluder.albedo = Eigen::Vector3d::Constant(0.5);
   const auto open_cell = build_cell(s);
   s.objects.push_back(occluder);
   const auto blocked_cell = build_cell(s);
@@ -334,7 +334,7 @@ struct RenderCase {
 };
 template <class Visit>
 void for_each_render_case(Visit visit) {
-  for (const char* name : {"plane", "cylinder", "ham", "cylinder_occlusion", "fig5"}) {
+  for (const char* name : {"plane", "cylinder", "ham", "cylinder_occlusion", "fig5", "ham_coloured"}) {
     auto cell = build_cell(load_scenario(kScenarios + name + ".yaml"));
     const auto robot = make_robot(*cell);
     std::vector<std::string> poses{"desired", "initial"};
@@ -368,6 +368,32 @@ void for_each_render_case(Visit visit) {
 
 // Every vector unit gives the same bytes as the scalar path, on one thread or several: the
 // same image on any CPU of this kind whatever its vector unit.
+// Issue 41: a coloured surface (albedo [r, g, b]) returns each channel's share of the light:
+// against the same wall grey at its brightest channel, the red bytes are the same and green
+// and blue are scaled by their albedo's share (to the byte's rounding); a grey scene is
+// rendered as before (every other test of this file holds its bytes).
+TEST(Render, AColouredSurfaceReturnsEachChannelsShareOfTheLight) {
+  Scenario grey = plane(false);
+  grey.objects[0].albedo = Eigen::Vector3d::Constant(0.8);
+  Scenario coloured = grey;
+  coloured.objects[0].albedo = {0.8, 0.4, 0.2};
+  const auto a = build_cell(grey), b = build_cell(coloured);
+  const cv::Mat g = render_image(*a, grey.world_T_desired, 1), c = render_image(*b, coloured.world_T_desired, 1);
+  std::vector<cv::Mat> gc, cc;
+  cv::split(g, gc);
+  cv::split(c, cc);
+  EXPECT_EQ(cv::norm(gc[0], cc[0], cv::NORM_INF), 0) << "red, the brightest channel, changed";
+  cv::Mat half, quarter;
+  gc[1].convertTo(half, CV_32F, 0.5);
+  gc[2].convertTo(quarter, CV_32F, 0.25);
+  cv::Mat green, blue;
+  cc[1].convertTo(green, CV_32F);
+  cc[2].convertTo(blue, CV_32F);
+  EXPECT_LE(cv::norm(green, half, cv::NORM_INF), 1.0);
+  EXPECT_LE(cv::norm(blue, quarter, cv::NORM_INF), 1.0);
+  EXPECT_GT(cv::sum(gc[1])[0], 1e5);  // lit: the test compares light, not black
+}
+
 TEST(Render, EveryVectorUnitAndThreadCountGivesTheScalarPathsBytes) {
   int frames = 0;
   for_each_render_case([&](const RenderCase& c) {
@@ -573,6 +599,7 @@ TEST(Render, WithoutNoiseTheFramesStayThoseOfThePreviousRenderer) {
   double worst_mean = 0;
   for_each_render_case([&](const RenderCase& c) {
     if (!c.sensor || c.sensor->noise_sigma > 0) return;
+    if (c.scenario == "ham_coloured") return;  // the previous renderer knows grey surfaces only
     RenderScratch scratch;
     const cv::Mat got = render_image(**c.cell, c.camera, c.seed, &scratch, c.sensor, &c.links);
     const cv::Mat was = previous::render_image(**c.cell, c.camera, c.seed, c.sensor, &c.links);

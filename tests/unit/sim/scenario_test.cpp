@@ -99,6 +99,18 @@ TEST(Scenario, ErrorsAndLatencyAreReadAndChecked) {
   EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 0) << e;
 }
 
+// Issue 41: an albedo is one grey number or [r, g, b], each in [0, 1]
+TEST(Scenario, AlbedoIsGreyOrPerChannel) {
+  const Scenario grey = load_scenario(variant("albedo_grey", "albedo: 0.85", "albedo: 0.5"));
+  EXPECT_EQ(grey.objects[0].albedo, Eigen::Vector3d::Constant(0.5));
+  const Scenario rgb = load_scenario(variant("albedo_rgb", "albedo: 0.85", "albedo: [0.8, 0.52, 0.48]"));
+  EXPECT_EQ(rgb.objects[0].albedo, Eigen::Vector3d(0.8, 0.52, 0.48));
+  for (const char* bad : {"albedo: [0.8, 0.5]", "albedo: [0.8, 0.5, 1.5]", "albedo: [0.8, .nan, 0.5]", "albedo: -0.1"}) {
+    const std::string e = error_of(variant("albedo_bad", "albedo: 0.85", bad));
+    EXPECT_NE(e.find("albedo"), std::string::npos) << bad << ": " << e;
+  }
+}
+
 TEST(Scenario, OffsetConventionIsTranslationThenIntrinsicXYZ) {
   const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d T = offset_pose(I, {10, 0, 0}, {0, 0, 90});

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# bin/decode-heldout as a user runs it (issue 41, Held-out test), on 2 poses a case: every
+# scene and condition swept, the table, the CSV and the plot written; an existing output
+# folder refused, nothing written over.
+set -u
+src="$1"; build="$2"
+source "$(dirname "$0")/lib.sh"
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2 2>&1) || fail "bin/decode-heldout: $out"
+for f in decode.csv decode.md decode.png; do [ -s "$tmp/h/$f" ] || fail "no $f"; done
+rows=$(($(wc -l <"$tmp/h/decode.csv") - 1))
+[ "$rows" -eq 80 ] || fail "$rows cases in decode.csv, not 8 scenes x 5 conditions x 2"
+grep -q "^| step | " "$tmp/h/decode.md" || fail "the held-out table lacks the step: $(cat "$tmp/h/decode.md")"
+one_line_error "an existing output folder" "exists" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2
+echo "decode-heldout: 80 cases, the tables and the plot"

@@ -113,6 +113,26 @@ grep -q "[1-9][0-9]* images, [1-9][0-9]* recorded twists compared: every one ide
   fail "a killed recording replayed nothing: $out"
 echo "replay after SIGKILL: $(tail -1 <<<"$out")"
 
+# SIGHUP (a closed terminal or ssh session) stops a recording service as SIGINT does: the file
+# is closed whole under its own name
+"$bin/servo" run --pattern "$pattern" --z-hat 0.9 >"$tmp/h_servo.log" 2>&1 &
+h_servo=$!
+"$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --max-frames 100000 --record "$tmp/hup.mcap" \
+  >"$tmp/h_sim.log" 2>&1 &
+h_sim=$!
+for ((i = 0; i < 600; i++)); do
+  [ "$(stat -c %s "$tmp/hup.mcap.partial" 2>/dev/null || echo 0)" -gt 10000000 ] && break
+  kill -0 $h_sim 2>/dev/null || break
+  sleep 0.1
+done
+kill -HUP $h_sim 2>/dev/null; wait $h_sim; rc=$?
+kill -INT $h_servo 2>/dev/null; wait $h_servo 2>/dev/null
+[ $rc -eq 0 ] || fail "SIGHUP: cellsim exit $rc: $(tail -2 "$tmp/h_sim.log")"
+[ -s "$tmp/hup.mcap" ] && [ ! -e "$tmp/hup.mcap.partial" ] || fail "SIGHUP left no whole recording: $(ls "$tmp" | grep hup)"
+out=$("$bin/servo" replay "$tmp/hup.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot 2>&1) || fail "the SIGHUP recording: $out"
+grep -q "truncated" <<<"$out" && fail "the recording closed on SIGHUP is truncated: $out"
+echo "record: SIGHUP closes the recording whole: $(tail -1 <<<"$out")"
+
 # a disk that fills (a file-size limit: writes fail with EFBIG as they would with ENOSPC): the
 # run converges and keeps its exit code, the cause is said once, and the file is readable
 "$bin/servo" run --pattern "$pattern" --z-hat 0.9 >"$tmp/f_servo.log" 2>&1 &

@@ -90,21 +90,28 @@ grep -q "truncated.mcap: offset [0-9]*: truncated: .* complete chunks" <<<"$out"
 grep -q "every one identical bit for bit" <<<"$out" || fail "a truncated recording's twists differ: $out"
 echo "replay: $(head -1 <<<"$out")"
 
+# A servo and a recording cellsim (autorun), signalled with SIG once the recording's partial
+# file passes BYTES; sets rc to cellsim's exit code
+record_then_signal() {  # NAME BYTES SIG
+  local name="$1" bytes="$2" sig="$3" servo_pid sim_pid i
+  "$bin/servo" run --pattern "$pattern" --z-hat 0.9 >"$tmp/${name}_servo.log" 2>&1 &
+  servo_pid=$!
+  "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --max-frames 100000 --record "$tmp/$name.mcap" \
+    >"$tmp/${name}_sim.log" 2>&1 &
+  sim_pid=$!
+  for ((i = 0; i < 600; i++)); do  # bounded: 60 s
+    [ "$(stat -c %s "$tmp/$name.mcap.partial" 2>/dev/null || echo 0)" -gt "$bytes" ] && break
+    kill -0 $sim_pid 2>/dev/null || break
+    sleep 0.1
+  done
+  kill "-$sig" $sim_pid 2>/dev/null; wait $sim_pid; rc=$?
+  kill -INT $servo_pid 2>/dev/null; wait $servo_pid 2>/dev/null
+}
+
 # a recording killed with SIGKILL mid-run: FILE.partial holds its complete chunks
-"$bin/servo" run --pattern "$pattern" --z-hat 0.9 >"$tmp/k_servo.log" 2>&1 &
-k_servo=$!
-"$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --max-frames 100000 --record "$tmp/killed.mcap" \
-  >"$tmp/k_sim.log" 2>&1 &
-k_sim=$!
-for ((i = 0; i < 600; i++)); do
-  [ "$(stat -c %s "$tmp/killed.mcap.partial" 2>/dev/null || echo 0)" -gt 30000000 ] && break
-  kill -0 $k_sim 2>/dev/null || break
-  sleep 0.1
-done
-kill -KILL $k_sim 2>/dev/null; wait $k_sim 2>/dev/null
-kill -INT $k_servo 2>/dev/null; wait $k_servo 2>/dev/null
+record_then_signal killed 30000000 KILL
 [ -e "$tmp/killed.mcap" ] && fail "a killed recorder left a file under the recording's own name"
-[ -s "$tmp/killed.mcap.partial" ] || fail "no killed.mcap.partial: $(tail -3 "$tmp/k_sim.log")"
+[ -s "$tmp/killed.mcap.partial" ] || fail "no killed.mcap.partial: $(tail -3 "$tmp/killed_sim.log")"
 # (not --expect-identical: the frame at the cut may have its twist recorded and not be answered)
 out=$(timeout 120 "$bin/servo" replay "$tmp/killed.mcap.partial" --pattern "$pattern" --z-hat 0.9 --no-plot 2>&1) ||
   fail "a recording killed mid-run does not replay its complete chunks: $out"
@@ -115,19 +122,8 @@ echo "replay after SIGKILL: $(tail -1 <<<"$out")"
 
 # SIGHUP (a closed terminal or ssh session) stops a recording service as SIGINT does: the file
 # is closed whole under its own name
-"$bin/servo" run --pattern "$pattern" --z-hat 0.9 >"$tmp/h_servo.log" 2>&1 &
-h_servo=$!
-"$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --autorun --max-frames 100000 --record "$tmp/hup.mcap" \
-  >"$tmp/h_sim.log" 2>&1 &
-h_sim=$!
-for ((i = 0; i < 600; i++)); do
-  [ "$(stat -c %s "$tmp/hup.mcap.partial" 2>/dev/null || echo 0)" -gt 10000000 ] && break
-  kill -0 $h_sim 2>/dev/null || break
-  sleep 0.1
-done
-kill -HUP $h_sim 2>/dev/null; wait $h_sim; rc=$?
-kill -INT $h_servo 2>/dev/null; wait $h_servo 2>/dev/null
-[ $rc -eq 0 ] || fail "SIGHUP: cellsim exit $rc: $(tail -2 "$tmp/h_sim.log")"
+record_then_signal hup 10000000 HUP
+[ $rc -eq 0 ] || fail "SIGHUP: cellsim exit $rc: $(tail -2 "$tmp/hup_sim.log")"
 [ -s "$tmp/hup.mcap" ] && [ ! -e "$tmp/hup.mcap.partial" ] || fail "SIGHUP left no whole recording: $(ls "$tmp" | grep hup)"
 out=$("$bin/servo" replay "$tmp/hup.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot 2>&1) || fail "the SIGHUP recording: $out"
 grep -q "truncated" <<<"$out" && fail "the recording closed on SIGHUP is truncated: $out"

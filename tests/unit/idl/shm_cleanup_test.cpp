@@ -170,7 +170,9 @@ TEST_F(OrphanedShm, OnlyThisUsersFreeRegularFilesGo) {
   EXPECT_TRUE(fs::is_directory(dir_ / "fastrtps_0123456789abcde0"));
   EXPECT_FALSE(exists("fastrtps_port7423"));
   EXPECT_FALSE(exists(pool));
-  if (others) EXPECT_TRUE(exists("fastrtps_port7424")) << "another user's file was removed";
+  if (others) {
+    EXPECT_TRUE(exists("fastrtps_port7424")) << "another user's file was removed";
+  }
   EXPECT_EQ(removed.size(), others ? 2u : 3u);
 }
 

@@ -1,18 +1,28 @@
-// M-array decoding (paper §3.3), one function per step so each can be tested alone:
-//   1. build_adjacency:            the closest spot in each of the four main directions
-//   2. check_graph_consistency:    corner neighbours must agree (NW = W of N = N of W, ...)
-//   3. read_windows:               each complete 8-neighbourhood looked up in the window table
-//   4. check_decoding_consistency: every window a spot takes part in must name it the same
+// M-array decoding (paper §3.3), one function per step so each can be tested alone, one file
+// per stage (decoder_support.hpp: what the stages share):
+//   1. build_adjacency:            the closest spot in each of the four main  adjacency.cpp
+//                                  directions
+//   2. check_graph_consistency:    corner neighbours must agree (NW = W of N   adjacency.cpp
+//                                  = N of W, ...); resolve_shear: a lattice   shear.cpp
+//                                  sheared between two lines
+//   3. read_windows:               each complete 8-neighbourhood looked up    window_reading.cpp
+//                                  in the window table (read_segments: 1 x N
+//                                  along the epipolar lines)
+//   4. check_decoding_consistency: every window a spot takes part in must     consistency.cpp
+//                                  name it the same
 // and, beyond the paper:
-//   5. check_island_consistency:   linked decoded spots must carry ids one step apart
-//   6. propagate_ids:              with the frame's epipolar geometry, ids spread to linked
-//                                  neighbours whose colour and epipolar line agree (off by
-//                                  default: EpipolarOptions::propagate)
-//   7. grow_lattice:               and to the spots where the identified lattice predicts
-//                                  them, links or none
-//   8. name_edge_runs:             the foreshortened line beyond an identified one (slivers at
-//                                  a silhouette), named as a run
-// SpotDecoder runs them in order.
+//   5. check_island_consistency:   linked decoded spots must carry ids one    consistency.cpp
+//                                  step apart
+//   6. propagate_ids:              with the frame's epipolar geometry, ids    propagation.cpp
+//                                  spread to linked neighbours whose colour
+//                                  and epipolar line agree (off by default:
+//                                  EpipolarOptions::propagate)
+//   7. grow_lattice:               and to the spots where the identified      lattice_growth.cpp
+//                                  lattice predicts them, links or none
+//   8. name_edge_runs:             the foreshortened line beyond an           edge_runs.cpp
+//                                  identified one (slivers at a silhouette),
+//                                  named as a run
+// SpotDecoder runs them in order (spot_decoder.cpp).
 #pragma once
 
 #include <optional>

@@ -1,0 +1,326 @@
+// M-array decoding, steps 1 and 2: the four-neighbour graph of the spots (build_adjacency, mended), and
+// the 3 x 3 neighbourhoods whose corners agree (check_graph_consistency).
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <tuple>
+
+#include "servo/vision/decoder_support.hpp"
+#include "servo/vision/spot_decoder.hpp"
+
+namespace vision {
+using namespace decoder_support;
+
+namespace {
+
+// Rows are linked far more reliably than columns (the spacing along a row is regular; down a
+// column, shear and foreshortening make a diagonal neighbour compete with the true one). Two
+// rows of the pattern that lie one above the other are joined by one column offset: the links
+// between two row chains vote for it, and when most agree, every spot of the two chains is
+// linked by it (a link the nearest-spot rule got wrong or missed is mended). Which offset is
+// the pattern's own, not a shear of it, the code decides later (resolve_column_shear).
+void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
+  const auto back = static_cast<Direction>((along + 2) % 4), reverse = static_cast<Direction>((across + 2) % 4);
+  const std::size_t n = g.next.size();
+  std::vector<int> chain(n, -1), pos(n, 0);
+  std::vector<std::vector<int>> chains;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (chain[s] >= 0) continue;
+    int head = static_cast<int>(s);
+    // walk west to the chain's start (bounded: the links are mutual, a chain cannot loop back)
+    for (std::size_t guard = 0; g.next[head][back] >= 0 && guard < n; ++guard) head = g.next[head][back];
+    if (chain[head] >= 0) continue;
+    const int id = static_cast<int>(chains.size());
+    chains.emplace_back();
+    for (int x = head; x >= 0 && chain[x] < 0; x = g.next[x][along]) {
+      chain[x] = id;
+      pos[x] = static_cast<int>(chains.back().size());
+      chains.back().push_back(x);
+    }
+  }
+  // votes: (upper chain, lower chain, offset) from every south link
+  struct Vote {
+    int upper, lower, offset;
+    bool operator<(const Vote& o) const { return std::tie(upper, lower, offset) < std::tie(o.upper, o.lower, o.offset); }
+  };
+  std::vector<Vote> votes;
+  for (std::size_t s = 0; s < n; ++s) {
+    const int j = g.next[s][across];
+    if (j >= 0 && chain[j] >= 0 && chain[j] != chain[s]) votes.push_back({chain[s], chain[j], pos[j] - pos[static_cast<int>(s)]});
+  }
+  std::sort(votes.begin(), votes.end());
+  // per chain pair: the offset most links take, when at least 3 and three quarters of them do
+  struct Join {
+    int upper, lower, offset;
+  };
+  std::vector<Join> joins;
+  for (std::size_t a = 0; a < votes.size();) {
+    std::size_t b = a;
+    int total = 0, best = 0, best_offset = 0;
+    while (b < votes.size() && votes[b].upper == votes[a].upper && votes[b].lower == votes[a].lower) {
+      std::size_t c = b;
+      while (c < votes.size() && votes[c].upper == votes[b].upper && votes[c].lower == votes[b].lower &&
+             votes[c].offset == votes[b].offset)
+        ++c;
+      const int count = static_cast<int>(c - b);
+      total += count;
+      if (count > best) best = count, best_offset = votes[b].offset;
+      b = c;
+    }
+    if (best >= 3 && 4 * best >= 3 * total) joins.push_back({votes[a].upper, votes[a].lower, best_offset});
+    a = b;
+  }
+  // a spot joined to two lower chains (or two upper) keeps its links as they are
+  std::vector<int> south(n, -1), claims(n, 0), north_claims(n, 0);
+  for (const Join& j : joins) {
+    const auto& up = chains[j.upper];
+    const auto& low = chains[j.lower];
+    for (int k = 0; k < static_cast<int>(up.size()); ++k) {
+      const int m = k + j.offset;
+      if (m < 0 || m >= static_cast<int>(low.size())) continue;
+      south[up[k]] = low[m];
+      ++claims[up[k]];
+      ++north_claims[low[m]];
+    }
+  }
+  for (std::size_t s = 0; s < n; ++s) {
+    const int j = south[s];
+    if (j < 0 || claims[s] != 1 || north_claims[j] != 1 || g.next[s][across] == j) continue;
+    // unlink what each end had, then link them
+    if (g.next[s][across] >= 0) g.next[g.next[s][across]][reverse] = -1;
+    if (g.next[j][reverse] >= 0) g.next[g.next[j][reverse]][across] = -1;
+    g.next[s][across] = j;
+    g.next[j][reverse] = static_cast<int>(s);
+  }
+}
+
+// how far (fraction of a step) a completed link's spot may be from where its neighbours put it
+constexpr double kCompletionSlack = 0.3;
+
+// Completion from the lattice around: a link the nearest-candidate rule missed (a column whose
+// candidates two spots contend for, a row squeezed towards the silhouette past the spacing
+// rule) is where the neighbours' links say it is. The spot missing its south link takes the
+// step its east and west neighbours take south, and links the spot found there if that one
+// has no north link yet. Two rounds: a completed link lends its step to the next.
+void complete_links(AdjacencyGraph& g, const std::vector<Spot>& spots, const SpatialGrid& near) {
+  const std::size_t n = spots.size();
+  for (int round = 0; round < 2; ++round) {
+    std::vector<std::array<int, 4>> add(n, {-1, -1, -1, -1});
+    for (std::size_t s = 0; s < n; ++s)
+      for (int k = 0; k < 4; ++k) {
+        if (g.next[s][k] >= 0) continue;
+        // the two directions across k: their spots' steps in k
+        double vu = 0, vv = 0;
+        int refs = 0;
+        for (const int across : {(k + 1) % 4, (k + 3) % 4}) {
+          const int x = g.next[s][across];
+          if (x < 0 || g.next[x][k] < 0) continue;
+          vu += spots[g.next[x][k]].u - spots[x].u;
+          vv += spots[g.next[x][k]].v - spots[x].v;
+          ++refs;
+        }
+        if (refs == 0) continue;
+        vu /= refs, vv /= refs;
+        const double pu = spots[s].u + vu, pv = spots[s].v + vv, step2 = vu * vu + vv * vv;
+        int found = -1;
+        double best = kCompletionSlack * kCompletionSlack * step2;
+        near.around(pu, pv, 1, [&](int j) {
+          const double du = spots[j].u - pu, dv = spots[j].v - pv;
+          if (j != static_cast<int>(s) && du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
+        });
+        if (found >= 0 && g.next[found][(k + 2) % 4] < 0) add[s][k] = found;
+      }
+    bool grew = false;
+    for (std::size_t s = 0; s < n; ++s)
+      for (int k = 0; k < 4; ++k) {
+        const int j = add[s][k];
+        // both ends must agree: j found s, or j had nothing to say in that direction
+        if (j < 0 || g.next[s][k] >= 0 || g.next[j][(k + 2) % 4] >= 0) continue;
+        const int back = add[j][(k + 2) % 4];
+        if (back >= 0 && back != static_cast<int>(s)) continue;
+        g.next[s][k] = j;
+        g.next[j][(k + 2) % 4] = static_cast<int>(s);
+        grew = true;
+      }
+    if (!grew) break;
+  }
+}
+
+// Each spot's nearest neighbour distance, and the grid's direction (modulo 90 deg, the mean of
+// the nearest-neighbour directions x 4) into `grid_angle_rad`; a first spacing estimate from
+// a coarse grid finds the neighbours.
+std::vector<double> nearest_distances(const std::vector<Spot>& spots, double& grid_angle_rad) {
+  const std::size_t n = spots.size();
+  double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
+  for (const Spot& s : spots) u0 = std::min(u0, s.u), v0 = std::min(v0, s.v), u1 = std::max(u1, s.u), v1 = std::max(v1, s.v);
+  const double coarse = std::max(4.0, std::sqrt(std::max(1.0, (u1 - u0) * (v1 - v0)) / static_cast<double>(n)));
+  const SpatialGrid grid(spots, coarse);
+  std::vector<double> nn_dist(n, 0);
+  double sx = 0, sy = 0;  // angle x 4 sums: the grid direction modulo 90 deg
+  for (std::size_t i = 0; i < n; ++i) {
+    double best = 1e18;
+    int bj = -1;
+    grid.around(spots[i].u, spots[i].v, 2, [&](int j) {
+      if (j == static_cast<int>(i)) return;
+      const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
+      const double d2 = du * du + dv * dv;  // squared: std::hypot is ten times dearer and not needed
+      if (d2 < best) best = d2, bj = j;
+    });
+    if (bj < 0) continue;
+    nn_dist[i] = std::sqrt(best);
+    // (cos 4a, sin 4a) as the fourth power of the unit vector (x + iy): no trigonometry
+    const double x = (spots[bj].u - spots[i].u) / nn_dist[i], y = (spots[bj].v - spots[i].v) / nn_dist[i];
+    const double c2 = x * x - y * y, s2 = 2 * x * y;
+    sx += c2 * c2 - s2 * s2;
+    sy += 2 * c2 * s2;
+  }
+  grid_angle_rad = std::atan2(sy, sx) / 4.0;
+  return nn_dist;
+}
+
+// The candidate east, south, west and north neighbours of every spot.
+std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, const SpatialGrid& near,
+                                                const std::vector<double>& nn_dist, double spacing,
+                                                double grid_angle_rad) {
+  const std::size_t n = spots.size();
+  // Rows first: the closest spot within +-35 deg of the pattern's east and west. Then columns,
+  // against each spot's own row direction: under perspective the columns shear away from the
+  // perpendicular and a diagonal neighbour can be nearer than the true one, so the north and
+  // south candidates are ranked by distance weighted by their angle to the local perpendicular.
+  std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
+  struct Candidate {
+    int j;
+    double du, dv, d2;  // squared distance: the square root only for the few in a cone
+  };
+  std::vector<Candidate> around;  // one spot's neighbours within reach, gathered once for both passes
+  const double row_cos = std::cos(35.0 * kPi / 180.0);
+  const double col_cos = std::cos(45.0 * kPi / 180.0);
+  const double row_cos2 = row_cos * row_cos, col_cos2 = col_cos * col_cos;
+  const double ce = std::cos(grid_angle_rad), se = std::sin(grid_angle_rad);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double reach = 3.5 * std::max(nn_dist[i], 0.5 * spacing);
+    const double reach2 = reach * reach;
+    around.clear();
+    near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
+      const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
+      const double d2 = du * du + dv * dv;
+      if (d2 <= reach2 && d2 > 1e-18) around.push_back({j, du, dv, d2});  // (j == i has d2 = 0)
+    });
+    // rows: cos >= row_cos, i.e. dot >= 0 and dot^2 >= row_cos^2 d^2
+    std::array<double, 2> best{1e300, 1e300};
+    for (const Candidate& c : around) {
+      const double dot = c.du * ce + c.dv * se;
+      if (dot * dot < row_cos2 * c.d2) continue;
+      const int side = dot > 0 ? 0 : 1;
+      if (c.d2 < best[side]) best[side] = c.d2, cand[i][side == 0 ? kEast : kWest] = c.j;
+    }
+    // this spot's row direction, from its east and west candidates when it has them
+    double ru = ce, rv = se;
+    const int e = cand[i][kEast], w = cand[i][kWest];
+    if (e >= 0 || w >= 0) {
+      ru = rv = 0;
+      for (const auto& [j, sign] : {std::pair{e, 1.0}, std::pair{w, -1.0}}) {
+        if (j < 0) continue;
+        const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v, d = std::sqrt(du * du + dv * dv);
+        ru += sign * du / d;
+        rv += sign * dv / d;
+      }
+      const double norm = std::sqrt(ru * ru + rv * rv);
+      ru /= norm, rv /= norm;
+    }
+    // columns
+    const double pu = -rv, pv = ru;  // the perpendicular, pointing south (image y down)
+    best = {1e300, 1e300};
+    for (const Candidate& c : around) {
+      const double dot = c.du * pu + c.dv * pv;
+      if (dot * dot < col_cos2 * c.d2) continue;
+      const double d = std::sqrt(c.d2);
+      const double cosine = std::min(1.0, std::abs(dot) / d);
+      // ~ d (1 + 2 angle): sqrt(2 (1 - cos)) is the angle to within 4 % below 45 deg, sans acos
+      const double score = d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - cosine)));
+      if (dot > 0 && score < best[0]) best[0] = score, cand[i][kSouth] = c.j;
+      if (dot < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
+    }
+  }
+  return cand;
+}
+
+// The links kept: mutual candidates, regularly spaced, symmetric.
+void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::array<int, 4>>& cand,
+                        AdjacencyGraph& g) {
+  const std::size_t n = spots.size();
+  std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = cand[i][k];
+      if (j >= 0 && cand[j][(k + 2) % 4] == static_cast<int>(i)) mutual[i][k] = j;
+    }
+  // Regular spacing: a link across a missing spot is twice as long as the links continuing it
+  // on either side. Spacing varies smoothly along a row or column (perspective, curvature), so
+  // a link is kept when a continuing link has a similar length, or when none exists to compare.
+  const auto length = [&](int a, int b) { return std::hypot(spots[b].u - spots[a].u, spots[b].v - spots[a].v); };
+  const auto similar = [](double a, double b) { return a < 1.5 * b && b < 1.5 * a; };
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = mutual[i][k];
+      if (j < 0) continue;
+      const double len = length(static_cast<int>(i), j);
+      const int before = mutual[i][(k + 2) % 4];
+      const int after = mutual[j][k];
+      const bool comparable = before >= 0 || after >= 0;
+      const bool regular = (before >= 0 && similar(len, length(static_cast<int>(i), before))) ||
+                           (after >= 0 && similar(len, length(j, after)));
+      if (!comparable || regular) g.next[i][k] = j;
+    }
+  // keep the graph symmetric: a link dropped on one side is dropped on the other
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 4; ++k) {
+      const int j = g.next[i][k];
+      if (j >= 0 && g.next[j][(k + 2) % 4] != static_cast<int>(i)) g.next[i][k] = -1;
+    }
+}
+
+}  // namespace
+
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
+  AdjacencyGraph g;
+  const std::size_t n = spots.size();
+  g.next.assign(n, {-1, -1, -1, -1});
+  if (n < 2) return g;
+  const std::vector<double> nn_dist = nearest_distances(spots, g.grid_angle_rad);
+  const double spacing = median(nn_dist);
+  const SpatialGrid near(spots, std::max(2.0, spacing));
+  keep_regular_links(spots, link_candidates(spots, near, nn_dist, spacing, g.grid_angle_rad), g);
+  if (!mend) return g;
+  align_chains(g, kEast, kSouth);  // columns between row chains
+  complete_links(g, spots, near);
+  return g;
+}
+
+Neighbourhoods check_graph_consistency(const AdjacencyGraph& g) {
+  Neighbourhoods h;
+  const std::size_t n = g.next.size();
+  h.window.assign(n, Window{-1, -1, -1, -1, -1, -1, -1, -1, -1});
+  const auto step = [&](int i, Direction d) { return i < 0 ? -1 : g.next[i][d]; };
+  // both ways round the corner must reach the same spot
+  const auto corner = [&](int i, Direction a, Direction b) {
+    const int p = step(step(i, a), b), q = step(step(i, b), a);
+    return p >= 0 && p == q ? p : -1;
+  };
+  for (std::size_t s = 0; s < n; ++s) {
+    const int i = static_cast<int>(s);
+    Window& w = h.window[s];
+    w[1] = g.next[s][kNorth];
+    w[3] = g.next[s][kWest];
+    w[4] = i;
+    w[5] = g.next[s][kEast];
+    w[7] = g.next[s][kSouth];
+    w[0] = corner(i, kNorth, kWest);
+    w[2] = corner(i, kNorth, kEast);
+    w[6] = corner(i, kSouth, kWest);
+    w[8] = corner(i, kSouth, kEast);
+  }
+  return h;
+}
+
+}  // namespace vision

@@ -1,0 +1,270 @@
+// What the decoder's steps share (servo/vision/*.cpp, the stages of spot_decoder.hpp): the
+// directions' id steps, a grid of the spots for neighbour queries, and the bookkeeping of the
+// steps that name spots one at a time. Internal to servo_vision: nothing outside includes it.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "servo/pattern/marray.hpp"
+#include "servo/vision/spot.hpp"
+#include "servo/vision/spot_decoder.hpp"
+
+namespace vision::decoder_support {
+
+
+constexpr double kPi = 3.14159265358979323846;
+// the id steps of the four directions, E S W N as (drow, dcol)
+constexpr int kIdStep[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};
+
+// Buckets spots on a uniform grid so neighbour queries touch only nearby cells.
+class SpatialGrid {
+ public:
+  SpatialGrid(const std::vector<Spot>& spots, double cell) : spots_(spots), cell_(cell) {
+    double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
+    for (const Spot& s : spots) {
+      u0 = std::min(u0, s.u), v0 = std::min(v0, s.v), u1 = std::max(u1, s.u), v1 = std::max(v1, s.v);
+    }
+    origin_u_ = u0, origin_v_ = v0;
+    cols_ = std::max(1, static_cast<int>((u1 - u0) / cell) + 1);
+    rows_ = std::max(1, static_cast<int>((v1 - v0) / cell) + 1);
+    start_.assign(static_cast<std::size_t>(cols_) * rows_ + 1, 0);
+    for (const Spot& s : spots) ++start_[key(s.u, s.v) + 1];
+    for (std::size_t i = 1; i < start_.size(); ++i) start_[i] += start_[i - 1];
+    index_.resize(spots.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < spots.size(); ++i) index_[fill[key(spots[i].u, spots[i].v)]++] = static_cast<int>(i);
+  }
+  template <typename F>
+  void around(double u, double v, int reach, F&& f) const {
+    const int cu = static_cast<int>((u - origin_u_) / cell_), cv = static_cast<int>((v - origin_v_) / cell_);
+    for (int r = std::max(0, cv - reach); r <= std::min(rows_ - 1, cv + reach); ++r)
+      for (int c = std::max(0, cu - reach); c <= std::min(cols_ - 1, cu + reach); ++c) {
+        const std::size_t k = static_cast<std::size_t>(r) * cols_ + c;
+        for (int i = start_[k]; i < start_[k + 1]; ++i) f(index_[i]);
+      }
+  }
+
+ private:
+  std::size_t key(double u, double v) const {
+    const int c = std::min(cols_ - 1, static_cast<int>((u - origin_u_) / cell_));
+    const int r = std::min(rows_ - 1, static_cast<int>((v - origin_v_) / cell_));
+    return static_cast<std::size_t>(r) * cols_ + c;
+  }
+  const std::vector<Spot>& spots_;
+  double cell_;
+  double origin_u_ = 0, origin_v_ = 0;
+  int cols_ = 1, rows_ = 1;
+  std::vector<int> start_, index_;
+};
+
+inline double median(std::vector<double> x) {
+  if (x.empty()) return 0;
+  std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
+  return x[x.size() / 2];
+}
+
+// how much a run's step may change from one spot to the next (fraction of the step)
+constexpr double kRunBend = 0.4;
+
+// Three spots a, b, c in a row of the lattice on one smooth surface: the step b -> c close to
+// a -> b. Across a depth edge the spot from the surface behind breaks it.
+inline bool bends_little(const Spot& a, const Spot& b, const Spot& c) {
+  const double su = c.u - 2 * b.u + a.u, sv = c.v - 2 * b.v + a.v;
+  const double lu = c.u - b.u, lv = c.v - b.v, pu = b.u - a.u, pv = b.v - a.v;
+  return su * su + sv * sv <= kRunBend * kRunBend * std::max(lu * lu + lv * lv, pu * pu + pv * pv);
+}
+
+// how unlike (fraction of the step) the opposite sides of a window's lattice cell may be
+constexpr double kCellSlack = 0.35;
+
+// every row and column of the window (where all three spots are there) bends little, and each
+// of its four lattice cells is near a parallelogram: a cell across a depth edge, with a spot
+// from the surface behind shifted along its row, is not
+inline bool smooth_window(const std::vector<Spot>& spots, const Window& w) {
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 2; ++c) {
+      const int a = w[3 * r + c], b = w[3 * r + c + 1], p = w[3 * r + c + 3], q = w[3 * r + c + 4];
+      if (a < 0 || b < 0 || p < 0 || q < 0) continue;
+      const double eu = spots[b].u - spots[a].u, ev = spots[b].v - spots[a].v;  // top side
+      const double fu = spots[q].u - spots[p].u, fv = spots[q].v - spots[p].v;  // bottom side
+      const double su = spots[p].u - spots[a].u, sv = spots[p].v - spots[a].v;  // left side
+      const double du = eu - fu, dv = ev - fv;
+      const double step2 = std::max(std::min(eu * eu + ev * ev, fu * fu + fv * fv), 0.0);
+      const double side2 = su * su + sv * sv;
+      // (the right side's difference from the left is the same vector)
+      if (du * du + dv * dv > kCellSlack * kCellSlack * std::max(step2, 0.25 * side2)) return false;
+    }
+  for (int k = 0; k < 3; ++k) {
+    const int r0 = w[3 * k], r1 = w[3 * k + 1], r2 = w[3 * k + 2];
+    if (r0 >= 0 && r1 >= 0 && r2 >= 0 && !bends_little(spots[r0], spots[r1], spots[r2])) return false;
+    const int c0 = w[k], c1 = w[k + 3], c2 = w[k + 6];
+    if (c0 >= 0 && c1 >= 0 && c2 >= 0 && !bends_little(spots[c0], spots[c1], spots[c2])) return false;
+  }
+  return true;
+}
+
+// the colours of a window whose nine spots are all there, or nothing
+inline std::optional<std::array<std::uint8_t, 9>> colours_of(const std::vector<Spot>& spots, const Window& w) {
+  std::array<std::uint8_t, 9> c{};
+  for (int i = 0; i < 9; ++i) {
+    if (w[i] < 0) return std::nullopt;
+    c[i] = static_cast<std::uint8_t>(spots[w[i]].colour);
+  }
+  return c;
+}
+// the window is whole, smooth and reads as a pattern window (on its epipolar lines when checked)
+inline bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::WindowTable& table,
+           const EpipolarCheck* check) {
+  const auto c = colours_of(spots, w);
+  if (!c) return false;
+  const auto id = table.find(c->data());  // the code first: it is cheaper than the geometry
+  return id && smooth_window(spots, w) && (!check || check->confirms(w, *id));
+}
+
+// a blob smaller than this fraction of the median area of the spots linked to it is a fragment
+constexpr double kFragmentArea = 0.5;
+
+inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& graph, int i) {
+  std::array<int, 4> areas{};
+  std::size_t m = 0;
+  for (const int j : graph.next[i])
+    if (j >= 0) areas[m++] = spots[j].area_px;
+  if (m == 0) return false;
+  for (std::size_t a = 1; a < m; ++a)  // insertion sort of at most four
+    for (std::size_t b = a; b > 0 && areas[b - 1] > areas[b]; --b) std::swap(areas[b - 1], areas[b]);
+  const double median = m % 2 ? areas[m / 2] : 0.5 * (areas[m / 2 - 1] + areas[m / 2]);
+  return spots[i].area_px < kFragmentArea * median;
+}
+
+
+// how far (fraction of a lattice step) a propagated spot may be from where the lattice puts it
+constexpr double kLatticeSlack = 0.25;
+
+
+// how much fainter or smaller than its source a propagated spot may be
+constexpr double kAlike = 0.4;
+inline bool alike(const Spot& source, const Spot& s) {
+  return s.strength >= kAlike * source.strength && s.area_px >= kAlike * source.area_px;
+}
+
+// Which spot carries each id, and where each identified spot is in the decoded list: the
+// bookkeeping of the steps that name spots one at a time (propagation, growth).
+class IdMap {
+ public:
+  IdMap(const pattern::MArray& pattern, std::size_t spot_count, const std::vector<DecodedSpot>& decoded)
+      : rows_(pattern.rows), cols_(pattern.cols), owner_(static_cast<std::size_t>(rows_) * cols_, -1),
+        at_(spot_count, -1) {
+    for (std::size_t i = 0; i < decoded.size(); ++i) add(decoded[i], static_cast<int>(i));
+  }
+  bool inside(int r, int c) const { return r >= 0 && c >= 0 && r < rows_ && c < cols_; }
+  // the spot carrying id (r, c); -1 when none does or (r, c) is off the pattern
+  int spot_at(int r, int c) const { return inside(r, c) ? owner_[static_cast<std::size_t>(r) * cols_ + c] : -1; }
+  bool taken(int r, int c) const { return spot_at(r, c) >= 0; }
+  // the spot's index in the decoded list, -1 while it has no id
+  int index_of(int spot) const { return at_[spot]; }
+  void add(const DecodedSpot& d, int index) {
+    owner_[static_cast<std::size_t>(d.row) * cols_ + d.col] = d.spot;
+    at_[d.spot] = index;
+  }
+
+ private:
+  int rows_, cols_;
+  std::vector<int> owner_;  // id -> spot
+  std::vector<int> at_;     // spot -> index in decoded
+};
+
+// Spot j may take id X: the pattern has its colour at X, it lies on X's epipolar line, and no
+// free id around X (`taken(row, col)` false) fits it as well: a step that skipped a missing
+// spot or crossed a sheared column would otherwise pass an id on shifted by one.
+template <typename Taken>
+inline bool only_fitting_id(const std::vector<Spot>& spots, int j, const pattern::SpotId& x, const EpipolarCheck& check,
+                     const pattern::MArray& pattern, Taken&& taken) {
+  const auto fits = [&](int r, int c) { return pattern.at(r, c) == spots[j].colour && check.confirms(j, {r, c}); };
+  if (!fits(x.row, x.col)) return false;
+  for (int dr = -1; dr <= 1; ++dr)
+    for (int dc = -1; dc <= 1; ++dc) {
+      const int r = x.row + dr, c = x.col + dc;
+      if ((dr == 0 && dc == 0) || r < 0 || c < 0 || r >= pattern.rows || c >= pattern.cols || taken(r, c)) continue;
+      if (fits(r, c)) return false;
+    }
+  return true;
+}
+
+
+// how far (fraction of a lattice step) a grown spot may be from where the lattice puts it:
+// wider than a propagated link's (0.25), as the prediction may reach across a missing link and
+// the step changes fast on the oblique flanks. 0.45 (was 0.35): +0.4 points of the ham's
+// readable spots, +0.6 of the cylinder's, the same wrong ids in 24 sweeps of 1000 poses; 0.55
+// names fewer (a farther spot wins the place)
+constexpr double kGrowSlack = 0.45;
+// a grown spot no bigger than this many times any source: a wider blob is the colour wash of a
+// surface far out of focus behind a silhouette, not a spot
+constexpr double kGrowLargest = 2.5;
+// A spot named from a single row or column neighbour (and corners) must look like its sources'
+// mean: at a silhouette the prediction can fall on a speck or a faint wash blob. Set on 1000-pose
+// sweeps of the cylinder behind an occluder, the scenario that showed such wrong ids.
+constexpr double kGrowDimmest = 0.6, kGrowAreaBelow = 0.6, kGrowAreaAbove = 1.7;
+constexpr int kGrowSmallestPx = 10;
+// nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
+// glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
+// `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint
+constexpr float kGrowFaintest = 5.0F;
+// A single source naming another id is outvoted by this many more sources than it. Until now any
+// dissent left the spot unnamed: in 1000 ham poses, 1 683 spots that colour, epipolar line and
+// uniqueness would have named right. Outvoting one dissent by 2: +0.6 points of the ham's
+// readable spots, the same wrong ids in 24 calibrated sweeps; two dissents by 1: +0.1 more.
+constexpr int kGrowMajority = 2;
+// One source fewer than asked names a spot when every source's step lands within this fraction
+// of a step of the blob (the prediction a quarter as loose as kGrowSlack) and the blob looks like
+// its sources. At a silhouette only two identified spots may touch the next one (a row or
+// column neighbour and a corner); what fell at a depth edge within 0.2 of a step was the surface
+// behind's spot, never one within 0.12. +0.3 points of the ham's readable spots, +0.5 of the
+// cylinder's, the same wrong ids in 32 calibrated sweeps of 1000 poses.
+constexpr double kGrowTightSlack = 0.12;
+// Or when the row or column neighbour's step lands on the blob's line (within 0.08 of a step
+// aside) at 0.85-1.2 of its length, the corner's within kGrowSlack: towards a silhouette the
+// surface turns away and the last step shrinks or stretches along itself (the ham's first and
+// last columns), and the corner's prediction, two steps, drifts by 0.2-0.4. Along a row the
+// epipolar line cannot tell a column from another, so the blob of the surface behind can lie on
+// the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the step,
+// 0.45 as strong as its sources. A spot named one short is at least half as strong as them.
+// +0.2 points of the ham's readable spots, the same wrong ids in 32 calibrated sweeps.
+constexpr double kGrowOnLineAside = 0.08, kGrowOnLineShortest = 0.85, kGrowOnLineLongest = 1.2;
+constexpr double kGrowOneShortDimmest = 0.5;
+// A spot the lattice pins (three sources or more, two of them row or column neighbours, each
+// within kGrowTightSlack) needs no uniqueness among the ids around it: along a row the epipolar
+// lines coincide, so a row's neighbour of the same colour fits as well as the id itself one time
+// in three, and such spots were refused however many sources agreed (the table at the
+// pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots, 64.8 -> 65.4 %
+// of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
+constexpr int kGrowPinnedSources = 3;
+
+// The spots on a grid whose cells are a lattice step wide (the median length of the graph's
+// links); none without a link.
+inline std::optional<SpatialGrid> lattice_grid(const std::vector<Spot>& spots, const AdjacencyGraph& graph) {
+  std::vector<double> lengths;
+  for (std::size_t s = 0; s < spots.size(); ++s)
+    for (const int k : {kEast, kSouth})
+      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
+  if (lengths.empty()) return std::nullopt;
+  return SpatialGrid(spots, std::max(2.0, median(lengths)));
+}
+
+// Links two identified spots whose ids are neighbours, where both ends had none that way.
+template <class SpotAt>
+void link_identified_neighbours(const std::vector<DecodedSpot>& decoded, SpotAt&& spot_at, AdjacencyGraph& graph) {
+  for (const DecodedSpot& d : decoded)
+    for (int k = 0; k < 4; ++k) {
+      const int j = spot_at(d.row + kIdStep[k][0], d.col + kIdStep[k][1]);
+      if (j >= 0 && graph.next[d.spot][k] < 0 && graph.next[j][(k + 2) % 4] < 0) {
+        graph.next[d.spot][k] = j;
+        graph.next[j][(k + 2) % 4] = d.spot;
+      }
+    }
+}
+}  // namespace vision::decoder_support

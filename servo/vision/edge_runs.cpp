@@ -1,0 +1,154 @@
+// M-array decoding, step 8: the foreshortened line beyond an identified one, named as a run (name_edge_runs).
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <tuple>
+
+#include "servo/vision/decoder_support.hpp"
+#include "servo/vision/spot_decoder.hpp"
+
+namespace vision {
+using namespace decoder_support;
+
+namespace {
+// Where a run's candidate may lie from its source, along the source's step: the steps shrink
+// towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
+// most 0.3 of a step aside
+constexpr double kRunNearest = 0.3, kRunFarthest = 1.15, kRunAside = 0.3;
+// how much two neighbouring candidates' offset may differ from their sources' (fraction of
+// the sources' step): the run follows the identified line beside it
+constexpr double kRunFollow = 0.35;
+// consecutive candidates a run needs: each has the colour the pattern has there by chance one
+// time in three, so a run of 4 is one in 81 before the epipolar line and the positions
+constexpr int kRunLength = 4;
+// a line beyond is foreshortened: its spots no larger than their sources (a larger blob there is
+// the wash of a surface behind, out of focus), and a run bridges one missing id at most
+constexpr double kRunLargest = 1.2;
+constexpr int kRunGaps = 1;
+}  // namespace
+
+std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
+                                        const EpipolarCheck& check, const pattern::MArray& pattern,
+                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here) {
+  const std::size_t n = spots.size();
+  if (named_here) named_here->assign(n, 0);
+  if (decoded.empty() || n < 2) return decoded;
+  IdMap ids(pattern, n, decoded);
+  const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
+  const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
+  if (!near) return decoded;
+  // per pattern cell, in direction k: the blob found beyond the identified spot one step back
+  const std::size_t cells = static_cast<std::size_t>(pattern.rows) * pattern.cols;
+  std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
+  std::vector<DecodedSpot> added;
+  for (int k = 0; k < 4; ++k) {
+    const int dr = kIdStep[k][0], dc = kIdStep[k][1];
+    std::vector<int> candidate(cells, -1);
+    for (const DecodedSpot& from : decoded) {
+      const int r = from.row + dr, c = from.col + dc;
+      if (!ids.inside(r, c) || ids.taken(r, c)) continue;
+      const int back = spot_at(from.row - dr, from.col - dc);
+      if (back < 0) continue;
+      const Spot& s = spots[from.spot];
+      const double vu = s.u - spots[back].u, vv = s.v - spots[back].v, step2 = vu * vu + vv * vv;
+      if (step2 < 4.0) continue;
+      int found = -1;
+      double best = 1e300;
+      near->around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
+        const double du = spots[j].u - s.u, dv = spots[j].v - s.v;
+        const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
+        if (along < kRunNearest || along > kRunFarthest || aside > kRunAside) return;
+        const double d2 = du * du + dv * dv;
+        if (d2 < best) best = d2, found = j;
+      });
+      if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || spots[found].colour != pattern.at(r, c) ||
+          spots[found].strength < kGrowFaintest || spots[found].strength < kAlike * s.strength ||
+          spots[found].area_px > kRunLargest * s.area_px || !check.confirms(found, {r, c}))
+        continue;
+      candidate[static_cast<std::size_t>(r) * pattern.cols + c] = found;
+    }
+    // runs across k: ids along the line across k, each with a candidate, one missing at most
+    // between two, each candidate offset from the one before as their sources are
+    const int pr = std::abs(dc);  // the axis across k (0: the runs lie along a row)
+    const auto cand = [&](int r, int c) {
+      return ids.inside(r, c) ? candidate[static_cast<std::size_t>(r) * pattern.cols + c] : -1;
+    };
+    const auto follows = [&](const pattern::SpotId& x, const pattern::SpotId& y) {
+      const int a = cand(x.row, x.col), b = cand(y.row, y.col);
+      const int sa = spot_at(x.row - dr, x.col - dc), sb = spot_at(y.row - dr, y.col - dc);
+      if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
+      const double su = spots[sb].u - spots[sa].u, sv = spots[sb].v - spots[sa].v;
+      const double eu = spots[b].u - spots[a].u - su, ev = spots[b].v - spots[a].v - sv;
+      return eu * eu + ev * ev <= kRunFollow * kRunFollow * (su * su + sv * sv);
+    };
+    const auto take_run = [&](const std::vector<pattern::SpotId>& run) {
+      if (static_cast<int>(run.size()) < kRunLength) return;
+      // no other placement of the whole run fits it as well, taken ids or not: in the crowded
+      // columns at a silhouette the lattice shears, and at a depth edge the surface behind goes
+      // on, so that the next line's spots, one over, can sit where this run's ids are predicted
+      // (their colours and epipolar lines then fit the shifted ids, each of them)
+      for (int orow = -1; orow <= 1; ++orow)
+        for (int ocol = -1; ocol <= 1; ++ocol) {
+          if (orow == 0 && ocol == 0) continue;
+          std::size_t fit = 0;
+          for (const pattern::SpotId& x : run) {
+            const int rr = x.row + orow, cc = x.col + ocol, j = cand(x.row, x.col);
+            fit += ids.inside(rr, cc) && pattern.at(rr, cc) == spots[j].colour && check.confirms(j, {rr, cc});
+          }
+          if (fit == run.size()) return;
+        }
+      for (const pattern::SpotId& x : run) {
+        const int j = cand(x.row, x.col);
+        const int cell = x.row * pattern.cols + x.col;
+        claimed_by[j] = claimed_by[j] == -1 || claimed_by[j] == cell ? cell : -2;
+        added.push_back({x.row, x.col, spots[j].u, spots[j].v, j});
+      }
+    };
+    const int lines = pr == 0 ? pattern.rows : pattern.cols, along = pr == 0 ? pattern.cols : pattern.rows;
+    std::vector<pattern::SpotId> run;
+    for (int line = 0; line < lines; ++line) {
+      run.clear();
+      int last = -10, gaps = 0;
+      for (int i = 0; i < along; ++i) {
+        const pattern::SpotId x = pr == 0 ? pattern::SpotId{line, i} : pattern::SpotId{i, line};
+        if (cand(x.row, x.col) < 0) continue;
+        // a gap is an id no spot has, its source beside the run's
+        const pattern::SpotId gap = pr == 0 ? pattern::SpotId{line, i - 1} : pattern::SpotId{i - 1, line};
+        const bool bridged = i - last == 1 || (i - last == 2 && gaps < kRunGaps && !ids.taken(gap.row, gap.col) &&
+                                               spot_at(gap.row - dr, gap.col - dc) >= 0);
+        if (!run.empty() && (!bridged || !follows(run.back(), x))) {
+          take_run(run);
+          run.clear();
+          gaps = 0;
+        }
+        if (!run.empty() && i - last == 2) ++gaps;
+        run.push_back(x);
+        last = i;
+      }
+      take_run(run);
+    }
+  }
+  // a blob two runs claim for two ids, or an id two runs give two blobs, is not named
+  std::vector<int> cell_claims(cells, 0);
+  for (const DecodedSpot& a : added)
+    if (claimed_by[a.spot] >= 0) ++cell_claims[static_cast<std::size_t>(a.row) * pattern.cols + a.col];
+  for (const DecodedSpot& a : added) {
+    const std::size_t cell = static_cast<std::size_t>(a.row) * pattern.cols + a.col;
+    if (claimed_by[a.spot] < 0 || ids.taken(a.row, a.col) || ids.index_of(a.spot) >= 0) continue;
+    if (cell_claims[cell] > 1) {
+      // the same blob for the same cell from two directions is one claim
+      bool same = true;
+      for (const DecodedSpot& b : added)
+        if (b.row == a.row && b.col == a.col && b.spot != a.spot) same = false;
+      if (!same) continue;
+    }
+    decoded.push_back(a);
+    ids.add(a, static_cast<int>(decoded.size()) - 1);
+    if (named_here) (*named_here)[a.spot] = 1;
+  }
+  // their links to the line beside them, where both ends had none
+  link_identified_neighbours(decoded, spot_at, graph);
+  return decoded;
+}
+
+}  // namespace vision

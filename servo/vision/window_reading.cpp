@@ -1,0 +1,173 @@
+// M-array decoding, step 3: each complete neighbourhood read in the window table (read_windows, its votes),
+// and 1 x N segments read along the epipolar lines with the calibration (read_segments).
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <tuple>
+
+#include "servo/vision/decoder_support.hpp"
+#include "servo/vision/spot_decoder.hpp"
+
+namespace vision {
+using namespace decoder_support;
+
+EpipolarCheck::EpipolarCheck(const EpipolarGeometry& g, const std::vector<Spot>& spots) : geometry(g) {
+  xy.reserve(spots.size());
+  for (const Spot& s : spots) xy.push_back(g.normalise(s.u, s.v));
+}
+
+bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) const {
+  for (int i = 0; i < 9; ++i)
+    if (w[i] >= 0 && !confirms(w[i], {centre.row + i / 3 - 1, centre.col + i % 3 - 1})) return false;
+  return true;
+}
+
+
+
+
+std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
+                                        const pattern::WindowTable& table, const ToleranceOptions& tolerance,
+                                        const EpipolarCheck* check) {
+  std::vector<WindowReading> out;
+  const int k = table.array().colours;
+  for (std::size_t s = 0; s < hoods.window.size(); ++s) {
+    const Window& w = hoods.window[s];
+    std::array<std::uint8_t, 9> colours{};
+    int n_missing = 0;
+    for (int i = 0; i < 9; ++i) {
+      if (w[i] < 0) {
+        ++n_missing;
+        colours[i] = 0;
+      } else {
+        colours[i] = static_cast<std::uint8_t>(spots[w[i]].colour);
+      }
+    }
+    // a window across a depth edge, however it reads, is not one lattice cell (tested after
+    // the code, which is cheaper, rejects most windows)
+    int smooth = -1;
+    const auto is_smooth = [&] {
+      if (smooth < 0) smooth = smooth_window(spots, w);
+      return smooth == 1;
+    };
+    if (n_missing == 0) {
+      if (auto id = table.find(colours.data())) {
+        if (!is_smooth()) continue;
+        // a valid code on the wrong lines is a misread window: rejected, then maybe repaired
+        if (!check || check->confirms(w, *id)) {
+          out.push_back({static_cast<int>(s), *id, false});
+          continue;
+        }
+      }
+    }
+    if (!tolerance.enabled || n_missing > tolerance.max_missing || !is_smooth()) continue;
+    // error-tolerant: exactly one pattern window within one symbol of what was read (and, with
+    // the epipolar check, on the epipolar lines)
+    std::optional<pattern::SpotId> found;
+    int matches = 0, found_wrong = -1;
+    const auto try_window = [&](std::array<std::uint8_t, 9> c, int wrong) {
+      if (auto id = table.find(c.data())) {
+        if (check && !check->confirms(w, *id)) return;
+        if (!found || !(*found == *id)) ++matches;
+        found = id;
+        found_wrong = wrong;
+      }
+    };
+    if (n_missing > 0) {
+      // every fill-in of the missing cells (k^n_missing of them): exactly one may fit
+      std::array<int, 9> holes{};
+      int h = 0;
+      for (int i = 0; i < 9; ++i)
+        if (w[i] < 0) holes[h++] = i;
+      int combos = 1;
+      for (int i = 0; i < h; ++i) combos *= k;
+      for (int m = 0; m < combos; ++m) {
+        auto cc = colours;
+        for (int i = 0, v = m; i < h; ++i, v /= k) cc[holes[i]] = static_cast<std::uint8_t>(v % k);
+        try_window(cc, -1);
+      }
+    } else {
+      for (int i = 0; i < 9; ++i)
+        for (int c = 0; c < k; ++c) {
+          if (c == colours[i]) continue;
+          auto cc = colours;
+          cc[i] = static_cast<std::uint8_t>(c);
+          try_window(cc, i);
+        }
+    }
+    if (matches == 1) out.push_back({static_cast<int>(s), *found, true, found_wrong});
+  }
+  return out;
+}
+
+void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,
+                      std::vector<IdVote>& votes) {
+  for (const WindowReading& r : readings) {
+    const Window& w = hoods.window[r.centre];
+    for (int i = 0; i < 9; ++i)
+      if (w[i] >= 0 && i != r.wrong)  // the misread spot of a corrected window gets no vote from it
+        votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}, r.corrected});
+  }
+}
+
+
+
+void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
+                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes) {
+  const int half = length / 2;
+  if (half < 1) return;
+  // the ids each spot may carry: its colour, on its epipolar line (a handful of the 400)
+  std::vector<std::vector<pattern::SpotId>> by_colour(static_cast<std::size_t>(pattern.colours));
+  for (int r = 0; r < pattern.rows; ++r)
+    for (int c = 0; c < pattern.cols; ++c) by_colour[pattern.at(r, c)].push_back({r, c});
+  std::vector<std::vector<pattern::SpotId>> candidates(spots.size());
+  const auto candidates_of = [&](int i) -> const std::vector<pattern::SpotId>& {
+    auto& out = candidates[i];
+    if (out.empty() && spots[i].colour >= 0 && spots[i].colour < pattern.colours)
+      for (const pattern::SpotId& id : by_colour[spots[i].colour])
+        if (check.confirms(i, id)) out.push_back(id);
+    return out;
+  };
+  std::vector<int> run(static_cast<std::size_t>(2 * half + 1));
+  for (const auto& [forward, back, dr, dc] : {std::tuple{kEast, kWest, 0, 1}, std::tuple{kSouth, kNorth, 1, 0}}) {
+    for (std::size_t s = 0; s < spots.size(); ++s) {
+      // the run centred on s, `half` links each way
+      run[half] = static_cast<int>(s);
+      bool whole = true;
+      for (int m = 1; m <= half && whole; ++m) {
+        run[half + m] = graph.next[run[half + m - 1]][forward];
+        run[half - m] = graph.next[run[half - m + 1]][back];
+        whole = run[half + m] >= 0 && run[half - m] >= 0;
+      }
+      if (!whole) continue;
+      // a run along one surface is smooth: each step close to the one before. At an object's
+      // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
+      bool smooth = true;
+      for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m)
+        smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]]);
+      if (!smooth) continue;
+      // the run read straight along the axis, or sheared by one id across it per step (a
+      // column seen obliquely links diagonal neighbours): a misread run that fits one way
+      // while the truth fits another is ambiguous, and dropped
+      int matches = 0;
+      pattern::SpotId found{};
+      int found_shear = 0;
+      for (const pattern::SpotId& a : candidates_of(static_cast<int>(s)))
+        for (int shear = -1; shear <= 1 && matches <= 1; ++shear) {
+          bool fits = true;
+          for (int m = -half; m <= half && fits; ++m) {
+            if (m == 0) continue;
+            const pattern::SpotId id{a.row + m * dr + shear * m * dc, a.col + m * dc + shear * m * dr};
+            fits = id.row >= 0 && id.col >= 0 && id.row < pattern.rows && id.col < pattern.cols &&
+                   pattern.at(id.row, id.col) == spots[run[half + m]].colour && check.confirms(run[half + m], id);
+          }
+          if (fits && ++matches == 1) found = a, found_shear = shear;
+        }
+      if (matches != 1) continue;
+      for (int m = -half; m <= half; ++m)
+        votes.push_back({run[half + m],
+                         {found.row + m * dr + found_shear * m * dc, found.col + m * dc + found_shear * m * dr}});
+    }
+  }
+}
+
+}  // namespace vision

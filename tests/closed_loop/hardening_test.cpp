@@ -369,7 +369,8 @@ TEST(Hardening, AFloodOfRefusedCommandsIsSaidBoundedAndEscaped) {
   const double bound = 20 + 10 * elapsed_s + 1;
   std::printf("refusal flood: %ld refused, %ld said in %.1f s (bound %.0f); log %zu bytes\n", refused, said, elapsed_s,
               bound, log.size());
-  EXPECT_GT(refused, 400) << "the flood did not reach the cell";
+  // more than the burst and a second of refusals: the code before said every one of them
+  EXPECT_GT(refused, 40) << "the flood did not reach the cell";
   EXPECT_LE(said, bound) << "the log said every refusal";
   if (refused > bound) {
     EXPECT_NE(log.find("refusals not said"), std::string::npos);

@@ -245,7 +245,10 @@ bool prepare_tint(const Cell& cell, const SceneTriangles& tris, std::vector<floa
   const std::size_t n = tris.normal_w.size();
   const std::size_t stride = shading::triangle_stride(2 * n);
   out.assign(stride * 3, 1.0f);  // the arm's links, after the objects: grey
+  // the z-buffer names a plane's first triangle (SceneTriangles::plane_of): only those are read
+  const bool by_plane = tris.plane_of.size() == n;
   for (std::size_t i = 0; i < n; ++i) {
+    if (by_plane && tris.plane_of[i] != static_cast<std::int32_t>(i)) continue;
     const auto o = static_cast<std::size_t>(tris.object[i]);
     if (o >= objects.size()) continue;
     for (int c = 0; c < 3; ++c) out[c * stride + i] = out[c * stride + n + i] = static_cast<float>(objects[o].tint[c]);

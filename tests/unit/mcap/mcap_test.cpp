@@ -34,6 +34,15 @@ std::string slurp(const std::filesystem::path& f) {
   return s.str();
 }
 
+// A file's first bytes: the magic and a header of profile "ros2", library "test".
+std::string magic_and_header() {
+  std::string file(mcap::kMagic, 8);
+  std::string header;
+  mcap::put_string(header, "ros2");
+  mcap::put_string(header, "test");
+  return file + mcap::record(mcap::kHeader, header);
+}
+
 // Two channels, `n` messages alternating between them, in chunks of `chunk_bytes`.
 mcap::WriteSummary write_sample(const std::filesystem::path& f, int n, std::size_t chunk_bytes) {
   std::filesystem::remove(f);
@@ -166,11 +175,7 @@ TEST(Mcap, EveryTruncationAndEveryFlippedByteIsAnErrorOrAReadNeverACrash) {
 }
 
 TEST(Mcap, AMessageOnAnUndefinedChannelAndAChannelOfAnUndefinedSchemaAreRefused) {
-  std::string file(mcap::kMagic, 8);
-  std::string header;
-  mcap::put_string(header, "ros2");
-  mcap::put_string(header, "test");
-  file += mcap::record(mcap::kHeader, header);
+  std::string file = magic_and_header();
   std::string channel;
   mcap::put_u16(channel, 1);
   mcap::put_u16(channel, 7);  // schema 7: never defined
@@ -359,13 +364,8 @@ TEST(Mcap, AFileOverEightGigabytesIsStreamed) {
   const auto f = temp_file("large.mcap");
   std::filesystem::remove(f);
   {
-    std::string head(mcap::kMagic, 8);
-    std::string header;
-    mcap::put_string(header, "ros2");
-    mcap::put_string(header, "test");
-    head += mcap::record(mcap::kHeader, header);
     std::ofstream out(f, std::ios::binary);
-    out << head;
+    out << magic_and_header();
     const std::uint64_t len = 200ull << 20;
     for (int i = 0; i < 48; ++i) {
       std::string r(1, static_cast<char>(mcap::kAttachment));
@@ -391,20 +391,12 @@ TEST(Mcap, AFileOverEightGigabytesIsStreamed) {
 }
 
 TEST(Mcap, OpcodeZeroIsRefusedAtOnce) {
-  std::string file(mcap::kMagic, 8);
-  std::string header;
-  mcap::put_string(header, "ros2");
-  mcap::put_string(header, "test");
-  file += mcap::record(mcap::kHeader, header);
+  std::string file = magic_and_header();
   expect_format_error(file + std::string(1 << 20, '\0'), "offset " + std::to_string(file.size()) + ": opcode 0");
 }
 
 TEST(Mcap, AnErrorInsideAChunkNamesTheRecordsOwnOffset) {
-  std::string file(mcap::kMagic, 8);
-  std::string header;
-  mcap::put_string(header, "ros2");
-  mcap::put_string(header, "test");
-  file += mcap::record(mcap::kHeader, header);
+  std::string file = magic_and_header();
   std::string inner;
   inner += mcap::record(mcap::kMetadata, std::string(8, '\0'));  // not allowed inside a chunk
   std::string chunk;

@@ -326,12 +326,111 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
   }
 }
 
+// The kernel of the widest vector unit the scratch allows and the CPU has.
+auto shading_kernel(const RenderScratch& s) {
+  const VectorUnit unit = vector_unit(s.scalar, s.avx512);
+  return unit == VectorUnit::kAvx512 ? shading::shade_rows_avx512
+         : unit == VectorUnit::kAvx2 ? shading::shade_rows_avx2
+                                     : shading::shade_rows_scalar;
+}
+
+// The frame's projector (defocus, spot grid, colours seen through the sensor's crosstalk, the
+// camera-to-projector pose) and sensor numbers (gain, noise). `colour` holds the colour
+// tables the frame points to.
+void projector_and_sensor(const Cell& cell, const CameraSpec& cam, const Eigen::Isometry3d& world_T_camera,
+                          std::uint64_t noise_seed, std::array<float, shading::kSymbolLut> (&colour)[3],
+                          shading::Frame& f) {
+  const Intrinsics& k = cell.scenario.camera.intrinsics;
+  const Projector& proj = *cell.projector;
+  const ProjectorSpec& ps = proj.spec();
+  f.focused_blur = static_cast<float>(ps.focused_blur_px);
+  f.defocus_per_m = static_cast<float>(ps.defocus_px_per_m);
+  f.focus_near = static_cast<float>(ps.focus_near_m);
+  f.focus_far = static_cast<float>(ps.focus_far_m);
+  f.pixel_scale = static_cast<float>(ps.intrinsics.fx / k.fx);
+  f.radius = static_cast<float>(ps.spot_radius_px);
+  const pattern::MArray& pat = proj.pattern();
+  const Eigen::Vector2d origin = proj.spot_pixel(0, 0);
+  f.grid_x0 = static_cast<float>(origin.x());
+  f.grid_y0 = static_cast<float>(origin.y());
+  f.pitch = static_cast<float>(ps.spot_pitch_px);
+  f.inv_pitch = static_cast<float>(1.0 / ps.spot_pitch_px);
+  f.rows = pat.rows;
+  f.cols = pat.cols;
+  f.spot_symbol = cell.spot_symbol.data();
+  for (int i = 0; i < 10; ++i) {
+    const pattern::Rgb c = pattern::symbol_colour(i);
+    const Eigen::Vector3f raw(c.r / 255.f, c.g / 255.f, c.b / 255.f);
+    const float x = static_cast<float>(cam.crosstalk);
+    // the sensor's channel crosstalk
+    const Eigen::Vector3f seen = (1 - 2 * x) * raw + x * Eigen::Vector3f(raw.y() + raw.z(), raw.x() + raw.z(), raw.x() + raw.y());
+    for (int ch = 0; ch < 3; ++ch) colour[ch][static_cast<std::size_t>(i)] = seen[ch];
+  }
+  f.colour_r = colour[0].data();
+  f.colour_g = colour[1].data();
+  f.colour_b = colour[2].data();
+  for (int j = 0; j < 4; ++j) f.edge[j] = edge_profile().c[j].data();
+  // the camera-to-projector pose, the projector's intrinsics folded in: u_p = h_0 / h_2, ...
+  const Eigen::Isometry3d p_T_c = proj.projector_T_world() * world_T_camera;
+  Eigen::Matrix<double, 3, 4> m;
+  m << p_T_c.linear(), p_T_c.translation();
+  const Intrinsics& kp = ps.intrinsics;
+  const Eigen::Matrix<double, 3, 4> km =
+      (Eigen::Matrix3d() << kp.fx, 0, kp.cx, 0, kp.fy, kp.cy, 0, 0, 1).finished() * m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) f.m[r][c] = static_cast<float>(km(r, c));
+  const Eigen::Vector3d q = world_T_camera.inverse() * ps.world_T_projector.translation();
+  f.qx = static_cast<float>(q.x());
+  f.qy = static_cast<float>(q.y());
+  f.qz = static_cast<float>(q.z());
+  f.gain = static_cast<float>(255.0 * cam.exposure);
+  f.read_var = static_cast<float>(cam.noise_sigma * cam.noise_sigma);
+  f.shot = static_cast<float>(cam.shot_noise);
+  f.noisy = cam.noise_sigma > 0 || cam.shot_noise > 0;
+  f.noise_pool = cell.noise_pool.data();
+  f.noise_span = static_cast<std::uint32_t>(cell.noise_pool.size() - shading::kNoiseChunk + 1);
+  f.noise_seed = noise_seed;
+}
+
+// Each band's z-buffer rows (the rows its image rows look up) and, in s.band_screen, the
+// polygons that meet them in order: a band's fill then visits its own, not every polygon of the
+// frame.
+std::vector<std::pair<int, int>> polygons_by_band(const Cell::Lens& lens, int height, int band_height, int bands,
+                                                  RenderScratch& s) {
+  std::vector<std::pair<int, int>> band_rows(static_cast<std::size_t>(bands));
+  s.band_screen.resize(static_cast<std::size_t>(bands));
+  for (int b = 0; b < bands; ++b) {
+    const int v0 = b * band_height, v1 = std::min(height, v0 + band_height);
+    band_rows[static_cast<std::size_t>(b)] = {*std::min_element(lens.zrow_lo.begin() + v0, lens.zrow_lo.begin() + v1),
+                                              *std::max_element(lens.zrow_hi.begin() + v0, lens.zrow_hi.begin() + v1)};
+    s.band_screen[static_cast<std::size_t>(b)].clear();
+  }
+  // bands whose rows rise with the band (any lens that keeps the image's rows in order): from
+  // the first band reaching a polygon's top row to the last its bottom row reaches; else all
+  bool rising = true;
+  for (int b = 1; b < bands; ++b)
+    rising = rising && band_rows[static_cast<std::size_t>(b)].first >= band_rows[static_cast<std::size_t>(b - 1)].first &&
+             band_rows[static_cast<std::size_t>(b)].second >= band_rows[static_cast<std::size_t>(b - 1)].second;
+  for (std::size_t i = 0; i < s.screen.size(); ++i) {
+    const ScreenTriangle& t = s.screen[i];
+    int b = 0;
+    if (rising)
+      b = static_cast<int>(std::partition_point(band_rows.begin(), band_rows.end(),
+                                                [&](const std::pair<int, int>& r) { return r.second < t.y0; }) -
+                           band_rows.begin());
+    for (; b < bands; ++b) {
+      const auto [z0, z1] = band_rows[static_cast<std::size_t>(b)];
+      if (rising && z0 > t.y1) break;
+      if (t.y1 >= z0 && t.y0 <= z1) s.band_screen[static_cast<std::size_t>(b)].push_back(static_cast<std::int32_t>(i));
+    }
+  }
+  return band_rows;
+}
+
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
                      RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links) {
   const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
   const Intrinsics& k = cell.scenario.camera.intrinsics;  // the lens is the cell's, whatever the sensor
-  const Projector& proj = *cell.projector;
-  const ProjectorSpec& ps = proj.spec();
 
   RenderScratch local;
   RenderScratch& s = scratch ? *scratch : local;
@@ -368,59 +467,10 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
     s.arm_beam_depth = beam_window(*scene.arm_projector_depth, cell.beam);
     f.arm_depth = beam_view(cell, s.arm_beam_depth);
   }
-  f.focused_blur = static_cast<float>(ps.focused_blur_px);
-  f.defocus_per_m = static_cast<float>(ps.defocus_px_per_m);
-  f.focus_near = static_cast<float>(ps.focus_near_m);
-  f.focus_far = static_cast<float>(ps.focus_far_m);
-  f.pixel_scale = static_cast<float>(ps.intrinsics.fx / k.fx);
-  f.radius = static_cast<float>(ps.spot_radius_px);
-  const pattern::MArray& pat = proj.pattern();
-  const Eigen::Vector2d origin = proj.spot_pixel(0, 0);
-  f.grid_x0 = static_cast<float>(origin.x());
-  f.grid_y0 = static_cast<float>(origin.y());
-  f.pitch = static_cast<float>(ps.spot_pitch_px);
-  f.inv_pitch = static_cast<float>(1.0 / ps.spot_pitch_px);
-  f.rows = pat.rows;
-  f.cols = pat.cols;
-  f.spot_symbol = cell.spot_symbol.data();
   std::array<float, shading::kSymbolLut> colour[3]{};
-  for (int i = 0; i < 10; ++i) {
-    const pattern::Rgb c = pattern::symbol_colour(i);
-    const Eigen::Vector3f raw(c.r / 255.f, c.g / 255.f, c.b / 255.f);
-    const float x = static_cast<float>(cam.crosstalk);
-    // the sensor's channel crosstalk
-    const Eigen::Vector3f seen = (1 - 2 * x) * raw + x * Eigen::Vector3f(raw.y() + raw.z(), raw.x() + raw.z(), raw.x() + raw.y());
-    for (int ch = 0; ch < 3; ++ch) colour[ch][static_cast<std::size_t>(i)] = seen[ch];
-  }
-  f.colour_r = colour[0].data();
-  f.colour_g = colour[1].data();
-  f.colour_b = colour[2].data();
-  for (int j = 0; j < 4; ++j) f.edge[j] = edge_profile().c[j].data();
-  // the camera-to-projector pose, the projector's intrinsics folded in: u_p = h_0 / h_2, ...
-  const Eigen::Isometry3d p_T_c = proj.projector_T_world() * world_T_camera;
-  Eigen::Matrix<double, 3, 4> m;
-  m << p_T_c.linear(), p_T_c.translation();
-  const Intrinsics& kp = ps.intrinsics;
-  const Eigen::Matrix<double, 3, 4> km =
-      (Eigen::Matrix3d() << kp.fx, 0, kp.cx, 0, kp.fy, kp.cy, 0, 0, 1).finished() * m;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) f.m[r][c] = static_cast<float>(km(r, c));
-  const Eigen::Vector3d q = world_T_camera.inverse() * ps.world_T_projector.translation();
-  f.qx = static_cast<float>(q.x());
-  f.qy = static_cast<float>(q.y());
-  f.qz = static_cast<float>(q.z());
-  f.gain = static_cast<float>(255.0 * cam.exposure);
-  f.read_var = static_cast<float>(cam.noise_sigma * cam.noise_sigma);
-  f.shot = static_cast<float>(cam.shot_noise);
-  f.noisy = cam.noise_sigma > 0 || cam.shot_noise > 0;
-  f.noise_pool = cell.noise_pool.data();
-  f.noise_span = static_cast<std::uint32_t>(cell.noise_pool.size() - shading::kNoiseChunk + 1);
-  f.noise_seed = noise_seed;
+  projector_and_sensor(cell, cam, world_T_camera, noise_seed, colour, f);
 
-  const VectorUnit unit = vector_unit(s.scalar, s.avx512);
-  const auto shade = unit == VectorUnit::kAvx512 ? shading::shade_rows_avx512
-                     : unit == VectorUnit::kAvx2 ? shading::shade_rows_avx2
-                                                 : shading::shade_rows_scalar;
+  const auto shade = shading_kernel(s);
   // Band by band: the z-buffer rows a band of image rows looks up are filled, then shaded
   // while they are in the cache (a whole frame's z-buffer is 2.6 MB; a band's 0.2-0.75 MB). A band
   // of the z-buffer holds what the whole one would, and a row's bytes depend only on the frame
@@ -430,35 +480,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   const int workers = s.threads == 1 ? 1 : std::max(1, cv::getNumThreads());
   const int band_height = workers == 1 ? kBandRowsOneThread : kBandRowsShared;
   const int bands = (k.height + band_height - 1) / band_height;
-  // each band's z-buffer rows, and the polygons that meet them (in order): a band's fill then
-  // visits its own, not every polygon of the frame
-  std::vector<std::pair<int, int>> band_rows(static_cast<std::size_t>(bands));
-  s.band_screen.resize(static_cast<std::size_t>(bands));
-  for (int b = 0; b < bands; ++b) {
-    const int v0 = b * band_height, v1 = std::min(k.height, v0 + band_height);
-    band_rows[static_cast<std::size_t>(b)] = {*std::min_element(lens.zrow_lo.begin() + v0, lens.zrow_lo.begin() + v1),
-                                              *std::max_element(lens.zrow_hi.begin() + v0, lens.zrow_hi.begin() + v1)};
-    s.band_screen[static_cast<std::size_t>(b)].clear();
-  }
-  // bands whose rows rise with the band (any lens that keeps the image's rows in order): from
-  // the first band reaching a polygon's top row to the last its bottom row reaches; else all
-  bool rising = true;
-  for (int b = 1; b < bands; ++b)
-    rising = rising && band_rows[static_cast<std::size_t>(b)].first >= band_rows[static_cast<std::size_t>(b - 1)].first &&
-             band_rows[static_cast<std::size_t>(b)].second >= band_rows[static_cast<std::size_t>(b - 1)].second;
-  for (std::size_t i = 0; i < s.screen.size(); ++i) {
-    const ScreenTriangle& t = s.screen[i];
-    int b = 0;
-    if (rising)
-      b = static_cast<int>(std::partition_point(band_rows.begin(), band_rows.end(),
-                                                [&](const std::pair<int, int>& r) { return r.second < t.y0; }) -
-                           band_rows.begin());
-    for (; b < bands; ++b) {
-      const auto [z0, z1] = band_rows[static_cast<std::size_t>(b)];
-      if (rising && z0 > t.y1) break;
-      if (t.y1 >= z0 && t.y0 <= z1) s.band_screen[static_cast<std::size_t>(b)].push_back(static_cast<std::int32_t>(i));
-    }
-  }
+  const std::vector<std::pair<int, int>> band_rows = polygons_by_band(lens, k.height, band_height, bands, s);
   const auto shade_bands = [&](const cv::Range& range) {
     // each thread's own band buffers, kept from frame to frame (no allocation per frame)
     thread_local DepthBuffer depth;

@@ -89,18 +89,6 @@ inline void add_spot(const Frame& f, typename L::M m, typename L::I row, typenam
   b = L::add(b, L::mul(e, L::lut16(f.colour_b, s)));
 }
 
-// A coloured surface returns each channel's share of the light its brightest channel returns
-// (Frame::tint, `fields` apart per channel), the lanes' triangles `tri`; no triangle: as it is.
-template <class L>
-inline void tint(const float* tint, std::size_t fields, typename L::I tri, typename L::F& r, typename L::F& g,
-                 typename L::F& b) {
-  const typename L::M has = L::lei(L::seti(0), tri);
-  const typename L::F one = L::set(1.0f);
-  r = L::mul(r, L::sel(has, L::gather(tint, tri, has), one));
-  g = L::mul(g, L::sel(has, L::gather(tint + fields, tri, has), one));
-  b = L::mul(b, L::sel(has, L::gather(tint + 2 * fields, tri, has), one));
-}
-
 // Light arriving at the lanes' surface points from the spots within reach, added to r, g, b.
 // A spot lights a point when the point lies within its reach (radius + 3 sigma) on the
 // projector's plane; the spots are added row by row, column by column.
@@ -351,7 +339,14 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       if (L::any(lit))
         add_spots<L>(f, lit, L::load(pu_row + u), L::load(pv_row + u), L::load(sigma_row + u), L::load(weight_row + u),
                      r, g, b);
-      if (f.tint) tint<L>(f.tint, fields, L::loadi(tri_row + u), r, g, b);
+      if (f.tint) {
+        // a coloured surface returns each channel's share of the light its brightest returns
+        const I tri = L::loadi(tri_row + u);
+        const M has = L::lei(L::seti(0), tri);
+        r = L::mul(r, L::sel(has, L::gather(f.tint, tri, has), L::set(1.0f)));
+        g = L::mul(g, L::sel(has, L::gather(f.tint + fields, tri, has), L::set(1.0f)));
+        b = L::mul(b, L::sel(has, L::gather(f.tint + 2 * fields, tri, has), L::set(1.0f)));
+      }
       const F rgb[3] = {r, g, b};
       I out[3];
       const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);

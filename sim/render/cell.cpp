@@ -145,6 +145,7 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
         cell->arm_meshes.add(m.chain[i].shape.visual, static_cast<int>(i) + 1, m.chain[i].shape.albedo);
   }
   cell->triangles = collect_triangles(cell->world);
+  cell->textures = pool_textures(cell->world);
 
   pattern::MArray marray = pattern::load_pattern(scenario.projector.pattern, {3, 3});
   cell->projector = std::make_unique<Projector>(scenario.projector, std::move(marray));

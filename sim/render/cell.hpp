@@ -10,6 +10,7 @@
 #include "sim/render/camera_model.hpp"
 #include "sim/render/projector.hpp"
 #include "sim/render/rasterizer.hpp"
+#include "sim/render/texturing.hpp"
 #include "sim/arm/arm_scenario.hpp"
 #include "sim/scenario/scenario.hpp"
 #include "sim/scene/world.hpp"
@@ -33,6 +34,7 @@ struct Cell {
   Scenario scenario;
   World world;
   SceneTriangles triangles;
+  TexturePool textures;  // the objects' textures, for the shading kernel
   std::unique_ptr<Projector> projector;
   std::unique_ptr<CameraModel> camera;
   // static while the world is: the projector's view (its shadow map) and its spots' hits

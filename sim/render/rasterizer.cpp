@@ -349,10 +349,36 @@ int closed_orientation(const std::vector<Eigen::Vector3d>& vertices, const std::
   return volume > 0 ? 1 : volume < 0 ? -1 : 0;
 }
 
+Eigen::Matrix<double, 2, 4> texture_map(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                        const std::array<Eigen::Vector2d, 3>& uv) {
+  // x = a + s e1 + t e2 on the plane; s and t from the dual basis of (e1, e2) in it
+  const Eigen::Vector3d e1 = b - a, e2 = c - a, n = e1.cross(e2);
+  const double nn = n.squaredNorm();
+  const Eigen::Vector3d ds = e2.cross(n) / nn, dt = n.cross(e1) / nn;
+  Eigen::Matrix<double, 2, 3> m = (uv[1] - uv[0]) * ds.transpose() + (uv[2] - uv[0]) * dt.transpose();
+  Eigen::Matrix<double, 2, 4> out;
+  out.leftCols<3>() = m;
+  out.col(3) = uv[0] - m * a;
+  return out;
+}
+
+namespace {
+// Whether the next triangle may shade as the same surface as the one before, as far as the
+// texture goes: both untextured, or both textured with one map
+bool same_texturing(const SceneTriangles& t, std::size_t p) {
+  if (t.textured.size() <= p + 1) return t.textured.size() <= p || !t.textured[p];
+  if (t.textured[p] != t.textured[p + 1]) return false;
+  return !t.textured[p] || (t.uv_map[p] - t.uv_map[p + 1]).cwiseAbs().maxCoeff() <= 1e-9 * (1 + t.uv_map[p].cwiseAbs().maxCoeff());
+}
+}  // namespace
+
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t, int outward) {
+                      const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& t, int outward,
+                      const std::vector<std::array<Eigen::Vector2d, 3>>* corner_uv,
+                      const std::vector<std::uint8_t>* textured) {
   const auto base = static_cast<std::int32_t>(t.vertex_w.size());
   for (const Eigen::Vector3d& v : vertices) t.vertex_w.push_back(world_T_mesh * v);
+  const bool mapped = corner_uv && textured && corner_uv->size() == triangles.size() && textured->size() == triangles.size();
   const std::array<int, 3>* previous = nullptr;  // the last triangle kept
   for (const auto& tri : triangles) {
     const Eigen::Vector3d& a = t.vertex_w[static_cast<std::size_t>(base + tri[0])];
@@ -371,6 +397,13 @@ void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::v
     t.outward.push_back(static_cast<std::int8_t>(outward));
     t.quad_extra.push_back(-1);
     t.quad_edge.push_back(-1);
+    if (mapped) {
+      const std::size_t j = static_cast<std::size_t>(&tri - triangles.data());
+      t.textured.resize(t.a.size() - 1, 0);
+      t.uv_map.resize(t.a.size() - 1, Eigen::Matrix<double, 2, 4>::Zero());
+      t.textured.push_back((*textured)[j]);
+      t.uv_map.push_back((*textured)[j] ? texture_map(a, b, c, (*corner_uv)[j]) : Eigen::Matrix<double, 2, 4>::Zero());
+    }
     const auto i = static_cast<std::int32_t>(t.a.size() - 1);
     std::int32_t plane = i;
     if (previous) {
@@ -378,7 +411,8 @@ void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::v
       for (int a : tri)
         for (int b : *previous) shared += a == b;
       const std::size_t p = static_cast<std::size_t>(i - 1);
-      if (shared == 2 && t.normal_w[p].dot(t.normal_w.back()) > 1 - 1e-12 && std::abs(t.offset[p] - t.offset.back()) < 1e-12) {
+      if (shared == 2 && t.normal_w[p].dot(t.normal_w.back()) > 1 - 1e-12 && std::abs(t.offset[p] - t.offset.back()) < 1e-12 &&
+          same_texturing(t, p)) {
         plane = t.plane_of[p];
         // the quad the two make: the vertices they have in common, by position
         const Eigen::Vector3d* w[3] = {&t.a[p + 1], &t.b[p + 1], &t.c[p + 1]};
@@ -422,7 +456,8 @@ SceneTriangles collect_triangles(const World& world) {
   const auto& objects = world.objects();
   for (std::size_t o = 0; o < objects.size(); ++o)
     append_triangles(objects[o].vertices_w, objects[o].triangles, Eigen::Isometry3d::Identity(), static_cast<int>(o),
-                     static_cast<float>(objects[o].albedo), t, closed_orientation(objects[o].vertices_w, objects[o].triangles));
+                     static_cast<float>(objects[o].albedo), t, closed_orientation(objects[o].vertices_w, objects[o].triangles),
+                     objects[o].texture ? &objects[o].corner_uv : nullptr, objects[o].texture ? &objects[o].textured : nullptr);
   return t;
 }
 

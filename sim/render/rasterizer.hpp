@@ -37,6 +37,11 @@ struct SceneTriangles {
   // common): the next one's vertex that is not i's (0-2) and i's edge they share (from its
   // vertex e to e + 1); -1 otherwise
   std::vector<std::int8_t> quad_extra, quad_edge;
+  // Textured triangles (World::Object::texture): 1 where triangle i is, and the affine map from
+  // a world point x to its texture coordinates, (u, v) = uv_map[i] (x, 1). Sized up to the last
+  // textured mesh's triangles (empty when none is): a triangle beyond is untextured.
+  std::vector<std::uint8_t> textured;
+  std::vector<Eigen::Matrix<double, 2, 4>> uv_map;
 };
 
 // Where a point `p` of a viewer's frame lands on its image through the ideal pinhole `k` (pixels).
@@ -148,9 +153,16 @@ void rasterize_more(const SceneTriangles& tris, std::size_t first, const Eigen::
                     bool avx512 = true, bool cull = false);
 // The cells of `d` inside `window` (inclusive), row by row: 1/z, 0 where nothing.
 std::vector<float> beam_window(const DepthBuffer& d, const RasterClip& window);
-// Appends a mesh placed at world_T_mesh, as object `object` with `albedo`.
+// Appends a mesh placed at world_T_mesh, as object `object` with `albedo`; `corner_uv` and
+// `textured` (TriangleMesh's), when given, map its textured triangles.
 void append_triangles(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& triangles,
                       const Eigen::Isometry3d& world_T_mesh, int object, float albedo, SceneTriangles& out,
-                      int outward = 0);
+                      int outward = 0, const std::vector<std::array<Eigen::Vector2d, 3>>* corner_uv = nullptr,
+                      const std::vector<std::uint8_t>* textured = nullptr);
+
+// The affine map from a point of triangle (a, b, c) to the texture coordinates that its
+// corners' `uv` interpolate: (u, v) = M (x, 1), exact on the triangle's plane.
+Eigen::Matrix<double, 2, 4> texture_map(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                        const std::array<Eigen::Vector2d, 3>& uv);
 
 }  // namespace sim

@@ -256,6 +256,17 @@ bool prepare_tint(const Cell& cell, const SceneTriangles& tris, std::vector<floa
   return true;
 }
 
+// The frame's coloured and textured surfaces (Frame::tint, texture_map, texel, texels).
+void surface_colours(const Cell& cell, const SceneTriangles& tris, const Eigen::Isometry3d& world_T_camera,
+                     RenderScratch& s, shading::Frame& f) {
+  f.tint = prepare_tint(cell, tris, s.tint) ? s.tint.data() : nullptr;
+  if (prepare_texture(cell.world, cell.textures, tris, world_T_camera, s.texture)) {
+    f.texture_map = s.texture.map.data();
+    f.texel = s.texture.texel.data();
+    f.texels = cell.textures.texels.data();
+  }
+}
+
 }  // namespace
 
 // A pixel the z-buffer gives to a triangle looks along a ray within half a pixel of the
@@ -458,7 +469,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   f.ray_x = cell.lens.ray_x.data();
   f.ray_y = cell.lens.ray_y.data();
   f.triangles = s.triangles.data();
-  f.tint = prepare_tint(cell, tris, s.tint) ? s.tint.data() : nullptr;
+  surface_colours(cell, tris, world_T_camera, s, f);
   f.triangle_count = 2 * tris.normal_w.size();
   f.outside_from = n_tris;
   f.projector_depth = beam_view(cell, cell.beam_depth);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sim/render/cell.hpp"
+#include "sim/render/texturing.hpp"
 
 namespace sim {
 
@@ -52,6 +53,7 @@ struct RenderScratch {
   std::vector<std::vector<std::int32_t>> band_screen;  // per band of rows: the ones its z-buffer rows meet
   std::vector<float> triangles;  // each triangle's vectors for this pose (shading.hpp)
   std::vector<float> tint;       // each triangle's colour (Frame::tint), when a surface is coloured
+  TextureFrame texture;          // each textured triangle's map (Frame::texture_map), when one is
   std::vector<float> arm_beam_depth;  // the arm's projector depth over Cell::beam
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
   bool scalar = false;

@@ -37,6 +37,11 @@ enum TriangleField {
 // a field's length for n triangles: 32 beyond the last, so that a run of 32 from any triangle
 // can be loaded
 constexpr std::size_t triangle_stride(std::size_t n) { return n + 32; }
+
+// A textured triangle's prepared numbers (sim/render/texturing.hpp), laid out as the
+// triangles' fields: its plane's G (1/z = G . r for the pixel's ray r), then the texture
+// coordinates u = (A_u . r) / (G . r) + k_u and v likewise.
+enum TextureField { kTexG0, kTexG1, kTexG2, kTexAu0, kTexAu1, kTexAu2, kTexKu, kTexAv0, kTexAv1, kTexAv2, kTexKv, kTextureFields };
 constexpr int kSymbolLut = 16;       // colour tables' entries; kUnlitSymbol has colour 0
 constexpr int kUnlitSymbol = 15;
 constexpr int kNoiseChunk = 64;      // pixels per noise run
@@ -76,6 +81,12 @@ struct Frame {
   // the triangle's albedo (the ambient and K above carry its brightest channel's); null where
   // every surface is grey
   const float* tint = nullptr;
+  // textured surfaces, null where none is: kTextureFields x triangle_stride(triangle_count);
+  // texel: 3 x the same, each triangle's texture (its first texel in `texels`, -1: untextured;
+  // its width; its height); texels: every texture's R, G and B planes, rows from the top
+  const float* texture_map = nullptr;
+  const std::int32_t* texel = nullptr;
+  const float* texels = nullptr;
   std::size_t triangle_count = 0;
   // ids from here on: a plane's triangles outside the projector's beam this frame (their
   // numbers: the ambient light, G = 0); the kernel gives their pixels the ambient light alone

@@ -155,6 +155,38 @@ inline typename L::M shadowed(const float* inv_depth, typename L::I at, typename
   return L::mand(L::gt(q, L::set(0.0f)), L::gt(L::mul(z, q), limit));
 }
 
+// A textured surface's colour at the lanes' pixels (rays dx, dy; triangles `tri`), multiplied
+// into r, g, b: the texel nearest to the point's texture coordinates, repeated beyond [0, 1)
+// (sim::texel_at's rule). Lanes of untextured triangles keep their light.
+template <class L>
+inline void apply_texture(const Frame& f, typename L::I tri, typename L::F dx, typename L::F dy, typename L::F& r,
+                          typename L::F& g, typename L::F& b) {
+  using F = typename L::F;
+  using I = typename L::I;
+  const std::size_t fields = triangle_stride(f.triangle_count);
+  const I first = L::gatheri(f.texel, tri, L::lei(L::seti(0), tri));
+  const typename L::M tex = L::lei(L::seti(0), first);
+  if (!L::any(tex)) return;
+  const auto field = [&](int k) { return L::gather(f.texture_map + static_cast<std::size_t>(k) * fields, tri, tex); };
+  const auto dot = [&](int k) { return L::add(L::add(L::mul(field(k), dx), L::mul(field(k + 1), dy)), field(k + 2)); };
+  const F z = L::div(L::set(1.0f), dot(kTexG0));
+  const F tu = L::add(L::mul(dot(kTexAu0), z), field(kTexKu));
+  const F tv = L::add(L::mul(dot(kTexAv0), z), field(kTexKv));
+  // the fractions (anything not finite turns into a far index, clamped below)
+  const F fu = L::sub(tu, L::cvt(floor_int<L>(tu)));
+  const F fv = L::sub(tv, L::cvt(floor_int<L>(tv)));
+  const I w = L::gatheri(f.texel + fields, tri, tex), h = L::gatheri(f.texel + 2 * fields, tri, tex);
+  const I zero = L::seti(0), one = L::seti(1);
+  const I x = L::maxi(zero, L::mini(L::cvtt(L::mul(fu, L::cvt(w))), L::subi(w, one)));
+  const I y = L::maxi(zero, L::mini(L::cvtt(L::mul(L::sub(L::set(1.0f), fv), L::cvt(h))), L::subi(h, one)));
+  const I at = L::addi(first, L::addi(L::muli(y, w), x));
+  const I plane = L::muli(w, h);
+  const F keep = L::set(1.0f);
+  r = L::mul(r, L::sel(tex, L::gather(f.texels, at, tex), keep));
+  g = L::mul(g, L::sel(tex, L::gather(f.texels, L::addi(at, plane), tex), keep));
+  b = L::mul(b, L::sel(tex, L::gather(f.texels, L::addi(at, L::addi(plane, plane)), tex), keep));
+}
+
 // Added to a projector depth cell (fewer than 2^30) where the point's plane is never in the
 // static scene's shadow: the static lookup is skipped there.
 constexpr int kFreeCell = 1 << 30;
@@ -347,6 +379,8 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
         g = L::mul(g, L::sel(has, L::gather(f.tint + fields, tri, has), L::set(1.0f)));
         b = L::mul(b, L::sel(has, L::gather(f.tint + 2 * fields, tri, has), L::set(1.0f)));
       }
+      if (f.texel)
+        apply_texture<L>(f, L::loadi(tri_row + u), L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
       const F rgb[3] = {r, g, b};
       I out[3];
       const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);

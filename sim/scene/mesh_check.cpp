@@ -132,7 +132,11 @@ MeshFileCounts check_obj(const std::filesystem::path& p, const std::string& data
           fail(p, at + "face corner '" + shown(t) + "' refers to no vertex (" + std::to_string(nv) + " vertices)");
       }
       add_triangles(p, c, toks.size());
-    } else if (key == "o" || key == "g" || key == "s" || key == "usemtl" || key == "mtllib") {
+    } else if (key == "mtllib") {
+      // read by the loader from the mesh's folder alone (MeshFolderIO), so named plainly
+      if (toks.size() != 1) fail(p, at + "'mtllib' takes one plain file name");
+      side_file(p, toks[0], ".mtl");
+    } else if (key == "o" || key == "g" || key == "s" || key == "usemtl") {
       // names, smoothing groups, materials: nothing to check (lines and points, 'l' and 'p',
       // are refused: assimp 5.2's triangulation asserts on them and aborts the process)
     } else {
@@ -402,6 +406,47 @@ MeshFileCounts check_mesh_data(const std::filesystem::path& path, const std::str
   if (ext == ".ply") return check_ply(path, data);
   if (ext == ".stl") return check_stl(path, data);
   fail(path, "unsupported mesh format '" + shown(ext) + "' (use .obj, .ply or .stl)");
+}
+
+std::filesystem::path side_file(const std::filesystem::path& mesh, const std::string& name, const std::string& extension) {
+  const bool plain = !name.empty() && name.size() <= kMaxSideFileName && name[0] != '.' &&
+                     name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.") ==
+                         std::string::npos;
+  if (!plain)
+    fail(mesh, "'" + shown(name) + "': a material or texture must be a plain file name beside the mesh (letters, digits, _ - .)");
+  if (lower(std::filesystem::path(name).extension().string()) != extension)
+    fail(mesh, "'" + shown(name) + "': expected a " + extension + " file");
+  return mesh.parent_path() / name;
+}
+
+void check_material_data(const std::filesystem::path& path, const std::string& data) {
+  check_text(path, data, 0, data.size());
+  std::istringstream in(data);
+  std::string line;
+  for (std::size_t n = 1; std::getline(in, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string key;
+    if (!(ls >> key) || key[0] == '#') continue;
+    const std::string at = "line " + std::to_string(n) + ": ";
+    std::vector<std::string> toks;
+    for (std::string t; ls >> t && toks.size() <= 4;) toks.push_back(t);
+    if (key == "newmtl") {
+      if (toks.size() != 1 || toks[0].size() > kMaxSideFileName) fail(path, at + "'newmtl' takes one name");
+    } else if (key == "map_Kd") {
+      if (toks.size() != 1) fail(path, at + "'map_Kd' takes one plain file name (no options)");
+      side_file(path, toks[0], ".png");
+    } else if (key == "Ka" || key == "Kd" || key == "Ks" || key == "Ke" || key == "Tf" || key == "Ns" || key == "Ni" ||
+               key == "d" || key == "Tr" || key == "illum") {
+      if (toks.empty() || toks.size() > 3) fail(path, at + "'" + key + "' takes 1 to 3 numbers");
+      for (const auto& t : toks) {
+        double v;
+        if (!parse_double(t, v)) fail(path, at + "'" + shown(t) + "' is not a finite number");
+      }
+    } else {
+      fail(path, at + "unknown material statement '" + shown(key) + "'");
+    }
+  }
 }
 
 MeshFileCounts check_mesh_file(const std::filesystem::path& path) { return check_mesh_data(path, read_mesh_file(path)); }

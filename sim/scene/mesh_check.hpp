@@ -30,4 +30,15 @@ MeshFileCounts check_mesh_file(const std::filesystem::path& path);
 std::string read_mesh_file(const std::filesystem::path& path);
 MeshFileCounts check_mesh_data(const std::filesystem::path& path, const std::string& data);
 
+// An OBJ's material library (`mtllib NAME`) and a material's texture (`map_Kd NAME`) are read
+// only from the mesh's own folder and named by a plain file name: no folder, no leading dot,
+// at most kMaxSideFileName bytes of letters, digits, '_', '-' and '.'; with the extension
+// `extension` (".mtl", ".png"). Returns the path beside `mesh`; throws MeshError naming both.
+inline constexpr std::size_t kMaxSideFileName = 128;
+inline constexpr std::uintmax_t kMaxMaterialFileBytes = 1u << 20;
+std::filesystem::path side_file(const std::filesystem::path& mesh, const std::string& name, const std::string& extension);
+// A material library's text, walked before assimp reads it: printable lines of known
+// statements (newmtl, Ka, Kd, Ks, Ke, Ns, Ni, d, Tr, Tf, illum, map_Kd with one plain name).
+void check_material_data(const std::filesystem::path& path, const std::string& data);
+
 }  // namespace sim

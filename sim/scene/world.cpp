@@ -53,6 +53,9 @@ int World::add_object(const TriangleMesh& mesh, const Eigen::Isometry3d& world_T
   o.albedo = albedo.maxCoeff();
   if (o.albedo > 0) o.tint = albedo / o.albedo;  // exactly 1 per channel where grey
   o.triangles = mesh.triangles;
+  o.texture = mesh.texture;
+  o.corner_uv = mesh.corner_uv;
+  o.textured = mesh.textured;
   o.vertices_w.reserve(mesh.vertices.size());
   for (const auto& v : mesh.vertices) o.vertices_w.push_back(world_T_object * v);
   objects_.push_back(std::move(o));

@@ -42,6 +42,10 @@ class World {
     // each channel's share of it (albedo_c / albedo), 1 for a grey surface: the renderer
     // multiplies a pixel's light by it, per channel
     Eigen::Vector3d tint = Eigen::Vector3d::Ones();
+    // the mesh's diffuse texture (TriangleMesh), multiplying the tint where it covers a triangle
+    std::shared_ptr<const Texture> texture;
+    std::vector<std::array<Eigen::Vector2d, 3>> corner_uv;
+    std::vector<std::uint8_t> textured;
   };
   const std::vector<Object>& objects() const { return objects_; }
 

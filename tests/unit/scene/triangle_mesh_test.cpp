@@ -4,6 +4,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <sys/stat.h>
 
 namespace sim {
 namespace {
@@ -148,6 +150,83 @@ TEST(Meshes, NonFiniteVertexIsRejected) {
   std::ofstream(path) << "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n";
   const std::string e = error_of(path);
   EXPECT_EQ(e.rfind(path.string() + ": ", 0), 0u) << e;
+}
+
+// Issue 41: a printed mesh (texture coordinates, a material library naming a PNG beside it)
+// loads its texture, every triangle's corners' coordinates, and the geometry of the same shape
+// unprinted: its vertices joined by position (closed, as the plain box is).
+TEST(Meshes, APrintedMeshCarriesItsTextureAndTheGeometryOfThePlainOne) {
+  const TriangleMesh printed = load_mesh(kMeshes + "heldout/printed/box.obj");
+  const TriangleMesh plain = load_mesh(kMeshes + "heldout/box.obj");
+  ASSERT_TRUE(printed.texture);
+  EXPECT_EQ(printed.texture->width, 256);
+  EXPECT_EQ(printed.texture->height, 256);
+  EXPECT_EQ(printed.corner_uv.size(), printed.triangles.size());
+  EXPECT_EQ(printed.textured, std::vector<std::uint8_t>(printed.triangles.size(), 1));
+  EXPECT_EQ(printed.vertices.size(), plain.vertices.size());
+  EXPECT_EQ(printed.triangles.size(), plain.triangles.size());
+  EXPECT_TRUE(mesh_stats(printed).consistently_oriented);
+  float texel[3];
+  texel_at(*printed.texture, 0.5, 0.99, texel);  // the label's top: its cream ground
+  EXPECT_NEAR(texel[0], 242 / 255.0, 1e-6);
+  EXPECT_NEAR(texel[2], 190 / 255.0, 1e-6);
+  EXPECT_FALSE(load_mesh(kMeshes + "heldout/box.obj").texture);
+}
+
+// A folder of its own for one printed mesh: the OBJ names `mtl`, which names `png`.
+struct PrintedFolder {
+  explicit PrintedFolder(const std::string& name) : dir(std::filesystem::temp_directory_path() / name) {
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+  }
+  ~PrintedFolder() { std::filesystem::remove_all(dir); }
+  std::filesystem::path obj(const std::string& mtllib) const {
+    const auto p = dir / "m.obj";
+    std::ofstream(p) << "mtllib " << mtllib << "\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+    return p;
+  }
+  void file(const std::string& name, const std::string& bytes) const { std::ofstream(dir / name, std::ios::binary) << bytes; }
+  std::filesystem::path dir;
+};
+
+// What the OBJ and its material name is read from the mesh's folder alone, by plain name:
+// assimp's own file system would open any path (a FIFO: a load that never ends). Every refusal
+// is one line naming the file; a missing library or texture is an error, not an unprinted mesh.
+TEST(Meshes, AMaterialOrTextureIsAPlainFileBesideTheMesh) {
+  PrintedFolder f("_printed_paths");
+  const std::string png = [] {
+    std::ifstream in(kMeshes + "heldout/printed/label.png", std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  for (const std::string bad : {"/etc/passwd.mtl", "../x.mtl", "sub/x.mtl", ".hidden.mtl", "x.txt"}) {
+    const std::string e = error_of(f.obj(bad));
+    EXPECT_NE(e.find("m.obj"), std::string::npos) << bad << ": " << e;
+    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+  }
+  EXPECT_NE(error_of(f.obj("gone.mtl")).find("gone.mtl"), std::string::npos);
+  ASSERT_EQ(mkfifo((f.dir / "fifo.mtl").c_str(), 0600), 0);
+  EXPECT_NE(error_of(f.obj("fifo.mtl")).find("regular"), std::string::npos) << error_of(f.obj("fifo.mtl"));
+  const auto with_texture = [&](const std::string& map) {
+    f.file("a.mtl", "newmtl a\nKd 1 1 1\nmap_Kd " + map + "\n");
+    return error_of(f.obj("a.mtl"));
+  };
+  EXPECT_NE(with_texture("/tmp/x.png").find("plain file name"), std::string::npos);
+  EXPECT_NE(with_texture("-s 2 2 x.png").find("no options"), std::string::npos);
+  EXPECT_NE(with_texture("absent.png").find("absent.png"), std::string::npos);
+  f.file("notpng.png", "GIF89a, not a PNG at all, but long enough to read a header");
+  EXPECT_NE(with_texture("notpng.png").find("not a PNG"), std::string::npos);
+  std::string huge = png;
+  huge[16] = 0, huge[17] = 0, huge[18] = 0x13, huge[19] = 0x88;  // a header claiming 5000 pixels across
+  f.file("huge.png", huge);
+  EXPECT_NE(with_texture("huge.png").find("5000 x 256"), std::string::npos) << with_texture("huge.png");
+  std::string cut = png.substr(0, png.size() / 2);
+  f.file("cut.png", cut);
+  EXPECT_NE(with_texture("cut.png").find("cut.png"), std::string::npos);
+  f.file("a.mtl", "newmtl a\nmap_Bump x.png\n");
+  EXPECT_NE(error_of(f.obj("a.mtl")).find("unknown material statement 'map_Bump'"), std::string::npos);
+  f.file("label.png", png);
+  EXPECT_EQ(with_texture("label.png"), "");
+  EXPECT_TRUE(load_mesh(f.dir / "m.obj").texture);
 }
 
 }  // namespace

@@ -371,16 +371,18 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       if (L::any(lit))
         add_spots<L>(f, lit, L::load(pu_row + u), L::load(pv_row + u), L::load(sigma_row + u), L::load(weight_row + u),
                      r, g, b);
-      if (f.tint) {
-        // a coloured surface returns each channel's share of the light its brightest returns
+      if (f.tint || f.texel) {
+        // a coloured surface returns each channel's share of the light its brightest returns;
+        // a printed one, its texel's
         const I tri = L::loadi(tri_row + u);
-        const M has = L::lei(L::seti(0), tri);
-        r = L::mul(r, L::sel(has, L::gather(f.tint, tri, has), L::set(1.0f)));
-        g = L::mul(g, L::sel(has, L::gather(f.tint + fields, tri, has), L::set(1.0f)));
-        b = L::mul(b, L::sel(has, L::gather(f.tint + 2 * fields, tri, has), L::set(1.0f)));
+        if (f.tint) {
+          const M has = L::lei(L::seti(0), tri);
+          r = L::mul(r, L::sel(has, L::gather(f.tint, tri, has), L::set(1.0f)));
+          g = L::mul(g, L::sel(has, L::gather(f.tint + fields, tri, has), L::set(1.0f)));
+          b = L::mul(b, L::sel(has, L::gather(f.tint + 2 * fields, tri, has), L::set(1.0f)));
+        }
+        if (f.texel) apply_texture<L>(f, tri, L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
       }
-      if (f.texel)
-        apply_texture<L>(f, L::loadi(tri_row + u), L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
       const F rgb[3] = {r, g, b};
       I out[3];
       const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);

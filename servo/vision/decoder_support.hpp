@@ -126,6 +126,13 @@ inline bool reads(const std::vector<Spot>& spots, const Window& w, const pattern
   return id && smooth_window(spots, w) && (!check || check->confirms(w, *id));
 }
 
+// the epipolar residual a spot named beyond the windows may have: this many times the median
+// of the window-read spots' (EpipolarCheck::set_grown_limit), at least the floor; the median
+// taken from at least kGrownResidualSample of them
+constexpr double kGrownResidual = 4.0;
+constexpr double kGrownResidualFloorPx = 1.0;
+constexpr int kGrownResidualSample = 9;
+
 // a blob smaller than this fraction of the median area of the spots linked to it is a fragment
 constexpr double kFragmentArea = 0.5;
 
@@ -185,7 +192,7 @@ template <typename Taken>
 inline bool only_fitting_id(const std::vector<Spot>& spots, int j, const pattern::SpotId& x, const EpipolarCheck& check,
                      const pattern::MArray& pattern, Taken&& taken) {
   const auto fits = [&](int r, int c) { return pattern.at(r, c) == spots[j].colour && check.confirms(j, {r, c}); };
-  if (!fits(x.row, x.col)) return false;
+  if (!fits(x.row, x.col) || !check.confirms_grown(j, x)) return false;
   for (int dr = -1; dr <= 1; ++dr)
     for (int dc = -1; dc <= 1; ++dc) {
       const int r = x.row + dr, c = x.col + dc;

@@ -63,7 +63,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
       });
       if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || spots[found].colour != pattern.at(r, c) ||
           spots[found].strength < kGrowFaintest || spots[found].strength < kAlike * s.strength ||
-          spots[found].area_px > kRunLargest * s.area_px || !check.confirms(found, {r, c}))
+          spots[found].area_px > kRunLargest * s.area_px || !check.confirms_grown(found, {r, c}))
         continue;
       candidate[static_cast<std::size_t>(r) * pattern.cols + c] = found;
     }

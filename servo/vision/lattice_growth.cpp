@@ -112,7 +112,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
             continue;
           // a claim the blob cannot carry (another colour, off the id's epipolar line) is no
           // claim: across a depth edge a source's steps reach onto the other surface's spots
-          if (!(pattern.at(r, c) == spots[found].colour && check.confirms(found, {r, c}))) continue;
+          if (!(pattern.at(r, c) == spots[found].colour && check.confirms_grown(found, {r, c}))) continue;
           const double xu = pu - spots[from.spot].u, xv = pv - spots[from.spot].v;
           const double bu = spots[found].u - spots[from.spot].u, bv = spots[found].v - spots[from.spot].v;
           const double x2 = xu * xu + xv * xv;

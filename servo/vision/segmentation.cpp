@@ -64,9 +64,65 @@ void chroma_and_min(const cv::Mat& rgb, cv::Mat& lo, cv::Mat& chroma) {
   }
 }
 
+}  // namespace
+
+// (x / 9 as (x + 4) 7282 >> 16: exact for x <= 9 x 255.) Separable: each row's horizontal sums
+// of three once, in a ring of three rows.
+void mean_3x3(const cv::Mat& rgb, cv::Mat& out, std::vector<std::uint16_t>& ring) {
+  const int W = rgb.cols, H = rgb.rows, n = 3 * W;
+  out.create(H, W, CV_8UC3);
+  ring.resize(3 * static_cast<std::size_t>(n));
+  const auto row_sum = [&](int v, std::uint16_t* s) {
+    const std::uint8_t* p = rgb.ptr<std::uint8_t>(std::clamp(v, 0, H - 1));
+    if (W == 1) {
+      for (int c = 0; c < 3; ++c) s[c] = static_cast<std::uint16_t>(3 * p[c]);
+      return;
+    }
+    for (int c = 0; c < 3; ++c) {
+      s[c] = static_cast<std::uint16_t>(2 * p[c] + p[3 + c]);
+      s[n - 3 + c] = static_cast<std::uint16_t>(p[n - 6 + c] + 2 * p[n - 3 + c]);
+    }
+    int i = 3;
+#if CV_SIMD128
+    for (; i + 19 <= n; i += 16) {
+      cv::v_uint16x8 a0, a1, b0, b1, c0, c1;
+      cv::v_expand(cv::v_load(p + i - 3), a0, a1);
+      cv::v_expand(cv::v_load(p + i), b0, b1);
+      cv::v_expand(cv::v_load(p + i + 3), c0, c1);
+      cv::v_store(s + i, a0 + b0 + c0);
+      cv::v_store(s + i + 8, a1 + b1 + c1);
+    }
+#endif
+    for (; i < n - 3; ++i) s[i] = static_cast<std::uint16_t>(p[i - 3] + p[i] + p[i + 3]);
+  };
+  std::uint16_t* rows[3] = {ring.data(), ring.data() + n, ring.data() + 2 * static_cast<std::size_t>(n)};
+  row_sum(-1, rows[0]);
+  row_sum(0, rows[1]);
+  for (int v = 0; v < H; ++v) {
+    row_sum(v + 1, rows[2]);
+    std::uint8_t* o = out.ptr<std::uint8_t>(v);
+    int i = 0;
+#if CV_SIMD128
+    const cv::v_uint16x8 four = cv::v_setall_u16(4), ninth = cv::v_setall_u16(7282);
+    for (; i + 16 <= n; i += 16) {
+      const cv::v_uint16x8 lo = cv::v_mul_hi(cv::v_load(rows[0] + i) + cv::v_load(rows[1] + i) + cv::v_load(rows[2] + i) + four, ninth);
+      const cv::v_uint16x8 hi =
+          cv::v_mul_hi(cv::v_load(rows[0] + i + 8) + cv::v_load(rows[1] + i + 8) + cv::v_load(rows[2] + i + 8) + four, ninth);
+      cv::v_store(o + i, cv::v_pack(lo, hi));
+    }
+#endif
+    for (; i < n; ++i)
+      o[i] = static_cast<std::uint8_t>(((rows[0][i] + rows[1][i] + rows[2][i] + 4u) * 7282u) >> 16);
+    std::rotate(rows, rows + 1, rows + 3);
+  }
+}
+
+namespace {
+
 struct ChromaLevels {
   int floor = 0;      // no pixel at or below it is foreground
   int threshold = 0;  // the global (Otsu) level, above the floor
+  bool noisy = false;  // the sensor's noise sets the floor, not min_threshold
 };
 
 ChromaLevels chroma_levels(const cv::Mat& chroma, const SegmentationParams& p) {
@@ -91,6 +147,7 @@ ChromaLevels chroma_levels(const cv::Mat& chroma, const SegmentationParams& p) {
   int median = 0;
   for (int acc = 0; median < 255 && (acc += hist[median]) < sampled / 2;) ++median;
   ChromaLevels l;
+  l.noisy = static_cast<int>(p.noise_floor_factor * median) > p.min_peak;
   l.floor = std::max(p.min_threshold, static_cast<int>(p.noise_floor_factor * median));
   l.threshold = std::max(l.floor, otsu(hist, sampled));
   return l;
@@ -165,6 +222,7 @@ std::vector<std::array<double, 3>> palette_directions(int colours) {
 
 struct Blob {
   int area = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  int peak = 0;  // its largest chroma
   double sw = 0, su = 0, sv = 0;
   std::array<double, 3> col{0, 0, 0};
 };
@@ -203,6 +261,7 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, SegmentationScratch& sc) {
   blob_of.assign(static_cast<std::size_t>(n_runs), -1);
   const std::uint8_t* weight_px = sc.mask.ptr<std::uint8_t>(0);  // continuous (created above)
   const std::uint8_t* lo_px = sc.lo.ptr<std::uint8_t>(0);
+  const std::uint8_t* chroma_px = sc.chroma.ptr<std::uint8_t>(0);
   for (int i = 0; i < n_runs; ++i) {
     const int root = find(i);
     if (blob_of[root] < 0) {
@@ -215,8 +274,10 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, SegmentationScratch& sc) {
     const std::uint8_t* px = rgb.ptr<std::uint8_t>(v);
     // integer sums: exact, as the doubles they feed, in any order of the runs
     std::int64_t sw = 0, su = 0, r = 0, g = 0, bl = 0;
+    int peak = b.peak;
     for (int u = xl; u <= xr; ++u) {
       const int wgt = weight_px[base + u];
+      peak = std::max(peak, static_cast<int>(chroma_px[base + u]));
       sw += wgt;
       su += wgt * u;
       const int low = lo_px[base + u];
@@ -225,6 +286,7 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, SegmentationScratch& sc) {
       bl += px[3 * u + 2] - low;
     }
     b.area += xr - xl + 1;
+    b.peak = peak;
     b.x0 = std::min(b.x0, xl), b.x1 = std::max(b.x1, xr), b.y0 = std::min(b.y0, v), b.y1 = std::max(b.y1, v);
     b.sw += static_cast<double>(sw);
     b.su += static_cast<double>(su);
@@ -242,16 +304,20 @@ constexpr double kBorderCutPx = 0.5;
 constexpr double kBorderReachPx = 1.5;
 
 // The blobs that are spots: their size, shape and fill, and a dominant palette colour.
-void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, int W, int H, Segmentation& out) {
+void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, bool smoothed, int W, int H, Segmentation& out) {
   const std::vector<std::array<double, 3>> palette = palette_directions(p.colours);
   out.spots.reserve(blobs.size() + 1);
   std::vector<Spot> slivers;
   for (const Blob& b : blobs) {
     const int w = b.x1 - b.x0 + 1, h = b.y1 - b.y0 + 1;
-    const double elongation = static_cast<double>(std::max(w, h)) / std::min(w, h);
+    // the shape less what the 3 x 3 mean spread it by (a pixel each side): a sliver 1 px wide
+    // is 3 px wide after it
+    const int spread = smoothed ? 2 : 0;
+    const int we = std::max(1, w - spread), he = std::max(1, h - spread);
+    const double elongation = static_cast<double>(std::max(we, he)) / std::min(we, he);
     const bool sliver = elongation > p.max_elongation;
     if (b.area < p.min_area_px || b.area > p.max_area_px || elongation > std::max(p.max_elongation, p.max_sliver_elongation) ||
-        b.area < p.min_fill * w * h) {
+        b.area < p.min_fill * w * h || b.peak < p.min_peak) {
       ++out.rejected;
       continue;
     }
@@ -305,8 +371,15 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
   Segmentation out;
   SegmentationScratch local;
   SegmentationScratch& sc = scratch ? *scratch : local;
+  const cv::Mat* image = &rgb;
   chroma_and_min(rgb, sc.lo, sc.chroma);
-  const ChromaLevels levels = chroma_levels(sc.chroma, p);
+  ChromaLevels levels = chroma_levels(sc.chroma, p);
+  if (p.smoothing && levels.noisy) {
+    mean_3x3(rgb, sc.smooth, sc.box_rows);
+    image = &sc.smooth;
+    chroma_and_min(*image, sc.lo, sc.chroma);
+    levels = chroma_levels(sc.chroma, p);
+  }
   out.threshold = levels.threshold;
 
   // Each pixel is compared with the brightest chroma around it: a spot is cut at a fraction
@@ -319,7 +392,7 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, Segm
     level_of[x] = static_cast<std::uint8_t>(std::min(
         out.threshold, std::max(levels.floor, static_cast<int>(cv::saturate_cast<std::uint8_t>(x * p.peak_ratio)))));
   foreground_runs(sc.chroma, sc.peak, level_of, levels.floor, sc);
-  spots_of(connected_blobs(rgb, sc), p, rgb.cols, rgb.rows, out);
+  spots_of(connected_blobs(*image, sc), p, image != &rgb, rgb.cols, rgb.rows, out);
   return out;
 }
 

@@ -17,8 +17,19 @@ namespace vision {
 
 struct SegmentationParams {
   int colours = 3;             // symbols 0..k-1, coloured as pattern::kPalette
-  int min_threshold = 14;      // chroma floor (8-bit), above the sensor noise
+  // chroma floor (8-bit), above the sensor noise: where a spot's pixels end
+  int min_threshold = 10;
+  // and the chroma a blob must reach somewhere to be a spot: a dim spot (a dark or printed
+  // surface, crosstalk) keeps its whole extent down to the floor, while the wash of the far
+  // wall's defocused spots, whose peaks hardly clear the floor, makes no blob (issue 41)
+  int min_peak = 14;
   double noise_floor_factor = 3.0;  // and at least this times the image's median chroma
+  // a noisy image (one whose noise would set the floor above min_peak) averaged over 3 x 3
+  // pixels first: a spot covers tens of pixels and the sensor's noise is independent from pixel
+  // to pixel, so the average keeps the spots and divides the noise's spread by 3, and the floor
+  // falls with it. Not a quiet one: the average also closes the 1-2 px gaps between the spots
+  // seen edge-on at a silhouette (issue 41)
+  bool smoothing = true;
   int local_window_px = 11;    // neighbourhood whose peak sets the local level (~ a spot's size)
   double peak_ratio = 0.4;     // local level = this fraction of the local peak
   int min_area_px = 4;
@@ -40,13 +51,18 @@ struct Segmentation {
 // Per-frame buffers, reused from call to call when the caller keeps one (allocating and
 // first-touching ~4 MB of images per frame costs as much as half the segmentation).
 struct SegmentationScratch {
-  cv::Mat lo, chroma, peak, mask;  // peak: the brightest chroma around each pixel
+  cv::Mat smooth, lo, chroma, peak, mask;  // peak: the brightest chroma around each pixel
   struct RowRun {
     int v, xl, xr;
   };
   std::vector<RowRun> row_runs;
   std::vector<int> row_start, parent, blob_of;
+  std::vector<std::uint16_t> box_rows;
 };
+
+// The 3 x 3 mean of an RGB8 image, each channel apart, its border replicated, rounded to the
+// nearest (SegmentationParams::smoothing). `ring`: room it reuses.
+void mean_3x3(const cv::Mat& rgb, cv::Mat& out, std::vector<std::uint16_t>& ring);
 
 // Throws std::invalid_argument when the image is empty or not 8-bit, 3-channel.
 Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& params = {},

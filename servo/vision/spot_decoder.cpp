@@ -52,6 +52,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes);
     r.decoded = check_vote_consistency(r.detected, votes, e.min_votes, e.two_exact_votes);
     r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+    epipolar->set_grown_limit(r.decoded);
     if (e.propagate) {
       r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded),
                                 e.min_sources);

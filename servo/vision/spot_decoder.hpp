@@ -25,6 +25,7 @@
 // SpotDecoder runs them in order (spot_decoder.cpp).
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -59,6 +60,17 @@ struct EpipolarCheck {
   EpipolarCheck(const EpipolarGeometry& geometry, const std::vector<Spot>& spots);
   // spot `spot` may carry `id`
   bool confirms(int spot, const pattern::SpotId& id) const { return geometry.consistent(xy[spot], id); }
+  // Steps 6-8 name a spot on weaker evidence than a window: there it must lie on its id's line
+  // as closely as the frame's window-read spots lie on theirs. A blob of another surface that
+  // sits where the lattice goes on passes the tolerance by chance, typically 1-3 px off, where
+  // a frame's right ids lie a few tenths of a pixel off, and more with a calibration error,
+  // which moves every spot alike: the limit is kGrownResidual times the median residual of the
+  // spots `decoded` names (at least kGrownResidualFloorPx, at most the tolerance).
+  void set_grown_limit(const std::vector<DecodedSpot>& decoded);
+  bool confirms_grown(int spot, const pattern::SpotId& id) const {
+    return geometry.residual_px(xy[spot], id) <= grown_limit_px;
+  }
+  double grown_limit_px = std::numeric_limits<double>::infinity();
   // every spot of window `w` may carry the id the window's centre `centre` implies for it
   bool confirms(const Window& w, const pattern::SpotId& centre) const;
 

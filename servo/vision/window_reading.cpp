@@ -16,6 +16,23 @@ EpipolarCheck::EpipolarCheck(const EpipolarGeometry& g, const std::vector<Spot>&
   for (const Spot& s : spots) xy.push_back(g.normalise(s.u, s.v));
 }
 
+void EpipolarCheck::set_grown_limit(const std::vector<DecodedSpot>& decoded) {
+  std::vector<double> residuals;
+  residuals.reserve(decoded.size());
+  for (const DecodedSpot& d : decoded) {
+    const double r = geometry.residual_px(xy[static_cast<std::size_t>(d.spot)], {d.row, d.col});
+    if (std::isfinite(r)) residuals.push_back(r);
+  }
+  // too few to say what the frame's residuals are: the tolerance alone
+  if (residuals.size() < static_cast<std::size_t>(kGrownResidualSample)) {
+    grown_limit_px = geometry.tolerance_px();
+    return;
+  }
+  const auto mid = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
+  std::nth_element(residuals.begin(), mid, residuals.end());
+  grown_limit_px = std::min(geometry.tolerance_px(), std::max(kGrownResidualFloorPx, kGrownResidual * *mid));
+}
+
 bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) const {
   for (int i = 0; i < 9; ++i)
     if (w[i] >= 0 && !confirms(w[i], {centre.row + i / 3 - 1, centre.col + i % 3 - 1})) return false;

@@ -9,7 +9,10 @@ tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2 2>&1) || fail "bin/decode-heldout: $out"
 for f in decode.csv decode.md decode.png; do [ -s "$tmp/h/$f" ] || fail "no $f"; done
 rows=$(($(wc -l <"$tmp/h/decode.csv") - 1))
-[ "$rows" -eq 80 ] || fail "$rows cases in decode.csv, not 8 scenes x 5 conditions x 2"
+[ "$rows" -eq 96 ] || fail "$rows cases in decode.csv, not 8 scenes x 6 conditions x 2"
+grep -q "^heldout,box,printed," "$tmp/h/decode.csv" || fail "no printed box: $(head -3 "$tmp/h/decode.csv")"
 grep -q "^| step | " "$tmp/h/decode.md" || fail "the held-out table lacks the step: $(cat "$tmp/h/decode.md")"
 one_line_error "an existing output folder" "exists" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2
-echo "decode-heldout: 80 cases, the tables and the plot"
+one_line_error "an unknown condition" "unknown" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/c" --conditions grey,shiny
+[ ! -e "$tmp/c" ] || fail "an unknown condition made its output folder"
+echo "decode-heldout: 96 cases, the tables and the plot"

@@ -90,6 +90,66 @@ TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
   EXPECT_FALSE(g.consistent(xy_back, {7, 12}));
 }
 
+// Issue 41: beyond the windows, a spot must lie on its id's line as closely as the frame's
+// window-read spots lie on theirs: the limit is 4 times their median residual, at least 1 px,
+// at most the tolerance; with fewer than 9 of them, the tolerance.
+TEST(EpipolarGeometry, TheGrownLimitFollowsTheFramesWindowReadResiduals) {
+  control::ProjectorModel p;
+  p.world_T_projector = Eigen::Isometry3d::Identity();
+  p.world_T_projector.translation() = Eigen::Vector3d(0.3, 0, 0);
+  const control::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
+  const vision::EpipolarGeometry g(cam, p, Eigen::Isometry3d::Identity(), 3.0);
+  const Eigen::Vector3d o(0.3, 0, 0);
+  // spot k: id (5, k) on its line, moved off it across the line by `off_px` camera pixels
+  const auto spots_off = [&](const std::vector<double>& off_px) {
+    std::vector<vision::Spot> spots;
+    std::vector<vision::DecodedSpot> decoded;
+    for (std::size_t k = 0; k < off_px.size(); ++k) {
+      const Eigen::Vector3d x = o + 1.0 * p.spot_ray(5, static_cast<int>(k));
+      const Eigen::Vector3d line = o.cross(p.spot_ray(5, static_cast<int>(k)));
+      const Eigen::Vector2d normal = line.head<2>().normalized();
+      const Eigen::Vector2d xy = Eigen::Vector2d(x.x() / x.z(), x.y() / x.z()) + normal * off_px[k] / 800.0;
+      vision::Spot s;
+      s.u = 800 * xy.x() + 319.5, s.v = 800 * xy.y() + 239.5;
+      spots.push_back(s);
+      decoded.push_back({5, static_cast<int>(k), s.u, s.v, static_cast<int>(k)});
+    }
+    return std::pair{spots, decoded};
+  };
+  {
+    const auto [spots, decoded] = spots_off(std::vector<double>(11, 0.2));
+    vision::EpipolarCheck check(g, spots);
+    check.set_grown_limit(decoded);
+    EXPECT_NEAR(check.grown_limit_px, 1.0, 1e-9);  // 4 x 0.2 is below the floor
+    EXPECT_TRUE(check.confirms_grown(3, {5, 3}));
+  }
+  {
+    const auto [spots, decoded] = spots_off({0.5, 0.6, 0.5, 0.55, 0.6, 0.5, 0.5, 0.6, 0.55, 2.1, 0.5});
+    vision::EpipolarCheck check(g, spots);
+    check.set_grown_limit(decoded);
+    EXPECT_NEAR(check.grown_limit_px, 2.2, 0.05);  // 4 x the median, 0.55
+    EXPECT_TRUE(check.confirms(9, {5, 9}));        // within the tolerance, 3 px
+    EXPECT_TRUE(check.confirms_grown(9, {5, 9}));  // 2.1 px: as close as this frame's spots lie
+  }
+  {
+    const auto [spots, decoded] = spots_off({0.1, 0.15, 0.1, 0.12, 0.1, 0.1, 0.14, 0.1, 0.1, 2.1, 0.1});
+    vision::EpipolarCheck check(g, spots);
+    check.set_grown_limit(decoded);
+    EXPECT_TRUE(check.confirms(9, {5, 9}));
+    EXPECT_FALSE(check.confirms_grown(9, {5, 9}));  // 2.1 px where the frame's spots lie 0.1 px off
+  }
+  {
+    const auto [spots, decoded] = spots_off({2.5, 2.4, 2.6, 2.5, 2.5, 2.4, 2.6, 2.5, 2.5});
+    vision::EpipolarCheck check(g, spots);
+    check.set_grown_limit(decoded);
+    EXPECT_NEAR(check.grown_limit_px, 3.0, 1e-9);  // a calibration error: never beyond the tolerance
+    const auto few = spots_off({0.1, 0.1, 0.1});
+    vision::EpipolarCheck sparse(g, few.first);
+    sparse.set_grown_limit(few.second);
+    EXPECT_NEAR(sparse.grown_limit_px, 3.0, 1e-9);  // too few to say
+  }
+}
+
 // Recolour the 9 spots of one decoded window with the colours of another window of the
 // pattern: the window then reads as a valid code, with a wrong id.
 TEST(EpipolarDecoding, AWindowThatReadsAValidButWrongCodeComesOutUnidentifiedOrRight) {

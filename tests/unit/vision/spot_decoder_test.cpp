@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
@@ -573,6 +575,77 @@ TEST(ColumnShear, AWindowAcrossADepthEdgeIsNotRead) {
   ASSERT_TRUE(reads_centre(l.spots));
   for (int c = 4; c <= 6; ++c) l.spots[4 * 20 + c].u += 0.6 * 20 * (c - 3) / 2.0;
   EXPECT_FALSE(reads_centre(l.spots));
+}
+
+// Issue 41: a dim spot keeps its extent down to the floor (10) and is a spot where it reaches
+// the seed level (14) somewhere; a faint wash that never does makes no blob. Under strong noise
+// the image is averaged first: the spots come out, the noise's blobs do not.
+TEST(Segmentation, ADimSpotIsKeptAFaintWashIsNotAndANoisyImageIsAveraged) {
+  cv::Mat rgb(60, 80, CV_8UC3, cv::Scalar(20, 20, 20));
+  const auto paint = [&](double u, double v, double peak) {
+    for (int y = 0; y < rgb.rows; ++y)
+      for (int x = 0; x < rgb.cols; ++x) {
+        const double d2 = (x - u) * (x - u) + (y - v) * (y - v);
+        rgb.at<cv::Vec3b>(y, x)[1] = cv::saturate_cast<std::uint8_t>(rgb.at<cv::Vec3b>(y, x)[1] + peak * std::exp(-d2 / (2 * 2.0 * 2.0)));
+      }
+  };
+  paint(20, 30, 24);  // dim: its peak clears 14
+  paint(50, 30, 12);  // a wash: above the floor of 10 at its middle, never 14
+  const Segmentation quiet = segment_spots(rgb);
+  ASSERT_EQ(quiet.spots.size(), 1u);
+  EXPECT_NEAR(quiet.spots[0].u, 20, 0.05);
+  EXPECT_GE(quiet.spots[0].area_px, 9);  // the pixels down to the floor
+  SegmentationParams high = {};
+  high.min_threshold = 14;
+  EXPECT_LT(segment_spots(rgb, high).spots[0].area_px, quiet.spots[0].area_px);
+
+  cv::Mat noisy(120, 160, CV_8UC3, cv::Scalar(60, 60, 60));
+  for (int k = 0; k < 6; ++k) {
+    const double u = 20 + 24 * k, v = 60;
+    for (int y = 0; y < noisy.rows; ++y)
+      for (int x = 0; x < noisy.cols; ++x) {
+        const double d2 = (x - u) * (x - u) + (y - v) * (y - v);
+        noisy.at<cv::Vec3b>(y, x)[k % 3] = cv::saturate_cast<std::uint8_t>(noisy.at<cv::Vec3b>(y, x)[k % 3] + 45 * std::exp(-d2 / (2 * 2.5 * 2.5)));
+      }
+  }
+  cv::Mat noise(noisy.size(), CV_16SC3);
+  cv::RNG rng(3);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 12);
+  cv::Mat sum;
+  noisy.convertTo(sum, CV_16SC3);
+  sum += noise;
+  sum.convertTo(noisy, CV_8UC3);
+  SegmentationParams raw = {};
+  raw.smoothing = false;
+  const Segmentation averaged = segment_spots(noisy), plain = segment_spots(noisy, raw);
+  EXPECT_EQ(averaged.spots.size(), 6u);
+  for (const Spot& s : averaged.spots) EXPECT_NEAR(s.v, 60, 1.0);  // a noise of 12 levels moves a centroid
+  EXPECT_LT(plain.spots.size(), 6u);  // without the average the floor rises over the spots
+}
+
+// Issue 41: the 3 x 3 mean the segmentation smooths with is the mean of each pixel's
+// neighbourhood (the border replicated), rounded to the nearest, for every width's vector tail.
+TEST(Segmentation, TheThreeByThreeMeanIsEachNeighbourhoodsRoundedMean) {
+  std::mt19937 rng(7);
+  std::vector<std::uint16_t> ring;
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{1, 1}, {2, 3}, {5, 1}, {16, 4}, {17, 9}, {33, 7}, {640, 3}}) {
+    cv::Mat rgb(h, w, CV_8UC3);
+    for (int v = 0; v < h; ++v)
+      for (int k = 0; k < 3 * w; ++k) rgb.ptr<std::uint8_t>(v)[k] = static_cast<std::uint8_t>(rng() % 256);
+    if (w == 16) rgb.setTo(cv::Scalar(255, 255, 255));  // the largest sums
+    cv::Mat out;
+    mean_3x3(rgb, out, ring);
+    ASSERT_EQ(out.size(), rgb.size());
+    for (int v = 0; v < h; ++v)
+      for (int u = 0; u < w; ++u)
+        for (int c = 0; c < 3; ++c) {
+          int sum = 0;
+          for (int dv = -1; dv <= 1; ++dv)
+            for (int du = -1; du <= 1; ++du)
+              sum += rgb.at<cv::Vec3b>(std::clamp(v + dv, 0, h - 1), std::clamp(u + du, 0, w - 1))[c];
+          ASSERT_EQ(out.at<cv::Vec3b>(v, u)[c], (sum + 4) / 9) << w << " x " << h << " at " << u << ", " << v;
+        }
+  }
 }
 
 }  // namespace

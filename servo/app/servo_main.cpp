@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <optional>
 #include <set>
@@ -194,6 +195,25 @@ double median_of(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
+// What a decode that names nothing, or an image the intrinsics were not made for, most likely
+// means, said on stderr (issue 43: "380 spots detected, 0 decoded", exit 0, and no hint)
+void warn_if_suspect(const std::string& image, const cv::Mat& rgb, const vision::DecodeResult& r,
+                     const EpipolarInputs& epipolar) {
+  if (epipolar.projector) {
+    const double cx = epipolar.camera.cx, cy = epipolar.camera.cy;
+    if (std::abs(cx - 0.5 * rgb.cols) > 0.25 * rgb.cols || std::abs(cy - 0.5 * rgb.rows) > 0.25 * rgb.rows)
+      std::fprintf(stderr,
+                   "servo: warning: %s is %d x %d but --camera puts the principal point at (%.1f, %.1f): are these "
+                   "intrinsics this image's?\n",
+                   config::printable(image, 200).c_str(), rgb.cols, rgb.rows, cx, cy);
+  }
+  if (r.decoded.empty() && r.detected.size() >= 9)
+    std::fprintf(stderr,
+                 "servo: warning: %s: %zu spots detected, none named: is --pattern the pattern the projector casts%s?\n",
+                 config::printable(image, 200).c_str(), r.detected.size(),
+                 epipolar.projector ? ", and --camera and the camera pose this image's" : "");
+}
+
 // Decodes every image with one warm decoder: each image's time_ms is a warm decode (the
 // first image is decoded once before its timed run); prints one line per image and, for
 // several, the median and maximum per-frame time (the first image excluded). A bad image is
@@ -285,6 +305,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
     }
     std::printf("%s: %zu spots detected, %zu decoded in %.2f ms\n", image.c_str(), r.detected.size(), r.decoded.size(),
                 ms);
+    warn_if_suspect(image, rgb, r, epipolar);
   }
   if (times.size() > 1) {
     const std::vector<double> rest(times.begin() + 1, times.end());

@@ -23,6 +23,11 @@ import matplotlib.image as m, numpy as n
 a = m.imread('$tmp/g.png'); g = a[..., :3].mean(axis=2); m.imsave('$tmp/grey.png', n.dstack([g, g, g]))" || fail "grey image"
 out=$("$servo" decode "$tmp/grey.png" --pattern "$pattern" --json "$tmp/g.json") || fail "grey: $out"
 grep -q '"decoded": 0' "$tmp/g.json" || fail "grey image decoded spots"
+# spots seen and none named: a warning that says what to check (issue 43), the exit still 0
+err=$("$servo" decode "$tmp/plane.png" --pattern "$curved" 2>&1 >/dev/null) || fail "wrong pattern: exit $?"
+grep -q "none named: is --pattern the pattern the projector casts" <<<"$err" || fail "no hint for a wrong pattern: $err"
+err=$("$servo" decode "$tmp/plane.png" --pattern "$pattern" 2>&1 >/dev/null)
+[ -z "$err" ] || fail "a good decode warned: $err"
 
 printf 'model: desired\ngian: 0.5\n' > "$tmp/bad.yaml"
 one_line_error "config typo" "gian: unknown key" "$servo" run --pattern "$pattern" --config "$tmp/bad.yaml"
@@ -105,6 +110,13 @@ import json; c = json.load(open('$tmp/cal/cyl.json'))['camera_pose']; print(*c['
 given=$("$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" --camera-pose $pose |
   grep -o '[0-9]* decoded' | cut -d' ' -f1)
 [ "$given" = "$calibrated" ] || fail "--camera-pose decoded $given, the sidecar pose $calibrated"
+# a half-size image with the full-size intrinsics: the mismatch said (issue 43)
+/usr/bin/python3 -c "
+import matplotlib.image as m; m.imsave('$tmp/cal/half.png', m.imread('$tmp/cal/cyl.png')[::2, ::2])"
+cp "$tmp/cal/cyl.json" "$tmp/cal/half.json"
+err=$("$servo" decode "$tmp/cal/half.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}" 2>&1 >/dev/null)
+grep -q "half.png is 320 x 240 but --camera puts the principal point at (319.5, 239.5)" <<<"$err" ||
+  fail "no warning for intrinsics of another size: $err"
 one_line_error "projector without camera" "--projector needs --camera" \
   "$servo" decode "$tmp/cal/cyl.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml"
 one_line_error "no pose" "no camera pose" \

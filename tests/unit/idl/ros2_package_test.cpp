@@ -105,6 +105,13 @@ TEST(Ros2Package, ThePackageBuildsEveryMsgFile) {
   const std::string cmake = read(kPackage / "CMakeLists.txt"), xml = read(kPackage / "package.xml");
   EXPECT_NE(xml.find("<name>cell_msgs</name>"), std::string::npos);
   EXPECT_NE(xml.find("<member_of_group>rosidl_interface_packages</member_of_group>"), std::string::npos);
+  // colcon's catkin_pkg refuses a maintainer address without a dotted domain ("cell@localhost":
+  // `Invalid email`, issue 43); its rule, written out
+  const std::regex maintainer(R"re(<maintainer email="([^"]*)">)re");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(xml, m, maintainer));
+  EXPECT_TRUE(std::regex_match(m[1].str(), std::regex(R"(^[-a-zA-Z0-9_%+]+(\.[-a-zA-Z0-9_%+]+)*@[-a-zA-Z0-9%]+(\.[-a-zA-Z0-9%]+)*\.[a-zA-Z]{2,}$)")))
+      << m[1];
   EXPECT_NE(cmake.find("rosidl_generate_interfaces"), std::string::npos);
   for (const auto& entry : std::filesystem::directory_iterator(kPackage / "msg"))
     EXPECT_NE(cmake.find("\"msg/" + entry.path().filename().string() + "\""), std::string::npos)

@@ -359,8 +359,10 @@ struct RenderCommand {
     auto* c = app.add_subcommand("render", "render one camera frame of a scenario");
     c->add_option("scenario", scenario, "scenario YAML file")->required();
     c->add_option("--pose", pose,
-                  "desired | initial | \"x y z rx ry rz\": offset from the desired pose, cm and deg "
-                  "(translation along the desired camera axes, then rotations about X, Y, Z)")
+                  "desired | initial | \"x y z rx ry rz\": offset from the desired pose, cm and deg, as the "
+                  "scenario's initial_offset is: translation along the axes of its offset frame (the desired camera "
+                  "axes turned by initial_offset.frame_rotation_deg; on plane, cylinder and ham Z points back from "
+                  "the wall), then rotations about the moved X, Y, Z")
         ->capture_default_str();
     c->add_option("-o,--output", out, "PNG image to write")->required();
     c->add_option("--truth", truth, "ground-truth JSON to write");

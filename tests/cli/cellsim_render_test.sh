@@ -12,6 +12,18 @@ for s in plane cylinder ham fig5; do
   grep -q '"depth_m"' "$tmp/$s.json" || fail "$s: truth has no visible spot"
 done
 out=$("$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "1 -2 3 4 -5 6" -o "$tmp/p.png") || fail "numeric pose: $out"
+# --pose moves along the scenario's offset frame, as --help says: on the plane its Z points back
+# from the wall, so +5 cm puts the wall 5 cm farther (issue 43: the help spoke of the camera axes)
+for z in 0 5; do
+  "$cellsim" render "$src/sim/scenarios/plane.yaml" --pose "0 0 $z 0 0 0" -o "$tmp/z$z.png" --truth "$tmp/z$z.json" >/dev/null ||
+    fail "pose z $z"
+done
+farther=$(/usr/bin/python3 -c "
+import json
+depth = lambda f: sorted(s['depth_m'] for s in json.load(open(f))['spots'] if s['visible'])[0]
+print(round(100 * (depth('$tmp/z5.json') - depth('$tmp/z0.json')), 3))")
+[ "$farther" = "5.0" ] || fail "--pose 0 0 5 moved the wall's nearest spot by $farther cm, not 5 farther"
+"$cellsim" render --help | grep -q "Z points back" || fail "render --help does not say which way Z points"
 
 # bad input: one line on stderr naming the problem, non-zero exit, no image
 sed 's/focal_px: \[800, 800\]/focal_px: [0, 800]/' "$src/sim/scenarios/plane.yaml" | sed "s#\.\./\.\./#$src/#" > "$tmp/bad.yaml"

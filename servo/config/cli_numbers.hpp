@@ -4,6 +4,8 @@
 // campaign. Header-only, for the apps' command lines (CLI11).
 #pragma once
 
+#include "servo/config/exit_codes.hpp"
+
 #include <stdexcept>
 #include <vector>
 #include <utility>
@@ -89,7 +91,7 @@ inline int parse_command_line(CLI::App& app, int argc, char** argv, const char* 
     for (char& ch : what)
       if (ch == '\n') ch = ' ';
     std::fprintf(stderr, "%s: %s (see --help)\n", program, what.c_str());
-    return e.get_exit_code() != 0 ? e.get_exit_code() : 2;
+    return exit_code::kUsage;
   }
   return -1;  // parsed: go on
 }
@@ -98,7 +100,7 @@ inline int parse_command_line(CLI::App& app, int argc, char** argv, const char* 
 using Subcommands = std::vector<std::pair<CLI::App*, std::function<int()>>>;
 
 // Runs the subcommand the command line chose; an error it throws is one line,
-// "<program>: <what>", and exit code 1.
+// "<program>: <what>", and exit code 1 (exit_code::kRefused).
 inline int run_subcommand(const Subcommands& commands, const char* program) {
   try {
     for (const auto& [sub, run] : commands)
@@ -108,9 +110,9 @@ inline int run_subcommand(const Subcommands& commands, const char* program) {
     for (char& ch : what)
       if (ch == '\n' || ch == '\r') ch = ' ';
     std::fprintf(stderr, "%s: %s\n", program, what.c_str());
-    return 1;
+    return exit_code::kRefused;
   }
-  return 0;
+  return exit_code::kDone;
 }
 
 }  // namespace config

@@ -34,6 +34,20 @@
 
 namespace {
 
+// A run's ending in the exit-code table (servo/config/exit_codes.hpp, README.md)
+int exit_code_of(cellsim::RunEnding e) {
+  namespace x = config::exit_code;
+  switch (e) {
+    case cellsim::RunEnding::kConverged: return x::kDone;
+    case cellsim::RunEnding::kDiverged: return x::kDiverged;
+    case cellsim::RunEnding::kCapped: return x::kCapped;
+    case cellsim::RunEnding::kNotTaught: return x::kNotTaught;
+    case cellsim::RunEnding::kRefused: return x::kRefused;
+    case cellsim::RunEnding::kStopped: break;
+  }
+  return x::kStopped;
+}
+
 nlohmann::json pose_json(const Eigen::Isometry3d& T) {
   const Eigen::Quaterniond q(T.rotation());
   return {{"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
@@ -156,7 +170,7 @@ int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) 
               s.total_correct_readable);
   std::printf("  decode time median %.2f ms, p99 %.2f ms\n", s.median_ms, s.p99_ms);
   if (!o.out_dir.empty()) std::printf("  per-pose table: %s\n", (o.out_dir / "sweep.csv").c_str());
-  return s.total_wrong == 0 ? 0 : 3;
+  return s.total_wrong == 0 ? config::exit_code::kDone : config::exit_code::kWrongIds;
 }
 
 struct LawFlags {
@@ -338,16 +352,20 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
   std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
   const std::string conds = sim::describe(*o.errors, *o.latency);
   if (conds != "none") std::printf("  errors and delays: %s\n", conds.c_str());
-  std::printf("  %s after %d iterations (%.2f s simulated)\n", r.stop_reason.c_str(), r.iterations,
-              r.iterations * cell->scenario.dt_s);
-  std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
-  if (!out_dir.empty()) {
+  const bool ran = r.ending != cellsim::RunEnding::kNotTaught && r.ending != cellsim::RunEnding::kRefused;
+  if (ran)
+    std::printf("  %s after %d iterations (%.2f s simulated)\n", r.stop_reason.c_str(), r.iterations,
+                r.iterations * cell->scenario.dt_s);
+  else
+    std::printf("  %s: no run\n", r.stop_reason.c_str());
+  if (ran) std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
+  if (!out_dir.empty() && ran) {
     if (plot) cellsim::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
     std::printf("  trace: %s/trace.csv, features: %s/features.jsonl, plots: %s/velocities.png %s/error_norm.png\n",
                 out_dir.c_str(), out_dir.c_str(), out_dir.c_str(), out_dir.c_str());
   }
   if (recording) std::printf("  recorded %s\n", recording->close().c_str());
-  return r.converged ? 0 : 4;
+  return exit_code_of(r.ending);
 }
 
 // One struct per subcommand: its flags, and what it runs once they are parsed.
@@ -524,7 +542,7 @@ struct Fig5SearchCommand {
     std::printf("%s: %d of %d configurations kept (L(s*, Z-hat = %.2f) diverges, L(s*, Z*) converges, L(s, Z) "
                 "converges faster)\n",
                 sc.name.c_str(), kept, search.tries, search.z_hat_m);
-    if (r.best < 0) return 4;
+    if (r.best < 0) return config::exit_code::kNoneFound;
     const auto& b = r.candidates[static_cast<std::size_t>(r.best)];
     std::printf("  least displaced: try %d, spots", b.index);
     for (const auto& rc : b.spots) std::printf(" (%d, %d)", rc[0], rc[1]);

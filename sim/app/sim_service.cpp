@@ -1,5 +1,6 @@
 #include "sim/app/sim_service.hpp"
 
+#include "servo/config/exit_codes.hpp"
 #include "servo/config/strict_yaml.hpp"
 
 
@@ -242,7 +243,23 @@ class SimService {
     joints_->flush(last_word);
     tf_->flush(last_word);
     summary();
-    return 0;
+    return exit_code();
+  }
+
+  // The session's end in the exit-code table: a signal or the frame cap ends a session as asked
+  // (0), unless convergence was asked to end it (--exit-on-converged): then the cap came first
+  int exit_code() const {
+    namespace x = config::exit_code;
+    const sim::SessionEndReport& end = machine_->session_end();
+    switch (end.kind) {
+      case sim::SessionEnd::kConverged: return x::kDone;
+      case sim::SessionEnd::kServoStopped: return end.reason.rfind("diverging", 0) == 0 ? x::kDiverged : x::kStopped;
+      case sim::SessionEnd::kRobotStopped: return x::kStopped;
+      case sim::SessionEnd::kStepCap: return x::kCapped;
+      case sim::SessionEnd::kFrameCap: return o_.exit_on_converged || o_.exit_on_stop ? x::kCapped : x::kDone;
+      case sim::SessionEnd::kNone: break;
+    }
+    return x::kDone;
   }
 
  private:

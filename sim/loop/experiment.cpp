@@ -1,5 +1,7 @@
 #include "sim/loop/experiment.hpp"
 
+#include <optional>
+
 #include "servo/config/plot_script.hpp"
 
 #include <spawn.h>
@@ -25,6 +27,19 @@
 namespace cellsim {
 
 namespace {
+
+// How the cell's session end reads in the exit-code table
+RunEnding ending_of(const sim::SessionEndReport& end, bool diverged) {
+  switch (end.kind) {
+    case sim::SessionEnd::kConverged: return RunEnding::kConverged;
+    case sim::SessionEnd::kStepCap:
+    case sim::SessionEnd::kFrameCap: return RunEnding::kCapped;
+    case sim::SessionEnd::kServoStopped: return diverged ? RunEnding::kDiverged : RunEnding::kStopped;
+    case sim::SessionEnd::kRobotStopped:
+    case sim::SessionEnd::kNone: break;
+  }
+  return RunEnding::kStopped;
+}
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
@@ -205,6 +220,7 @@ class Experiment {
       if (!res_.stop_reason.empty()) return res_;
       if (o_.cancelled && o_.cancelled()) {
         res_.stop_reason = "cancelled";
+        ended_ = RunEnding::kStopped;
         break;
       }
       if (out.done) break;
@@ -212,6 +228,7 @@ class Experiment {
       idle_rounds = exchanges.empty() ? idle_rounds + 1 : 0;
       if (idle_rounds > 3) {
         res_.stop_reason = started_ ? "the cell made no frame" : "no teach frame";
+        ended_ = started_ ? RunEnding::kStopped : RunEnding::kNotTaught;
         break;
       }
     }
@@ -249,13 +266,19 @@ class Experiment {
   // False when the run cannot go on.
   bool taught(const LoopExchange& x) {
     if (!x.reply.taught) {
-      res_.stop_reason = "not taught: " + x.reply.reason;
+      // the servo's advice to a DDS client ("send TEACH again") is not for an in-process run,
+      // which ends here
+      std::string why = x.reply.reason;
+      if (const std::size_t advice = why.find(": send TEACH again"); advice != std::string::npos) why.erase(advice);
+      res_.stop_reason = "not taught: " + why;
+      res_.ending = RunEnding::kNotTaught;
       return false;
     }
     res_.decoded_desired = static_cast<int>(x.reply.matched);
     // the teach frame's answer is applied by the next round; the RESET waits behind it
     if (!loop_.command({static_cast<int>(cell_dds::SimCommand::kReset), "", 0, initial_})) {
       res_.stop_reason = "initial pose refused (" + scenario().file.filename().string() + ")";
+      res_.ending = RunEnding::kRefused;
       return false;
     }
     loop_.command({static_cast<int>(cell_dds::SimCommand::kStart), "", 0, std::nullopt});
@@ -297,6 +320,7 @@ class Experiment {
     if (at == std::string::npos || !res_.stop_reason.empty()) return;
     res_.stop_reason =
         "initial pose refused (" + scenario().file.filename().string() + "): " + line.substr(at + key.size());
+    res_.ending = RunEnding::kRefused;
   }
 
   void finish() {
@@ -306,6 +330,7 @@ class Experiment {
     res_.converged = end.kind == sim::SessionEnd::kConverged;
     res_.robot_stopped = end.kind == sim::SessionEnd::kRobotStopped;
     res_.diverged = end.kind == sim::SessionEnd::kServoStopped && end.reason.rfind("diverging", 0) == 0;
+    res_.ending = ended_ ? *ended_ : ending_of(end, res_.diverged);
     for (std::size_t i = 1; i < res_.trace.size(); ++i)
       res_.error_rise += std::max(0.0, res_.trace[i].error_norm - res_.trace[i - 1].error_norm);
     if (!res_.trace.empty() && res_.trace.front().error_norm > 0) {
@@ -331,6 +356,7 @@ class Experiment {
   std::deque<std::pair<double, int>> step_extras_;  // (feature rms, swapped) per applied step, in order
   int k_ = 0;                                       // applied frames so far
   bool started_ = false;
+  std::optional<RunEnding> ended_;  // set where the run stops before the cell ends the session
 };
 
 }  // namespace

@@ -49,7 +49,11 @@ struct IterationRecord {
   int swapped = 0;                 // spots given a wrong id by the outlier injection
 };
 
+// How a run ended, in the words of the exit-code table (servo/config/exit_codes.hpp)
+enum class RunEnding { kConverged, kDiverged, kCapped, kStopped, kNotTaught, kRefused };
+
 struct ExperimentResult {
+  RunEnding ending = RunEnding::kStopped;
   bool converged = false;
   bool diverged = false;
   // the robot stopped by itself (a collision: "robot stop: collision: link 'A' touches object

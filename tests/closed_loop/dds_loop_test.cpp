@@ -2,6 +2,8 @@
 // domain of its own, hard timeouts, and checks made on the topics they publish (a test
 // participant listens like any outside client), never on their logs.
 #include <gtest/gtest.h>
+
+#include "servo/config/exit_codes.hpp"
 #include <unistd.h>
 
 #include <atomic>
@@ -190,7 +192,8 @@ TEST(DdsLoop, ASafeStopAndACollisionEndTheServicesRunWhereTheyEndTheInProcessOne
       Process sim({kBin + "cellsim", "serve", c.scenario, "--autorun", "--exit-on-stop", "--max-frames", "700",
                    "--trace", run_dir},
                   domain, run_dir + "/sim.log");
-      ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << run_dir;
+      // a session a stop ended exits "stopped" (README, exit codes), the in-process run's ending
+      ASSERT_EQ(sim.wait_exit(180s), config::exit_code::kStopped) << "cellsim did not end stopped; see " << run_dir;
     }
     const auto cell = sim::build_cell(sim::load_scenario(c.scenario));
     cellsim::ExperimentOptions o;
@@ -201,6 +204,7 @@ TEST(DdsLoop, ASafeStopAndACollisionEndTheServicesRunWhereTheyEndTheInProcessOne
     o.write_features = false;
     const auto r = cellsim::run_experiment(*cell, o);
     EXPECT_EQ(r.stop_reason.rfind(c.stop, 0), 0u) << c.name << ": " << r.stop_reason;
+    EXPECT_EQ(r.ending, cellsim::RunEnding::kStopped) << c.name;
     const auto service = trace_rows(run_dir + "/trace.csv"), in_process = trace_rows(o.out_dir.string() + "/trace.csv");
     EXPECT_LT(in_process.size(), 600u) << c.name;
     EXPECT_EQ(service, in_process) << c.name << ": see " << run_dir;

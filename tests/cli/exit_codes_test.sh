@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Issue 43: every command's exit code follows one table (servo/config/exit_codes.hpp,
+# README.md): converged 0, refused 1, usage 2, diverged 4, capped 5, not taught 7, and
+# `cellsim serve`'s session end the same way. A script or a Slurm job tells them apart.
+set -u
+bin="$1"; src="$2"
+source "$(dirname "$0")/lib.sh"
+source "$src/tests/closed_loop/services.sh"  # claim_domain
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+expect() {  # expect CODE WHAT COMMAND...
+  local code="$1" what="$2"; shift 2
+  "$@" >"$tmp/out" 2>&1; local rc=$?
+  [ "$rc" -eq "$code" ] || fail "$what: exit $rc, not $code: $(tail -2 "$tmp/out")"
+}
+plane="$src/sim/scenarios/plane.yaml"
+expect 0 "converged" "$bin/cellsim" experiment "$plane" --z-hat 0.9 --features ideal --no-plot
+expect 5 "capped" "$bin/cellsim" experiment "$plane" --z-hat 0.9 --features ideal --no-plot --max-iterations 5
+expect 4 "diverged" "$bin/cellsim" experiment "$src/sim/scenarios/fig5.yaml" --features ideal --no-plot --divergence-ratio 1.2
+expect 1 "refused (outside the workspace)" "$bin/cellsim" experiment "$plane" --initial "0 0 900 0 0 0" --no-plot
+expect 2 "usage" "$bin/cellsim" experiment "$plane" --no-such-flag
+expect 2 "usage (servo)" "$bin/servo" decode
+# a camera looking away from the wall at its desired pose: nothing to teach on
+sed -e "s#\.\./\.\./#$src/#g" \
+    -e 's#^desired_pose: .*#desired_pose: {position_m: [0.5, 0.0, 0.4], look_at_m: [-1.4, 0.0, 0.4]}#' "$plane" >"$tmp/away.yaml"
+expect 7 "not taught" "$bin/cellsim" experiment "$tmp/away.yaml" --z-hat 0.9 --no-plot
+grep -q "not taught: teach frame has no decodable spots: no run" "$tmp/out" || fail "not taught said: $(cat "$tmp/out")"
+! grep -q "send TEACH again\|final error" "$tmp/out" || fail "an in-process run that never ran spoke of TEACH or a final error"
+# the service: the frame cap is the session asked for, unless convergence was asked to end it
+claim_domain
+export ROS_DOMAIN_ID="$cell_domain"
+expect 0 "serve to its frame cap" timeout 60 "$bin/cellsim" serve "$plane" --max-frames 3 --mode realtime
+expect 5 "serve capped before converging" timeout 60 "$bin/cellsim" serve "$plane" --autorun --exit-on-converged \
+  --max-frames 3 --mode realtime
+echo "exit codes: converged 0, refused 1, usage 2, diverged 4, capped 5, not taught 7; serve's cap 0 or 5"

@@ -360,9 +360,11 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
     std::printf("  %s: no run\n", r.stop_reason.c_str());
   if (ran) std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
   if (!out_dir.empty() && ran) {
-    if (plot) cellsim::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
-    std::printf("  trace: %s/trace.csv, features: %s/features.jsonl, plots: %s/velocities.png %s/error_norm.png\n",
-                out_dir.c_str(), out_dir.c_str(), out_dir.c_str(), out_dir.c_str());
+    // the plots are named only when they were drawn (--no-plot, or no Python: none)
+    const bool plotted = plot && cellsim::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
+    std::printf("  trace: %s/trace.csv, features: %s/features.jsonl", out_dir.c_str(), out_dir.c_str());
+    if (plotted) std::printf(", plots: %s/velocities.png %s/error_norm.png", out_dir.c_str(), out_dir.c_str());
+    std::printf("\n");
   }
   if (recording) std::printf("  recorded %s\n", recording->close().c_str());
   return exit_code_of(r.ending);

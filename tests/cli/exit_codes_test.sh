@@ -13,7 +13,10 @@ expect() {  # expect CODE WHAT COMMAND...
   [ "$rc" -eq "$code" ] || fail "$what: exit $rc, not $code: $(tail -2 "$tmp/out")"
 }
 plane="$src/sim/scenarios/plane.yaml"
-expect 0 "converged" "$bin/cellsim" experiment "$plane" --z-hat 0.9 --features ideal --no-plot
+expect 0 "converged" "$bin/cellsim" experiment "$plane" --z-hat 0.9 --features ideal --no-plot -o "$tmp/run"
+# the output names what was written, and no plot under --no-plot
+grep -q "trace: $tmp/run/trace.csv" "$tmp/out" && [ -s "$tmp/run/trace.csv" ] || fail "no trace named: $(cat "$tmp/out")"
+! grep -q "velocities.png" "$tmp/out" || fail "--no-plot named plots it never wrote: $(tail -1 "$tmp/out")"
 expect 5 "capped" "$bin/cellsim" experiment "$plane" --z-hat 0.9 --features ideal --no-plot --max-iterations 5
 expect 4 "diverged" "$bin/cellsim" experiment "$src/sim/scenarios/fig5.yaml" --features ideal --no-plot --divergence-ratio 1.2
 expect 1 "refused (outside the workspace)" "$bin/cellsim" experiment "$plane" --initial "0 0 900 0 0 0" --no-plot

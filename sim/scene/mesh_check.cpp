@@ -73,6 +73,28 @@ void add_triangles(const std::filesystem::path& p, MeshFileCounts& c, std::size_
     fail(p, "more than " + std::to_string(kMaxMeshTriangles) + " triangles (the limit per mesh)");
 }
 
+// One statement of a line-based text format (OBJ, MTL): its key, where it is ("line N: ") and
+// its values up to a '#' comment; false for a blank or comment line. More than `max_values`
+// values is refused.
+struct Statement {
+  std::string key, at;
+  std::vector<std::string> values;
+};
+bool read_statement(const std::filesystem::path& p, std::string line, std::size_t n, std::size_t max_values,
+                    Statement& out) {
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  std::istringstream ls(line);
+  out.values.clear();
+  if (!(ls >> out.key) || out.key[0] == '#') return false;
+  out.at = "line " + std::to_string(n) + ": ";
+  for (std::string t; ls >> t;) {
+    if (t[0] == '#') break;
+    out.values.push_back(t);
+    if (out.values.size() > max_values) fail(p, out.at + "too many values on one line");
+  }
+  return true;
+}
+
 // ---------------------------------------------------------------- OBJ
 MeshFileCounts check_obj(const std::filesystem::path& p, const std::string& data) {
   check_text(p, data, 0, data.size());
@@ -99,19 +121,12 @@ MeshFileCounts check_obj(const std::filesystem::path& p, const std::string& data
     if (!parse_long(t, i) || i == 0) return false;
     return i > 0 ? static_cast<std::size_t>(i) <= count : static_cast<std::size_t>(-i) <= count;
   };
+  Statement st;
   while (std::getline(in, line)) {
-    ++n;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string key;
-    if (!(ls >> key) || key[0] == '#') continue;
-    const std::string at = "line " + std::to_string(n) + ": ";
-    std::vector<std::string> toks;
-    for (std::string t; ls >> t;) {
-      if (t[0] == '#') break;
-      toks.push_back(t);
-      if (toks.size() > kMaxFaceCorners + 4) fail(p, at + "too many values on one line");
-    }
+    if (!read_statement(p, line, ++n, kMaxFaceCorners + 4, st)) continue;
+    const std::string& key = st.key;
+    const std::string& at = st.at;
+    const std::vector<std::string>& toks = st.values;
     if (key == "v" || key == "vn" || key == "vt") {
       const std::size_t need = key == "vt" ? 1 : 3;
       if (toks.size() < need || toks.size() > 4) fail(p, at + "'" + key + "' needs " + std::to_string(need) + " to 4 numbers");
@@ -423,14 +438,12 @@ void check_material_data(const std::filesystem::path& path, const std::string& d
   check_text(path, data, 0, data.size());
   std::istringstream in(data);
   std::string line;
+  Statement st;
   for (std::size_t n = 1; std::getline(in, line); ++n) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string key;
-    if (!(ls >> key) || key[0] == '#') continue;
-    const std::string at = "line " + std::to_string(n) + ": ";
-    std::vector<std::string> toks;
-    for (std::string t; ls >> t && toks.size() <= 4;) toks.push_back(t);
+    if (!read_statement(path, line, n, 4, st)) continue;
+    const std::string& key = st.key;
+    const std::string& at = st.at;
+    const std::vector<std::string>& toks = st.values;
     if (key == "newmtl") {
       if (toks.size() != 1 || toks[0].size() > kMaxSideFileName) fail(path, at + "'newmtl' takes one name");
     } else if (key == "map_Kd") {

@@ -67,14 +67,20 @@ TEST(EpipolarGeometry, TheTrueIdLiesOnItsLineAndItsNeighboursAcrossTheLinesDoNot
   EXPECT_FALSE(g.consistent({std::nan(""), 0}, {5, 5}));
 }
 
-TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
-  // camera at the origin looking along +Z; projector 0.3 m to its side, looking the same way
+// The camera at the origin looking along +Z; the projector 0.3 m to its side, looking the same way.
+struct SideBySide {
+  SideBySide() { p.world_T_projector.translation() = o; }
   control::ProjectorModel p;
-  p.world_T_projector = Eigen::Isometry3d::Identity();
-  p.world_T_projector.translation() = Eigen::Vector3d(0.3, 0, 0);
-  const control::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
-  const vision::EpipolarGeometry g(cam, p, Eigen::Isometry3d::Identity(), 3.0);
-  const Eigen::Vector3d o(0.3, 0, 0), b = p.spot_ray(7, 12);
+  Eigen::Vector3d o{0.3, 0, 0};
+  control::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
+  vision::EpipolarGeometry geometry() const { return {cam, p, Eigen::Isometry3d::Identity(), 3.0}; }
+};
+
+TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
+  const SideBySide rig;
+  const control::ProjectorModel& p = rig.p;
+  const vision::EpipolarGeometry g = rig.geometry();
+  const Eigen::Vector3d o = rig.o, b = p.spot_ray(7, 12);
   const auto image_of = [](const Eigen::Vector3d& x) { return Eigen::Vector2d(x.x() / x.z(), x.y() / x.z()); };
   const Eigen::Vector3d in_front = o + 1.0 * b;
   EXPECT_LT(g.residual_px(image_of(in_front), {7, 12}), 1e-6);
@@ -94,12 +100,10 @@ TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
 // window-read spots lie on theirs: the limit is 4 times their median residual, at least 1 px,
 // at most the tolerance; with fewer than 9 of them, the tolerance.
 TEST(EpipolarGeometry, TheGrownLimitFollowsTheFramesWindowReadResiduals) {
-  control::ProjectorModel p;
-  p.world_T_projector = Eigen::Isometry3d::Identity();
-  p.world_T_projector.translation() = Eigen::Vector3d(0.3, 0, 0);
-  const control::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
-  const vision::EpipolarGeometry g(cam, p, Eigen::Isometry3d::Identity(), 3.0);
-  const Eigen::Vector3d o(0.3, 0, 0);
+  const SideBySide rig;
+  const control::ProjectorModel& p = rig.p;
+  const vision::EpipolarGeometry g = rig.geometry();
+  const Eigen::Vector3d o = rig.o;
   // spot k: id (5, k) on its line, moved off it across the line by `off_px` camera pixels
   const auto spots_off = [&](const std::vector<double>& off_px) {
     std::vector<vision::Spot> spots;

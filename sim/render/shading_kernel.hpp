@@ -187,6 +187,21 @@ inline void apply_texture(const Frame& f, typename L::I tri, typename L::F dx, t
   b = L::mul(b, L::sel(tex, L::gather(f.texels, L::addi(at, L::addi(plane, plane)), tex), keep));
 }
 
+// A coloured surface returns each channel's share of the light its brightest returns (tint); a
+// printed one, its texel's too (apply_texture). Grey scenes never call it.
+template <class L>
+inline void surface_colour(const Frame& f, typename L::I tri, typename L::F dx, typename L::F dy, typename L::F& r,
+                           typename L::F& g, typename L::F& b) {
+  if (f.tint) {
+    const std::size_t fields = triangle_stride(f.triangle_count);
+    const typename L::M has = L::lei(L::seti(0), tri);
+    r = L::mul(r, L::sel(has, L::gather(f.tint, tri, has), L::set(1.0f)));
+    g = L::mul(g, L::sel(has, L::gather(f.tint + fields, tri, has), L::set(1.0f)));
+    b = L::mul(b, L::sel(has, L::gather(f.tint + 2 * fields, tri, has), L::set(1.0f)));
+  }
+  if (f.texel) apply_texture<L>(f, tri, dx, dy, r, g, b);
+}
+
 // Added to a projector depth cell (fewer than 2^30) where the point's plane is never in the
 // static scene's shadow: the static lookup is skipped there.
 constexpr int kFreeCell = 1 << 30;
@@ -371,18 +386,8 @@ void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t
       if (L::any(lit))
         add_spots<L>(f, lit, L::load(pu_row + u), L::load(pv_row + u), L::load(sigma_row + u), L::load(weight_row + u),
                      r, g, b);
-      if (f.tint || f.texel) {
-        // a coloured surface returns each channel's share of the light its brightest returns;
-        // a printed one, its texel's
-        const I tri = L::loadi(tri_row + u);
-        if (f.tint) {
-          const M has = L::lei(L::seti(0), tri);
-          r = L::mul(r, L::sel(has, L::gather(f.tint, tri, has), L::set(1.0f)));
-          g = L::mul(g, L::sel(has, L::gather(f.tint + fields, tri, has), L::set(1.0f)));
-          b = L::mul(b, L::sel(has, L::gather(f.tint + 2 * fields, tri, has), L::set(1.0f)));
-        }
-        if (f.texel) apply_texture<L>(f, tri, L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
-      }
+      if (f.tint || f.texel)
+        surface_colour<L>(f, L::loadi(tri_row + u), L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
       const F rgb[3] = {r, g, b};
       I out[3];
       const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);

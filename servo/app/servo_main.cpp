@@ -520,6 +520,7 @@ struct ViewCommand {
 
 int main(int argc, char** argv) {
   CLI::App app{"servo: structured-light visual-servoing controller"};
+  app.set_version_flag("--version", std::string("servo ") + CELL_VERSION);
   app.require_subcommand(1);
   DecodeCommand decode;
   RunCommand run;

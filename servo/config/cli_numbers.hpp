@@ -86,6 +86,8 @@ inline int parse_command_line(CLI::App& app, int argc, char** argv, const char* 
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::string what = e.what();
     for (char& ch : what)

@@ -722,6 +722,7 @@ int main(int argc, char** argv) {
   // a full disk; the signal's default would kill the run
   std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"cellsim: simulator of a camera-projector robot cell"};
+  app.set_version_flag("--version", std::string("cellsim ") + CELL_VERSION);
   app.require_subcommand(1);
   RenderCommand render;
   DecodeSweepCommand sweep;

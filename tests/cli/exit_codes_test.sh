@@ -22,6 +22,10 @@ expect 4 "diverged" "$bin/cellsim" experiment "$src/sim/scenarios/fig5.yaml" --f
 expect 1 "refused (outside the workspace)" "$bin/cellsim" experiment "$plane" --initial "0 0 900 0 0 0" --no-plot
 expect 2 "usage" "$bin/cellsim" experiment "$plane" --no-such-flag
 expect 2 "usage (servo)" "$bin/servo" decode
+for tool in cellsim servo; do
+  expect 0 "$tool --version" "$bin/$tool" --version
+  grep -qx "$tool [0-9]*\.[0-9]*\.[0-9]*" "$tmp/out" || fail "$tool --version said: $(cat "$tmp/out")"
+done
 # a camera looking away from the wall at its desired pose: nothing to teach on
 sed -e "s#\.\./\.\./#$src/#g" \
     -e 's#^desired_pose: .*#desired_pose: {position_m: [0.5, 0.0, 0.4], look_at_m: [-1.4, 0.0, 0.4]}#' "$plane" >"$tmp/away.yaml"

@@ -64,6 +64,7 @@ int run_viewer(const ViewOptions& o) {
   std::mutex m;
   std::condition_variable cv;
   std::optional<sensor_msgs::msg::dds_::Image_> image;
+  long received = 0, dropped = 0;  // images that came; those the next replaced before they were drawn
   std::map<StampKey, cell_msgs::msg::dds_::DecodedSpots_> spots;  // by stamp, a few kept
   const auto topic = [&](const char* t) { return cell_dds::namespaced(o.ns, t); };
   auto p = cell_dds::make_participant(cell_dds::participant_options(o, "servo_view", "viewer"));
@@ -71,6 +72,8 @@ int run_viewer(const ViewOptions& o) {
   cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType> images(
       *p, topic(cell_dds::kImageTopic), cell_dds::reader_qos(Stream::kFrame), [&](sensor_msgs::msg::dds_::Image_&& i) {
         std::lock_guard<std::mutex> l(m);
+        ++received;
+        dropped += image.has_value();
         image = std::move(i);
         cv.notify_all();
       });
@@ -85,11 +88,19 @@ int run_viewer(const ViewOptions& o) {
   std::fflush(stdout);
 
   long shown = 0, seen = 0, rejected = 0;
+  auto last_said = std::chrono::steady_clock::now();
   std::unique_lock<std::mutex> lock(m);
   while (!g_stop && (o.frames == 0 || shown < o.frames)) {
     // an image and its decoded spots (the servo answers each image), or the image alone after 100 ms
     if (!cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return image.has_value(); })) {
       if (window) cv::waitKey(1);
+      // nothing yet: said every 5 s, so that a viewer with no cell does not look hung
+      if (received == 0 && std::chrono::steady_clock::now() - last_said > std::chrono::seconds(5)) {
+        std::printf("servo view: waiting for images on %s (domain %d): is a cellsim serving there? (Ctrl-C ends)\n",
+                    topic(cell_dds::kImageTopic).c_str(), o.domain_id);
+        std::fflush(stdout);
+        last_said = std::chrono::steady_clock::now();
+      }
       continue;
     }
     const auto stamp = key(image->header().stamp());
@@ -123,7 +134,10 @@ int run_viewer(const ViewOptions& o) {
     }
     lock.lock();
   }
-  std::printf("servo view: %ld frames %s\n", shown, window ? "shown" : ("written to " + o.output.string()).c_str());
+  std::printf("servo view: %ld frames %s; %ld images received, %ld dropped (a newer one came before they were "
+              "drawn), %ld refused, %ld skipped by --every\n",
+              shown, window ? "shown" : ("written to " + o.output.string()).c_str(), received, dropped, rejected,
+              seen - shown);
   return 0;
 }
 

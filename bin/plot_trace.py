@@ -87,20 +87,22 @@ def main():
         sys.exit(f"plot_trace: {trace} not found")
     t = read_trace(trace)
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    for key, style in (("vx", "-"), ("vy", "-"), ("vz", "-"), ("wx", "--"), ("wy", "--"), ("wz", "--")):
-        ax.plot(t["t"], t[key], style, label=key + (" (m/s)" if key[0] == "v" else " (rad/s)"))
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("camera velocity (m/s, rad/s)")
-    ax.set_title(f"{args.title}: camera velocities" if args.title else "camera velocities")
-    ax.grid(True, alpha=0.3)
-    ax.legend(ncol=2, fontsize=8)
+    # translation and rotation on axes of their own: m/s and rad/s are not one unit
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
+    for ax, keys, unit in ((top, ("vx", "vy", "vz"), "m/s"), (bottom, ("wx", "wy", "wz"), "rad/s")):
+        for key, colour in zip(keys, ("tab:red", "tab:green", "tab:blue")):
+            ax.plot(t["t"], t[key], color=colour, label=key)
+        ax.set_ylabel(f"{'translation' if unit == 'm/s' else 'rotation'} ({unit})")
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=3, fontsize=8, loc="upper right")
+    bottom.set_xlabel("time (s)")
+    top.set_title(f"{args.title}: camera velocities" if args.title else "camera velocities")
     save(fig, os.path.join(args.dir, "velocities.png"))
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     ax.plot(t["t"], t["error_norm"], color="k")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("|e|")
+    ax.set_ylabel("|e| (normalised image coordinates)")
     ax.set_yscale("log")
     ax.set_title(f"{args.title}: norm of the task function" if args.title else "norm of the task function")
     ax.grid(True, which="both", alpha=0.3)

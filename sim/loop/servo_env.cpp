@@ -121,17 +121,18 @@ EnvStep ServoEnv::next_frame() {
 EnvObservation ServoEnv::observation_of(const LoopExchange& x) const {
   EnvObservation o;
   const servo::ServoReply& r = x.reply;
-  if (r.step) {
-    o.matched = r.step->matched;
-    o.detected = r.step->detected;
-    o.decoded = r.step->decoded;
-  }
+  if (r.step) o.matched = r.step->matched;
+  // the reply's counts: the law's step leaves its own at 0 where the servo's node counted
+  // (issue 43: info["detected"] was always 0)
+  o.detected = r.detected;
+  o.decoded = static_cast<int>(r.decoded);
   o.error_norm = r.error_norm;
   o.servo_state = state_name(r.state);
   o.world_T_camera = x.frame.world_T_camera;
   o.translation_error_m = sim::translation_error(x.frame.world_T_camera, cell_.scenario.world_T_desired);
   o.rotation_error_deg = sim::rotation_error(x.frame.world_T_camera, cell_.scenario.world_T_desired) * 180.0 / M_PI;
   o.time_s = x.frame.time_s;
+  o.limited = sim::limit_names(x.frame.robot_limits);
   if (options_.images) o.image = x.image;
   return o;
 }

@@ -35,6 +35,9 @@ struct EnvObservation {
   double translation_error_m = 0, rotation_error_deg = 0;            // to the desired pose (info)
   double time_s = 0;
   std::string servo_state;  // idle, teaching, servoing, converged, lost, stopped
+  // why the robot did not make the last twist as given ("cartesian_speed", "joint_velocity|...",
+  // sim::limit_names; "" when it did): a 10 m/s twist is clipped to the cell's speed, and says so
+  std::string limited;
 };
 
 struct EnvStep {

@@ -13,9 +13,11 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <string>
 
+#include "servo/config/strict_yaml.hpp"
 #include "servo/node/servo_state_machine.hpp"
 #include "sim/arm/arm_scenario.hpp"
 #include "sim/loop/experiment.hpp"
@@ -280,12 +282,30 @@ struct Env {
     d["time_s"] = o.time_s;
     d["steps"] = env->steps();
     d["reason"] = s.reason;
+    d["limited"] = o.limited;
     return d;
   }
-  py::tuple reset(const std::optional<std::uint64_t>& seed, const std::optional<py::dict>& options) {
+  // seed: None, or a whole number 0 .. 2**64 - 1 (pybind's own conversion error named no
+  // argument); options: a dict of known keys only (an unknown one was ignored)
+  py::tuple reset(const py::object& seed, const std::optional<py::dict>& options) {
+    std::optional<std::uint64_t> draw;
+    if (!seed.is_none()) {
+      const bool whole = py::isinstance<py::int_>(seed) && !py::isinstance<py::bool_>(seed);
+      if (!whole || seed < py::int_(0) || seed > py::int_(std::numeric_limits<std::uint64_t>::max()))
+        throw py::value_error("reset: seed must be None or a whole number from 0 to 2**64 - 1, got " +
+                              config::printable(py::str(py::repr(seed)).cast<std::string>(), 60));
+      draw = seed.cast<std::uint64_t>();
+    }
     std::optional<Eigen::Isometry3d> initial;
-    if (options && options->contains("initial_pose")) initial = scenario.pose((*options)["initial_pose"]);
-    const cellsim::EnvStep s = env->reset(seed, initial);
+    if (options) {
+      for (const auto& [key, value] : *options) {
+        const std::string k = py::str(key).cast<std::string>();
+        if (k != "initial_pose")
+          throw py::value_error("reset: unknown option '" + config::printable(k, 60) + "' (known: initial_pose)");
+      }
+      if (options->contains("initial_pose")) initial = scenario.pose((*options)["initial_pose"]);
+    }
+    const cellsim::EnvStep s = env->reset(draw, initial);
     return py::make_tuple(obs(s.observation), info(s));
   }
   py::tuple step(const py::object& action) {

@@ -147,6 +147,25 @@ def test_bad_inputs_raise_a_one_line_python_exception(plane):
     one_line(e)
 
 
+def test_reset_refuses_bad_seeds_and_unknown_options_and_info_tells_the_truth(plane):
+    """Issue 43: reset(seed=-1) dumped pybind's argument error, an unknown option was ignored,
+    info["detected"] was always 0, and a clipped twist said nothing."""
+    env = cellsim.ServoEnv(plane, max_steps=8)
+    for bad in (-1, 2**64, 1.5, True, "3"):
+        with pytest.raises(ValueError) as e:
+            env.reset(seed=bad)
+        assert "seed must be None or a whole number from 0 to 2**64 - 1" in one_line(e)
+    with pytest.raises(ValueError) as e:
+        env.reset(options={"initial_pos": "0 0 0 0 0 0"})
+    assert "unknown option 'initial_pos' (known: initial_pose)" in one_line(e)
+    _, info = env.reset(seed=2**64 - 1)
+    assert info["detected"] >= info["decoded"] > 300
+    _, _, _, _, info = env.step(np.array([10.0, 0, 0, 0, 0, 0]))  # far beyond the cell's speed
+    assert "cartesian_speed" in info["limited"]
+    _, _, _, _, info = env.step(np.zeros(6))
+    assert info["limited"] == ""
+
+
 def test_views_checked_depths_paths_and_sizes(plane):
     """Issue 40, item 10: a crop, a flipped view or a Fortran-order array decodes as the array
     it shows; z_hat is checked as --z-hat is; a path with a NUL byte and an image over

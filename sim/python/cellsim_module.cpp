@@ -9,6 +9,7 @@
 // RuntimeError with a one-line message; nothing crashes.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/eval.h>
 #include <pybind11/stl.h>
 
 #include <cmath>
@@ -22,6 +23,7 @@
 #include "sim/arm/arm_scenario.hpp"
 #include "sim/loop/experiment.hpp"
 #include "sim/loop/servo_env.hpp"
+#include "sim/python/gymnasium_layer.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace py = pybind11;
@@ -243,25 +245,44 @@ struct Env {
     cellsim::EnvOptions o;
     o.servo = servo_config(s, model, z_hat, gain, robust);
     o.max_steps = max_steps;
-    o.images = images;
+    o.images = true;  // the observation in image mode, render() in both
     env = std::make_unique<cellsim::ServoEnv>(*s.cell, o);
+    rows = s.cell->projector->pattern().rows;
+    cols = s.cell->projector->pattern().cols;
   }
   Scenario scenario;
   bool images;
   std::unique_ptr<cellsim::ServoEnv> env;
+  int rows = 0, cols = 0;
+  cv::Mat last_image;
 
-  py::object obs(const cellsim::EnvObservation& o) const {
-    if (images) return o.image.empty() ? py::object(py::none()) : py::object(image_array(o.image));
-    py::array_t<double> f({static_cast<py::ssize_t>(o.matched.size()), py::ssize_t{4}});
-    for (std::size_t i = 0; i < o.matched.size(); ++i) {
-      const auto& m = o.matched[i];
-      const auto r = static_cast<py::ssize_t>(i);
+  // One row per pattern id, row-major, whatever the frame shows (a fixed shape, as Gymnasium
+  // wants): (x, y, x*, y*, seen), normalised image coordinates; zeros and seen = 0 where the id
+  // is not matched to s* in this frame. The image mode: the H x W x 3 frame.
+  py::object obs(const cellsim::EnvObservation& o) {
+    last_image = o.image;
+    if (images) {
+      const auto& k = scenario.cell->scenario.camera.intrinsics;
+      return o.image.empty() ? image_array(cv::Mat(k.height, k.width, CV_8UC3, cv::Scalar::all(0)))
+                             : image_array(o.image);
+    }
+    py::array_t<double> f({static_cast<py::ssize_t>(rows) * cols, py::ssize_t{5}});
+    std::fill(f.mutable_data(), f.mutable_data() + f.size(), 0.0);
+    for (const auto& m : o.matched) {
+      if (m.row < 0 || m.col < 0 || m.row >= rows || m.col >= cols) continue;
+      const auto r = static_cast<py::ssize_t>(m.row) * cols + m.col;
       f.mutable_at(r, 0) = m.x;
       f.mutable_at(r, 1) = m.y;
       f.mutable_at(r, 2) = m.x_star;
       f.mutable_at(r, 3) = m.y_star;
+      f.mutable_at(r, 4) = 1.0;
     }
     return f;
+  }
+  py::object frame() const { return last_image.empty() ? py::object(py::none()) : py::object(image_array(last_image)); }
+  py::tuple speed_limits() const {
+    const auto& r = scenario.cell->scenario.robot;
+    return py::make_tuple(r.max_linear_mps, r.max_angular_radps);
   }
   py::dict info(const cellsim::EnvStep& s) const {
     const auto& o = s.observation;
@@ -359,13 +380,17 @@ PYBIND11_MODULE(cellsim, m) {
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
         py::arg("features") = "decoded",
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns");
-  py::class_<Env>(m, "ServoEnv",
-                  "the cell as an environment (Gymnasium's API shape): reset(seed, options) -> (obs, info); "
-                  "step(twist) -> (obs, reward, terminated, truncated, info); reward = -|e|")
+  py::class_<Env>(m, "_ServoEnvCore",
+                  "the environment's engine (ServoEnv, defined below in Python, is the public face)")
       .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&>(),
            py::arg("scenario"), py::arg("observation") = "features", py::arg("max_steps") = 300,
            py::arg("model") = "desired-constant-depth", py::arg("z_hat") = 0.0, py::arg("gain") = 0.5,
            py::arg("robust") = "none")
       .def("reset", &Env::reset, py::arg("seed") = py::none(), py::arg("options") = py::none())
-      .def("step", &Env::step, py::arg("twist"));
+      .def("step", &Env::step, py::arg("twist"))
+      .def("frame", &Env::frame)
+      .def_property_readonly("pattern_shape", [](const Env& e) { return py::make_tuple(e.rows, e.cols); })
+      .def_property_readonly("speed_limits", &Env::speed_limits);
+  m.attr("__version__") = CELL_VERSION;
+  py::exec(cellsim_python::kGymnasiumLayer, m.attr("__dict__"));
 }

@@ -24,14 +24,16 @@ def interaction_matrix(x, y, z):
 
 def proportional_controller(gain, depth):
     def control(features):
-        x, y, xs, ys = features.T
+        # one row per pattern id: (x, y, x*, y*, seen); the ids matched in this frame
+        x, y, xs, ys, _ = features[features[:, 4] > 0].T
         error = np.stack([x - xs, y - ys], axis=1).reshape(-1)
         return -gain * np.linalg.pinv(interaction_matrix(xs, ys, np.full_like(xs, depth))) @ error
     return control
 
 
 def run(env, control, seed=None):
-    obs, info = env.reset(seed=seed)
+    # no seed: the scenario's own initial pose (a seed draws one as a campaign does)
+    obs, info = env.reset(seed=seed, options=None if seed is not None else {"initial_pose": "initial"})
     total = 0.0
     while True:
         obs, reward, terminated, truncated, info = env.step(control(obs))

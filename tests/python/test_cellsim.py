@@ -65,8 +65,8 @@ def test_an_experiment_returns_the_trace_as_arrays(plane):
 
 def test_the_envs_300_step_plane_run_with_a_proportional_controller_converges(plane):
     env = cellsim.ServoEnv(plane, max_steps=300)
-    obs, info = env.reset()
-    assert obs.ndim == 2 and obs.shape[1] == 4 and obs.shape[0] > 100
+    obs, info = env.reset(options={"initial_pose": "initial"})
+    assert obs.shape == (400, 5) and obs[:, 4].sum() > 100
     assert info["steps"] == 0 and info["servo_state"] == "servoing"
     control = example_controller.proportional_controller(gain=1.0, depth=0.9)
     rewards = []
@@ -122,7 +122,7 @@ def test_bad_inputs_raise_a_one_line_python_exception(plane):
     with pytest.raises(RuntimeError) as e:
         env.step(np.zeros(6))
     assert "reset" in one_line(e)
-    env.reset()
+    env.reset(seed=1)
     with pytest.raises(ValueError) as e:
         env.step(np.array([0, 0, np.nan, 0, 0, 0]))
     assert "finite" in one_line(e)
@@ -164,6 +164,55 @@ def test_reset_refuses_bad_seeds_and_unknown_options_and_info_tells_the_truth(pl
     assert "cartesian_speed" in info["limited"]
     _, _, _, _, info = env.step(np.zeros(6))
     assert info["limited"] == ""
+
+
+def test_servo_env_keeps_gymnasiums_contract(plane):
+    """Issue 43: Gymnasium's env_checker rules, written out (Debian has no gymnasium package):
+    spaces with Box's interface, every observation in its space and of one shape, seeding that
+    reproduces and a reset without a seed that draws afresh, the step's types, render, close,
+    docstrings and __version__."""
+    assert cellsim.__version__.count(".") == 2
+    for f in (cellsim.ServoEnv, cellsim.ServoEnv.reset, cellsim.ServoEnv.step, cellsim.ServoEnv.render,
+              cellsim.ServoEnv.close, cellsim.Box):
+        assert f.__doc__, f
+    for observation in ("features", "image"):
+        env = cellsim.ServoEnv(plane, observation=observation, max_steps=4, render_mode="rgb_array")
+        for space in (env.observation_space, env.action_space):
+            for attr in ("shape", "dtype", "low", "high", "sample", "contains", "seed"):
+                assert hasattr(space, attr), attr
+            space.seed(5)
+            x = space.sample()
+            assert x.shape == space.shape and x.dtype == space.dtype and space.contains(x) and x in space
+        assert env.action_space.shape == (6,) and np.all(env.action_space.high > 0)
+        assert not env.action_space.contains(np.full(6, 1e3))
+        a, info_a = env.reset(seed=21)
+        b, info_b = env.reset(seed=21)
+        assert np.array_equal(a, b) and np.array_equal(info_a["camera_pose"], info_b["camera_pose"])
+        assert isinstance(env.np_random, np.random.Generator)
+        poses = [env.reset()[1]["camera_pose"] for _ in range(2)]
+        assert not np.array_equal(poses[0], poses[1]), "a reset without a seed gave the same pose"
+        obs, info = env.reset(seed=2)
+        shapes = {obs.shape}
+        assert env.observation_space.contains(obs) and isinstance(info, dict)
+        for _ in range(4):
+            obs, reward, terminated, truncated, info = env.step(env.action_space.sample() * 0.01)
+            assert env.observation_space.contains(obs), observation
+            assert isinstance(reward, float) and isinstance(terminated, bool) and isinstance(truncated, bool)
+            shapes.add(obs.shape)
+            if terminated or truncated:
+                break
+        assert len(shapes) == 1
+        frame = env.render()
+        assert frame.dtype == np.uint8 and frame.shape == (plane.height, plane.width, 3)
+        env.close()
+        assert env.render() is None
+        with pytest.raises(RuntimeError) as e:
+            env.reset(seed=1)
+        assert "closed" in one_line(e)
+    assert cellsim.ServoEnv(plane).render() is None  # no render_mode: nothing drawn
+    with pytest.raises(ValueError) as e:
+        cellsim.ServoEnv(plane, render_mode="human")
+    assert "render_mode" in one_line(e)
 
 
 def test_views_checked_depths_paths_and_sizes(plane):

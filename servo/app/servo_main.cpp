@@ -485,8 +485,9 @@ struct ReplayCommand {
     else
       std::printf(": %ld differ, max |difference| %.6g (m/s, rad/s), the first at t = %.3f s", r.differing,
                   r.max_difference, r.first_differing_s.value_or(0));
-    std::printf("; %ld recorded twists not answered, %ld replayed twists not recorded\n", r.recorded_only,
-                r.replayed_only);
+    std::printf("; %ld recorded twists not answered, %ld replayed twists not recorded", r.recorded_only, r.replayed_only);
+    if (r.past_cut > 0) std::printf("; %ld recorded twists answer images past the cut", r.past_cut);
+    std::printf("\n");
     if (!replay.output.empty()) {
       std::printf("servo replay: trace %s\n", (replay.output / "replay.csv").c_str());
       if (replay.plot) config::run_plot_script("servo replay", "plot_replay.py", replay.output, replay.recording.filename().string());

@@ -78,6 +78,9 @@ class Replay {
     if (is_topic(c.topic, cell_dds::kImageTopic)) {
       const auto img = decode<sensor_msgs::msg::dds_::Image_PubSubType>(c, m, file);
       ++images_;
+      const Stamp at = to_stamp(img.header().stamp());
+      if (!last_image_ || std::make_pair(at.sec, at.nanosec) > std::make_pair(last_image_->sec, last_image_->nanosec))
+        last_image_ = at;
       const ServoReply r = machine_->on_image(image_view(img), now);
       if (r.answer) replayed(r);
     } else if (is_topic(c.topic, cell_dds::kCameraInfoTopic)) {
@@ -101,7 +104,11 @@ class Replay {
     }
   }
 
-  ReplayResult compare_and_write() {
+  // `truncated`: the recording ends before its footer, and a twist recorded after the last
+  // image it holds answered an image past the cut (the recorder writes the small twist as it
+  // comes and the image's megabyte after it: the twist can land in the last complete chunk,
+  // the image in the lost one): such twists are counted apart, not as unanswered
+  ReplayResult compare_and_write(bool truncated) {
     ReplayResult res;
     res.images = images_;
     // replayed twists by stamp, in order (a republished frame is answered again)
@@ -130,7 +137,9 @@ class Replay {
     for (const auto& rec : recorded_) {
       auto it = by_stamp.find({rec.stamp.sec, rec.stamp.nanosec});
       if (it == by_stamp.end() || it->second.empty()) {
-        ++res.recorded_only;
+        const bool past_cut = truncated && (!last_image_ || std::make_pair(rec.stamp.sec, rec.stamp.nanosec) >
+                                                                 std::make_pair(last_image_->sec, last_image_->nanosec));
+        ++(past_cut ? res.past_cut : res.recorded_only);
         continue;
       }
       const TwistAt rep = it->second.front();
@@ -168,6 +177,7 @@ class Replay {
   std::unique_ptr<ServoStateMachine> machine_;
   std::optional<std::uint64_t> t0_;
   long images_ = 0;
+  std::optional<Stamp> last_image_;  // the latest image stamp fed
   TwistAt ready_;
   std::vector<TwistAt> recorded_, replayed_;
 };
@@ -183,7 +193,7 @@ ReplayResult run_replay(const ReplayOptions& options) {
   if (s.profile != "ros2")
     std::fprintf(stderr, "servo replay: %s: profile '%s', not ros2; read as the cell's topics anyway\n",
                  options.recording.c_str(), s.profile.c_str());
-  ReplayResult r = replay.compare_and_write();
+  ReplayResult r = replay.compare_and_write(s.truncated.has_value());
   r.truncated = s.truncated;
   return r;
 }

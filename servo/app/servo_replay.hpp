@@ -32,6 +32,7 @@ struct ReplayResult {
   double max_difference = 0;    // largest |replayed - recorded| over all components (m/s, rad/s)
   std::optional<double> first_differing_s;  // the stamp of the first that differs (s)
   long recorded_only = 0;       // recorded twists the replay did not answer
+  long past_cut = 0;            // of a truncated recording: twists whose image lies past its end
   long replayed_only = 0;       // replayed twists the recording does not hold (its writer was not matched yet)
   // the recording ends before its footer (its recorder was killed, or the disk filled): where,
   // in one line; what its complete chunks hold was replayed

@@ -53,10 +53,18 @@ cv::Mat annotated(sensor_msgs::msg::dds_::Image_& img, const std::optional<cell_
 
 }  // namespace
 
+// Nothing has come yet: said every 5 s, so that a viewer with no cell does not look hung.
+void say_waiting(const std::string& topic, int domain, std::chrono::steady_clock::time_point& last_said) {
+  if (std::chrono::steady_clock::now() - last_said <= std::chrono::seconds(5)) return;
+  std::printf("servo view: waiting for images on %s (domain %d): is a cellsim serving there? (Ctrl-C ends)\n",
+              topic.c_str(), domain);
+  std::fflush(stdout);
+  last_said = std::chrono::steady_clock::now();
+}
+
 int run_viewer(const ViewOptions& o) {
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-  std::signal(SIGHUP, on_signal);  // a closed terminal or ssh session: stop as cleanly as on Ctrl-C
+  // SIGHUP: a closed terminal or ssh session stops it as cleanly as Ctrl-C
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_signal);
   const bool window = o.output.empty() && std::getenv("DISPLAY") != nullptr;
   if (!window && o.output.empty()) throw std::runtime_error("no display: give --output DIR for a PNG sequence");
   if (!o.output.empty()) std::filesystem::create_directories(o.output);
@@ -94,13 +102,7 @@ int run_viewer(const ViewOptions& o) {
     // an image and its decoded spots (the servo answers each image), or the image alone after 100 ms
     if (!cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return image.has_value(); })) {
       if (window) cv::waitKey(1);
-      // nothing yet: said every 5 s, so that a viewer with no cell does not look hung
-      if (received == 0 && std::chrono::steady_clock::now() - last_said > std::chrono::seconds(5)) {
-        std::printf("servo view: waiting for images on %s (domain %d): is a cellsim serving there? (Ctrl-C ends)\n",
-                    topic(cell_dds::kImageTopic).c_str(), o.domain_id);
-        std::fflush(stdout);
-        last_said = std::chrono::steady_clock::now();
-      }
+      if (received == 0) say_waiting(topic(cell_dds::kImageTopic), o.domain_id, last_said);
       continue;
     }
     const auto stamp = key(image->header().stamp());

@@ -73,7 +73,9 @@ inline void require_finite_numbers(CLI::App& app) {
     const std::string t = o->get_type_name();
     // integers need no such check: CLI11 refuses "nan", "inf" and 1e300 for them, and a seed
     // may use all 64 bits
-    if (t.rfind("FLOAT", 0) == 0) o->check(finite_in(-kMaxCliMagnitude, kMaxCliMagnitude));
+    // (named in no --help: the option's own range says more, and the common bound on every
+    // number of every command only made the help text noisy)
+    if (t.rfind("FLOAT", 0) == 0) o->check(finite_in(-kMaxCliMagnitude, kMaxCliMagnitude).description(""));
   }
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) require_finite_numbers(*sub);
 }

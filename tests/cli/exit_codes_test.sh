@@ -22,6 +22,13 @@ expect 4 "diverged" "$bin/cellsim" experiment "$src/sim/scenarios/fig5.yaml" --f
 expect 1 "refused (outside the workspace)" "$bin/cellsim" experiment "$plane" --initial "0 0 900 0 0 0" --no-plot
 expect 2 "usage" "$bin/cellsim" experiment "$plane" --no-such-flag
 expect 2 "usage (servo)" "$bin/servo" decode
+# --help without the common bound every number is checked against (the options' own ranges stay)
+for sub in "cellsim experiment" "cellsim render" "cellsim campaign" "servo run"; do
+  # shellcheck disable=SC2086
+  help=$("$bin/"$sub --help) || fail "$sub --help"
+  ! grep -q "1e+09" <<<"$help" || fail "$sub --help shows the common bound: $(grep -m1 1e+09 <<<"$help")"
+done
+grep -q "finite in \[0, 100\]" <<<"$("$bin/cellsim" experiment --help)" || fail "--z-hat's own range is gone from --help"
 for tool in cellsim servo; do
   expect 0 "$tool --version" "$bin/$tool" --version
   grep -qx "$tool [0-9]*\.[0-9]*\.[0-9]*" "$tmp/out" || fail "$tool --version said: $(cat "$tmp/out")"

@@ -21,10 +21,41 @@ def number(s):
         return math.nan
 
 
+# The study axes (cellsim study --axis NAME=...), named with their units on the plots; a name not
+# here is shown as it is
+AXIS_LABELS = {
+    "z_hat": "Ẑ, the law's constant depth (m)",
+    "gain": "gain λ",
+    "object_scale_x": "object scale along x (×)", "object_scale_y": "object scale along y (×)",
+    "object_scale_z": "object scale along z (×)",
+    "object_yaw_deg": "object yaw (deg)",
+    "error_scale": "calibration errors (× the drawn ones)",
+    "offset_scale": "initial offset (× the paper's)",
+    "outliers": "ids swapped per frame (share)",
+    "focal_pct": "focal length error (%)", "principal_point_px": "principal point error (px)",
+    "distortion_k1": "k1 error", "projector_position_mm": "projector position error (mm)",
+    "projector_rotation_deg": "projector rotation error (deg)", "hand_eye_position_mm": "hand-eye position error (mm)",
+    "hand_eye_rotation_deg": "hand-eye rotation error (deg)", "link_length_pct": "link length error (%)",
+    "joint_offset_deg": "joint offset error (deg)",
+    "acquisition_frames": "acquisition delay (frames)", "processing_frames": "processing delay (frames)",
+    "actuation_s": "actuation delay (s)",
+}
+
+
+def label(axis):
+    return AXIS_LABELS.get(axis, axis)
+
+
+def cell_text_colour(im, v):
+    """Black on a light cell, white on a dark one (the colour map's luminance there)."""
+    r, g, b, _ = im.cmap(im.norm(v))
+    return "black" if 0.299 * r + 0.587 * g + 0.114 * b > 0.5 else "white"
+
+
 def one_axis(rows, axis, models, title, out):
     x_key = "depth_spread_m" if axis.startswith("object_") else axis
-    x_label = "depth spread at the desired pose (m)" if x_key == "depth_spread_m" else axis
-    fig, axes = plt.subplots(1, 4, figsize=(17, 3.8))
+    x_label = "depth spread at the desired pose (m)" if x_key == "depth_spread_m" else label(axis)
+    fig, axes = plt.subplots(1, 4, figsize=(17, 3.8), sharex=True)
     for m in models:
         rs = sorted((r for r in rows if r["model"] == m), key=lambda r: number(r[x_key]))
         x = [number(r[x_key]) for r in rs]
@@ -37,21 +68,26 @@ def one_axis(rows, axis, models, title, out):
         ax.set_xlabel(x_label)
         ax.set_ylabel(y)
         ax.grid(True, alpha=0.3)
+    # a panel of the converged runs' figures when none converged: said, not an empty axis
+    for ax, key in ((axes[1], "median_iterations"), (axes[2], "median_translation_mm")):
+        if all(math.isnan(number(r[key])) for r in rows):
+            ax.text(0.5, 0.5, "no run converged", transform=ax.transAxes, ha="center", va="center", color="0.4")
+            ax.set_yticks([])
     axes[0].set_ylim(-5, 105)
     axes[0].legend(fontsize=8)
     if title:
-        fig.suptitle(title)
-    save(fig, out)
+        fig.suptitle(title, fontsize=11)
+    save(fig, out, top=0.9 if title else 1.0)
 
 
 def two_axes(rows, axes_names, models, title, out):
     a, b = axes_names
     xs = sorted({number(r[a]) for r in rows})
     ys = sorted({number(r[b]) for r in rows})
-    fig, axes = plt.subplots(2, len(models), figsize=(3.6 * len(models), 6.6), squeeze=False)
+    fig, axes = plt.subplots(2, len(models), figsize=(max(4.2 * len(models), 6.0), 7.0), squeeze=False)
     for c, m in enumerate(models):
-        for row, key, cmap, label in ((0, "converged_pct", "RdYlGn", "converged (%)"),
-                                      (1, "median_error_rise", "magma_r", "median rise of |e| / |e0|")):
+        for row, key, cmap, what in ((0, "converged_pct", "RdYlGn", "converged (%)"),
+                                     (1, "median_error_rise", "magma_r", "median rise of |e| / |e0|")):
             grid = [[math.nan] * len(xs) for _ in ys]
             for r in rows:
                 if r["model"] == m:
@@ -61,17 +97,18 @@ def two_axes(rows, axes_names, models, title, out):
                            vmin=0 if row == 0 else None, vmax=100 if row == 0 else None)
             ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs], fontsize=7)
             ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys], fontsize=7)
-            ax.set_xlabel(a)
-            ax.set_ylabel(b)
-            ax.set_title(f"{m}: {label}", fontsize=8)
+            ax.set_xlabel(label(a), fontsize=8)
+            ax.set_ylabel(label(b), fontsize=8)
+            ax.set_title(f"{m}:\n{what}", fontsize=8)
             for i, yrow in enumerate(grid):
                 for j, v in enumerate(yrow):
                     if not math.isnan(v):
-                        ax.text(j, i, f"{v:.0f}" if row == 0 else f"{v:.2f}", ha="center", va="center", fontsize=6)
+                        ax.text(j, i, f"{v:.0f}" if row == 0 else f"{v:.2f}", ha="center", va="center", fontsize=7,
+                                color=cell_text_colour(im, v))
             fig.colorbar(im, ax=ax, fraction=0.046)
     if title:
-        fig.suptitle(title)
-    save(fig, out)
+        fig.suptitle(title, fontsize=11)
+    save(fig, out, top=0.92 if title else 1.0)
 
 
 def main():

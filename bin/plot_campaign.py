@@ -21,7 +21,12 @@ def main():
     if not rows:
         sys.exit(f"plot_campaign: {path} has no runs")
     models = list(dict.fromkeys(r["model"] for r in rows))
-    fig, axes = plt.subplots(3, len(models), figsize=(3.2 * len(models), 7.5), squeeze=False)
+    fig, axes = plt.subplots(3, len(models), figsize=(max(3.2 * len(models), 6.4), 7.5), squeeze=False)
+    # one scale per row across the models, so that 40 mm and 0.09 mm do not look alike
+    shown = [max(float(r["final_translation_mm"]), 1e-3) if math.isfinite(float(r["final_translation_mm"])) else 1e3
+             for r in rows]
+    err_lim = (min(shown) / 1.5, max(shown) * 1.5)
+    its_all = [int(r["iterations"]) for r in rows if r["converged"] == "1"]
     for c, m in enumerate(models):
         runs = [r for r in rows if r["model"] == m]
         conv = [r for r in runs if r["converged"] == "1"]
@@ -32,7 +37,11 @@ def main():
         ax = axes[1][c]
         its = [int(r["iterations"]) for r in conv]
         if its:
-            ax.hist(its, bins=min(20, max(3, len(its))), color="tab:blue")
+            ax.hist(its, bins=min(20, max(3, len(its))), range=(min(its_all), max(its_all) + 1), color="tab:blue")
+        else:
+            ax.text(0.5, 0.5, "no run converged", transform=ax.transAxes, ha="center", va="center", color="0.4")
+            ax.set_xticks([])
+            ax.set_yticks([])
         ax.set_xlabel("iterations (converged runs)")
         ax.set_ylabel("runs")
         ax = axes[2][c]
@@ -40,12 +49,18 @@ def main():
         col = ["tab:green" if r["converged"] == "1" else "tab:red" for r in runs]
         ax.scatter(range(len(runs)), [max(e, 1e-3) if math.isfinite(e) else 1e3 for e in err], c=col, s=12)
         ax.set_yscale("log")
+        ax.set_ylim(*err_lim)
         ax.set_xlabel("run")
         ax.set_ylabel("final translation error (mm)")
+        ax.grid(True, which="major", alpha=0.3)
+    from matplotlib.lines import Line2D
+    axes[2][0].legend(handles=[Line2D([], [], ls="", marker="o", color="tab:green", label="converged"),
+                               Line2D([], [], ls="", marker="o", color="tab:red", label="not converged")],
+                      fontsize=7, loc="best")
     if a.title:
         fig.suptitle(a.title, fontsize=10)
     out = os.path.join(a.dir, "campaign.png")
-    save(fig, out, dpi=100)
+    save(fig, out, dpi=100, top=0.95 if a.title else 1.0)
     print(f"plot_campaign: {out}")
 
 

@@ -192,7 +192,7 @@ template <typename Taken>
 inline bool only_fitting_id(const std::vector<Spot>& spots, int j, const pattern::SpotId& x, const EpipolarCheck& check,
                      const pattern::MArray& pattern, Taken&& taken) {
   const auto fits = [&](int r, int c) { return pattern.at(r, c) == spots[j].colour && check.confirms(j, {r, c}); };
-  if (!fits(x.row, x.col) || !check.confirms_grown(j, x)) return false;
+  if (pattern.at(x.row, x.col) != spots[j].colour || !check.confirms_grown(j, x)) return false;  // implies fits
   for (int dr = -1; dr <= 1; ++dr)
     for (int dc = -1; dc <= 1; ++dc) {
       const int r = x.row + dr, c = x.col + dc;

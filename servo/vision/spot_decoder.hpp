@@ -25,6 +25,7 @@
 // SpotDecoder runs them in order (spot_decoder.cpp).
 #pragma once
 
+#include <algorithm>
 #include <limits>
 #include <optional>
 #include <vector>
@@ -67,8 +68,10 @@ struct EpipolarCheck {
   // which moves every spot alike: the limit is kGrownResidual times the median residual of the
   // spots `decoded` names (at least kGrownResidualFloorPx, at most the tolerance).
   void set_grown_limit(const std::vector<DecodedSpot>& decoded);
+  // (within the tolerance too, so that it implies confirms(): a step called before the limit is
+  // set keeps the tolerance)
   bool confirms_grown(int spot, const pattern::SpotId& id) const {
-    return geometry.residual_px(xy[spot], id) <= grown_limit_px;
+    return geometry.residual_px(xy[spot], id) <= std::min(grown_limit_px, geometry.tolerance_px());
   }
   double grown_limit_px = std::numeric_limits<double>::infinity();
   // every spot of window `w` may carry the id the window's centre `centre` implies for it

@@ -120,11 +120,12 @@ std::vector<std::uint8_t> never_shadowed_planes(const SceneTriangles& tris, cons
 
 }  // namespace
 
-std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
-  auto cell = std::make_unique<Cell>();
-  cell->scenario = scenario;
-  // load_mesh walks each file (bounded counts) before assimp imports it; the scene's total is
-  // checked as the meshes come, so at most one mesh beyond the limit is ever held
+namespace {
+
+// The scenario's objects into the cell's world. load_mesh walks each file (bounded counts)
+// before assimp imports it; the scene's total is checked as the meshes come, so at most one
+// mesh beyond the limit is ever held.
+void load_objects(const Scenario& scenario, Cell& cell) {
   std::size_t total = 0;
   for (const ObjectSpec& o : scenario.objects) {
     TriangleMesh mesh = load_mesh(o.mesh);
@@ -134,16 +135,45 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
     if (total > kMaxSceneTriangles)
       throw MeshError(scenario.file.string() + ": objects: more than " + std::to_string(kMaxSceneTriangles) +
                       " triangles in the scene (the limit), reached at mesh " + o.mesh.string());
-    cell->world.add_object(std::move(mesh), o.world_T_object, o.albedo);
-    cell->object_names.push_back(o.name);
+    cell.world.add_object(std::move(mesh), o.world_T_object, o.albedo);
+    cell.object_names.push_back(o.name);
   }
-  if (scenario.robot.arm_enabled && scenario.robot.model) {
-    const RobotModel& m = *scenario.robot.model;
-    if (m.root_has_shape) cell->arm_meshes.add(m.root_shape.visual, 0, m.root_shape.albedo);
-    for (std::size_t i = 0; i < m.chain.size(); ++i)
-      if (m.chain[i].has_shape && !m.chain[i].shape.visual.triangles.empty())
-        cell->arm_meshes.add(m.chain[i].shape.visual, static_cast<int>(i) + 1, m.chain[i].shape.albedo);
-  }
+}
+
+// The arm's link meshes (none for the free-flying camera), in their link frames.
+void load_arm_meshes(const Scenario& scenario, Cell& cell) {
+  if (!scenario.robot.arm_enabled || !scenario.robot.model) return;
+  const RobotModel& m = *scenario.robot.model;
+  if (m.root_has_shape) cell.arm_meshes.add(m.root_shape.visual, 0, m.root_shape.albedo);
+  for (std::size_t i = 0; i < m.chain.size(); ++i)
+    if (m.chain[i].has_shape && !m.chain[i].shape.visual.triangles.empty())
+      cell.arm_meshes.add(m.chain[i].shape.visual, static_cast<int>(i) + 1, m.chain[i].shape.albedo);
+}
+
+// The projector's beam window over its depth buffer (Cell::beam) and what the renderer keeps of
+// it: the depth there, the planes never in shadow, each triangle's gap to the window.
+void fit_beam(Cell& cell) {
+  const Projector& proj = *cell.projector;
+  const DepthBuffer& d = cell.projector_depth;
+  const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
+  const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell.farthest_spot_m + 0.5) + 4.0;
+  RasterClip& w = cell.beam;
+  w.x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin);
+  w.y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin);
+  w.x1 = std::min(d.width - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin);
+  w.y1 = std::min(d.height - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin);
+  cell.beam_depth = beam_window(d, w);
+  cell.never_shadowed = never_shadowed_planes(cell.triangles, *cell.projector, d, w);
+  cell.beam_gap = beam_gaps(cell.triangles, *cell.projector, w, d.margin);
+}
+
+}  // namespace
+
+std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
+  auto cell = std::make_unique<Cell>();
+  cell->scenario = scenario;
+  load_objects(scenario, *cell);
+  load_arm_meshes(scenario, *cell);
   cell->triangles = collect_triangles(cell->world);
   cell->textures = pool_textures(cell->world);
 
@@ -157,20 +187,7 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
   for (const SpotHit& h : cell->spot_hits)
     if (h.centre)
       cell->farthest_spot_m = std::max(cell->farthest_spot_m, (h.centre->point_w - scenario.projector.world_T_projector.translation()).norm());
-  {
-    const Projector& proj = *cell->projector;
-    const DepthBuffer& d = cell->projector_depth;
-    const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
-    const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell->farthest_spot_m + 0.5) + 4.0;
-    RasterClip& w = cell->beam;
-    w.x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin);
-    w.y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin);
-    w.x1 = std::min(d.width - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin);
-    w.y1 = std::min(d.height - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin);
-    cell->beam_depth = beam_window(d, w);
-    cell->never_shadowed = never_shadowed_planes(cell->triangles, *cell->projector, d, w);
-    cell->beam_gap = beam_gaps(cell->triangles, *cell->projector, w, d.margin);
-  }
+  fit_beam(*cell);
 
   // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it
   const Intrinsics& k = scenario.camera.intrinsics;

@@ -42,6 +42,9 @@ grep -q "not taught: teach frame has no decodable spots: no run" "$tmp/out" || f
 # the service: the frame cap is the session asked for, unless convergence was asked to end it
 claim_domain
 export ROS_DOMAIN_ID="$cell_domain"
+# loopback only, whatever the caller's ROS 2 environment says
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY
 expect 0 "serve to its frame cap" timeout 60 "$bin/cellsim" serve "$plane" --max-frames 3 --mode realtime
 expect 5 "serve capped before converging" timeout 60 "$bin/cellsim" serve "$plane" --autorun --exit-on-converged \
   --max-frames 3 --mode realtime

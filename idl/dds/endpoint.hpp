@@ -75,13 +75,17 @@ class Writer {
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
 
-  // what is written, seen after each successful write (a recorder: record/recorder.hpp)
+  // what is written, seen just before each write (a recorder: record/recorder.hpp). Before,
+  // not after: a synchronous write returns once the sample is delivered, and the answer to it
+  // (the servo's twist to an image) can be heard, and recorded, before the write returns; a
+  // recording cut there (a full disk, a kill) then held an answer without its question. A
+  // write that fails (rare: a reliable writer's history full past its blocking time) is
+  // recorded all the same, and its replay answers a frame the recording has no answer to.
   using Tap = std::function<void(const Data&)>;
   void tap(Tap t) { tap_ = std::move(t); }
   bool write(Data& sample) {
-    const bool ok = writer_->write(&sample);
-    if (ok && tap_) tap_(sample);
-    return ok;
+    if (tap_) tap_(sample);
+    return writer_->write(&sample);
   }
   // Waits (bounded) until every matched reliable reader has acknowledged what was written: a
   // process that writes its last word and exits would otherwise take it down with its writer.

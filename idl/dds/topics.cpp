@@ -1,7 +1,8 @@
 #include "dds/topics.hpp"
 
 #include "cell_msgs.h"
-#include "dds/sim_command.hpp"
+#include "protocol/servo_state.hpp"
+#include "protocol/sim_command.hpp"
 
 #include <stdexcept>
 
@@ -16,6 +17,13 @@ static_assert(static_cast<std::uint8_t>(SimCommand::kTeach) == SC::TEACH);
 static_assert(static_cast<std::uint8_t>(SimCommand::kStart) == SC::START);
 static_assert(static_cast<std::uint8_t>(SimCommand::kPause) == SC::PAUSE);
 static_assert(static_cast<std::uint8_t>(SimCommand::kStep) == SC::STEP);
+namespace SS = cell_msgs::msg::dds_::ServoStatus_Constants;
+static_assert(to_wire(ServoState::kIdle) == SS::IDLE);
+static_assert(to_wire(ServoState::kTeaching) == SS::TEACHING);
+static_assert(to_wire(ServoState::kServoing) == SS::SERVOING);
+static_assert(to_wire(ServoState::kConverged) == SS::CONVERGED);
+static_assert(to_wire(ServoState::kLost) == SS::LOST);
+static_assert(to_wire(ServoState::kStopped) == SS::STOPPED);
 }  // namespace cell_dds
 
 namespace cell_dds {

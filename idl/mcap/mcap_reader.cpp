@@ -6,7 +6,7 @@
 #include <cstring>
 #include <string_view>
 
-#include "servo/config/regular_file.hpp"
+#include "common/regular_file.hpp"
 
 namespace mcap {
 namespace {
@@ -40,7 +40,7 @@ class FileSource : public Source {
  public:
   FileSource(const std::filesystem::path& file) : name_(file.string()) {
     std::uintmax_t size = 0;
-    fd_ = config::open_regular_file(file, ~std::uintmax_t{0}, "recording", size);
+    fd_ = common::open_regular_file(file, ~std::uintmax_t{0}, "recording", size);
     size_ = size;
   }
   ~FileSource() override { ::close(fd_); }
@@ -53,7 +53,7 @@ class FileSource : public Source {
     while (got < out.size()) {
       const ssize_t r = ::read(fd_, out.data() + got, out.size() - got);
       if (r < 0 && errno == EINTR) continue;
-      if (r < 0) throw config::FileError(name_ + ": cannot read the recording: " + std::strerror(errno));
+      if (r < 0) throw common::FileError(name_ + ": cannot read the recording: " + std::strerror(errno));
       // the file shrank while it was read: what is missing reads as a truncation would
       if (r == 0) throw FormatError(name_ + ": the file shrank while it was read");
       got += static_cast<std::size_t>(r);
@@ -61,7 +61,7 @@ class FileSource : public Source {
   }
   void skip(std::uint64_t n) override {
     if (::lseek(fd_, static_cast<off_t>(n), SEEK_CUR) < 0)
-      throw config::FileError(name_ + ": cannot read the recording: " + std::strerror(errno));
+      throw common::FileError(name_ + ": cannot read the recording: " + std::strerror(errno));
   }
 
  private:

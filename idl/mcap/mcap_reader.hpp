@@ -79,7 +79,7 @@ using MessageCallback = std::function<void(const Channel&, const MessageView&)>;
 ReadSummary read_mcap(const std::string& bytes, const std::string& name, const MessageCallback& on_message,
                       const ReadLimits& limits = {});
 // Reads a regular file (a FIFO or /proc file is refused, not waited on). Throws FormatError,
-// or config::FileError when the file cannot be read.
+// or common::FileError when the file cannot be read.
 ReadSummary read_mcap_file(const std::filesystem::path& file, const MessageCallback& on_message,
                            const ReadLimits& limits = {});
 

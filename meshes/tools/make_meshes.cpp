@@ -4,7 +4,7 @@
 //   elliptic_cylinder.obj  semi-axes 0.20 m (X) x 0.10 m (Y), height 0.60 m along Z, closed
 //   ham.obj                a leg of ham along Z (0.45 m): a broad, flattened butt end, a
 //                          curved axis and a narrow shank; closed, asymmetric
-// and the held-out shapes of the decoder's evaluation (docs/decoding.md, Held-out test: never
+// and the held-out shapes of the decoder's evaluation (docs/decoding.md, Today's figures: never
 // tuned on), each with depth edges or a silhouette all around the pattern:
 //   heldout/sphere.obj     radius 0.12 m, closed
 //   heldout/torus.obj      ring radius 0.14 m, tube radius 0.05 m, in XY, closed

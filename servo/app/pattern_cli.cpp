@@ -6,14 +6,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "servo/config/cli_numbers.hpp"
+#include "common/cli_numbers.hpp"
 #include "servo/pattern/marray.hpp"
 #include "servo/pattern/palette.hpp"
 #include "servo/pattern/pattern_file.hpp"
 
 namespace {
 
-int run_generate(const pattern::GenerationParams& p, const std::string& out) {
+int run_generate(const pattern::GenerationOptions& p, const std::string& out) {
   const pattern::GenerationResult res = pattern::generate_marray(p);
   if (!res.array) {
     std::cerr << "pattern generate: " << res.failure << "\n";
@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
   CLI::App app{"M-array patterns of coloured spots (Morano et al. perfect submaps)"};
   app.require_subcommand(1);
 
-  pattern::GenerationParams gp;
+  pattern::GenerationOptions gp;
   int window = 3;
   std::string out;
   auto* gen = app.add_subcommand("generate", "generate a perfect submap by brute force");
@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
                   "minimum Hamming distance between windows: 1 (the paper's), 2, or 3 (3 colours, 3 x 3 windows: the "
                   "algebraic GF(3^6) array, up to 20 x 20)")
       ->capture_default_str();
-  gen->add_option("--seed", gp.seed, "random seed")->required()->check(config::whole_number());
+  gen->add_option("--seed", gp.seed, "random seed")->required()->check(common::whole_number());
   gen->add_option("--time-budget", gp.time_budget_s, "give up after this many CPU seconds")->capture_default_str();
   gen->add_option("-o,--output", out, "pattern file to write")->required();
 
@@ -114,8 +114,8 @@ int main(int argc, char** argv) {
   ren->add_option("-o,--output", out, "PNG to write")->required();
   ren->add_option("--pitch", pitch, "pixels between spots")->check(CLI::Range(4, 200));
 
-  config::require_finite_numbers(app);
-  if (const int rc = config::parse_command_line(app, argc, argv, "pattern"); rc >= 0) return rc;
+  common::require_finite_numbers(app);
+  if (const int rc = common::parse_command_line(app, argc, argv, "pattern"); rc >= 0) return rc;
   try {
     if (*gen) {
       gp.window = {window, window};

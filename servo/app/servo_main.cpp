@@ -19,15 +19,15 @@
 #include <opencv2/imgproc.hpp>
 
 #include "dds/cli_flags.hpp"
-#include "servo/config/cli_numbers.hpp"
-#include "servo/config/plot_script.hpp"
-#include "servo/config/strict_yaml.hpp"
-#include "servo/config/regular_file.hpp"
+#include "common/cli_numbers.hpp"
+#include "common/plot_script.hpp"
+#include "common/strict_yaml.hpp"
+#include "common/regular_file.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
-#include "servo/app/servo_replay.hpp"
-#include "servo/app/servo_service.hpp"
+#include "servo/service/servo_replay.hpp"
+#include "servo/service/servo_service.hpp"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/app/servo_view.hpp"
 #include "dds/participant.hpp"
@@ -75,7 +75,7 @@ constexpr std::uintmax_t kMaxImageFileBytes = 3 * static_cast<std::uintmax_t>(se
 
 cv::Mat read_rgb(const std::string& path) {
   // read once, as a regular file (a FIFO or a link to /proc/kmsg must not hang the decoder)
-  const std::string bytes = config::read_regular_file(path, kMaxImageFileBytes, "image");
+  const std::string bytes = common::read_regular_file(path, kMaxImageFileBytes, "image");
   const std::string head = bytes.substr(0, 64 * 1024);
   // a 1 MB PNG can decode to 20000 x 20000 (1.2 GB): the header is checked before decoding
   if (const auto wh = header_size(head)) {
@@ -144,8 +144,8 @@ std::vector<std::filesystem::path> image_list(const std::vector<std::string>& ar
 // What the epipolar check needs besides the image: the projector's calibration, the camera's
 // intrinsics, and the camera's pose for each image (one for all, or each image's sidecar JSON).
 struct EpipolarInputs {
-  std::optional<control::ProjectorModel> projector;
-  control::CameraIntrinsics camera;
+  std::optional<calibration::ProjectorModel> projector;
+  calibration::CameraIntrinsics camera;
   std::optional<Eigen::Isometry3d> fixed_pose;
 };
 
@@ -174,7 +174,7 @@ Eigen::Isometry3d sidecar_pose(const std::filesystem::path& image) {
   std::error_code ec;
   if (!std::filesystem::exists(file, ec))
     throw std::runtime_error(image.string() + ": no camera pose (--camera-pose, or " + name + " with camera_pose)");
-  const nlohmann::json j = nlohmann::json::parse(config::read_regular_file(file, 16u << 20, "camera pose file"), nullptr, false);
+  const nlohmann::json j = nlohmann::json::parse(common::read_regular_file(file, 16u << 20, "camera pose file"), nullptr, false);
   try {
     if (j.is_discarded()) throw std::runtime_error("not JSON");
     const auto& c = j.at("camera_pose");
@@ -205,13 +205,37 @@ void warn_if_suspect(const std::string& image, const cv::Mat& rgb, const vision:
       std::fprintf(stderr,
                    "servo: warning: %s is %d x %d but --camera puts the principal point at (%.1f, %.1f): are these "
                    "intrinsics this image's?\n",
-                   config::printable(image, 200).c_str(), rgb.cols, rgb.rows, cx, cy);
+                   common::printable(image, 200).c_str(), rgb.cols, rgb.rows, cx, cy);
   }
   if (r.decoded.empty() && r.detected.size() >= 9)
     std::fprintf(stderr,
                  "servo: warning: %s: %zu spots detected, none named: is --pattern the pattern the projector casts%s?\n",
-                 config::printable(image, 200).c_str(), r.detected.size(),
+                 common::printable(image, 200).c_str(), r.detected.size(),
                  epipolar.projector ? ", and --camera and the camera pose this image's" : "");
+}
+
+// One image's decode as JSON: its ids, and every segmented blob, in the order the decoder
+// numbers them, with its links (E, S, W, N: the blob each one reaches, -1 for none): why a
+// spot was or was not named.
+void write_decode_json(const std::string& json_file, const std::string& image, const vision::DecodeResult& r, double ms) {
+  nlohmann::json j;
+  j["image"] = image;
+  j["spots"] = nlohmann::json::array();
+  for (const auto& d : r.decoded) j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}});
+  j["detected"] = r.detected.size();
+  j["blobs"] = nlohmann::json::array();
+  for (std::size_t b = 0; b < r.detected.size(); ++b) {
+    const vision::Spot& s = r.detected[b];
+    const auto& next = b < r.graph.next.size() ? r.graph.next[b] : std::array<int, 4>{-1, -1, -1, -1};
+    j["blobs"].push_back({{"u", s.u}, {"v", s.v}, {"colour", s.colour}, {"area_px", s.area_px},
+                          {"strength", s.strength}, {"truncated", s.truncated},
+                          {"links", {next[0], next[1], next[2], next[3]}}});
+  }
+  j["decoded"] = r.decoded.size();
+  j["time_ms"] = ms;
+  std::ofstream f(json_file);
+  if (!f) throw std::runtime_error(json_file + ": cannot write");
+  f << j.dump(1) << "\n";
 }
 
 // Decodes every image with one warm decoder: each image's time_ms is a warm decode (the
@@ -222,7 +246,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
                const std::string& json_dir, const std::string& overlay_out, bool tolerant, int min_votes,
                const EpipolarInputs& epipolar, int segment_length) {
   const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
-  if (epipolar.projector) servo::check_projector_against_pattern(*epipolar.projector, marray, pattern_file);
+  if (epipolar.projector) calibration::check_projector_against_pattern(*epipolar.projector, marray, pattern_file);
   vision::DecoderOptions options;
   options.tolerance.enabled = tolerant;
   options.min_votes = min_votes;
@@ -255,7 +279,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
         const Eigen::Isometry3d pose = epipolar.fixed_pose ? *epipolar.fixed_pose : sidecar_pose(images[i]);
         geometry.emplace(epipolar.camera, *epipolar.projector, pose, options.epipolar.tolerance_px);
       } catch (const std::exception& e) {
-        std::fprintf(stderr, "servo: %s\n", config::printable(e.what(), 300).c_str());
+        std::fprintf(stderr, "servo: %s\n", common::printable(e.what(), 300).c_str());
         ++failed;
         continue;
       }
@@ -276,28 +300,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
       written.insert(stem);
       json_file = (std::filesystem::path(json_dir) / (stem + ".json")).string();
     }
-    if (!json_file.empty()) {
-      nlohmann::json j;
-      j["image"] = image;
-      j["spots"] = nlohmann::json::array();
-      for (const auto& d : r.decoded) j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}});
-      j["detected"] = r.detected.size();
-      // every segmented blob, in the order the decoder numbers them, with its links (E, S, W, N:
-      // the blob each one reaches, -1 for none): why a spot was or was not named
-      j["blobs"] = nlohmann::json::array();
-      for (std::size_t b = 0; b < r.detected.size(); ++b) {
-        const vision::Spot& s = r.detected[b];
-        const auto& next = b < r.graph.next.size() ? r.graph.next[b] : std::array<int, 4>{-1, -1, -1, -1};
-        j["blobs"].push_back({{"u", s.u}, {"v", s.v}, {"colour", s.colour}, {"area_px", s.area_px},
-                              {"strength", s.strength}, {"truncated", s.truncated},
-                              {"links", {next[0], next[1], next[2], next[3]}}});
-      }
-      j["decoded"] = r.decoded.size();
-      j["time_ms"] = ms;
-      std::ofstream f(json_file);
-      if (!f) throw std::runtime_error(json_file + ": cannot write");
-      f << j.dump(1) << "\n";
-    }
+    if (!json_file.empty()) write_decode_json(json_file, image, r, ms);
     if (!overlay_out.empty()) {
       cv::Mat bgr;
       cv::cvtColor(vision::draw_overlay(rgb, r), bgr, cv::COLOR_RGB2BGR);
@@ -359,7 +362,7 @@ struct DecodeCommand {
     if (!projector.empty()) {
       if (camera.size() != 4 && camera.size() != 9)
         throw std::runtime_error("--projector needs --camera fx fy cx cy [k1 k2 p1 p2 k3]");
-      epi.projector = servo::load_projector_calibration(projector);
+      epi.projector = calibration::load_projector_calibration(projector);
     }
     if (!camera.empty()) {
       if (camera.size() != 4 && camera.size() != 9)
@@ -388,8 +391,8 @@ struct ServoConfigFlags {
   void add(CLI::App* c) {
     c->add_option("--config", config_file, "servo configuration (YAML)");
     c->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
-    c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
-    c->add_option("--gain", gain, "constant gain")->check(config::finite_in(1e-9, 1e3));
+    c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(common::finite_in(0, 100));
+    c->add_option("--gain", gain, "constant gain")->check(common::finite_in(1e-9, 1e3));
     c->add_option("--projector", projector_file,
                   "projector calibration (YAML, from `cellsim calibration`): depths by triangulation for the "
                   "desired, current and mean models, and decoding with the epipolar check");
@@ -410,14 +413,14 @@ struct ServoConfigFlags {
     if (!config_file.empty()) servo::load_servo_config(config_file, config);
     if (!model.empty()) config.law.model = control::parse_interaction_model(model);
     if (z_hat != 0) {
-      config::require_within("--z-hat", z_hat, 1e-3, 100);
+      common::require_within("--z-hat", z_hat, 1e-3, 100);
       config.law.z_hat_m = z_hat;
     }
     if (gain != 0) {
-      config::require_within("--gain", gain, 1e-6, 100);
+      common::require_within("--gain", gain, 1e-6, 100);
       config.law.gain = {gain, gain, 0};
     }
-    if (!projector_file.empty()) config.projector = servo::load_projector_calibration(projector_file);
+    if (!projector_file.empty()) config.projector = calibration::load_projector_calibration(projector_file);
     config.decoder.epipolar.enabled = !no_epipolar;
     if (points >= 0) config.points = points;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
@@ -442,7 +445,7 @@ struct RunCommand {
   }
   int run() {
     svc.pattern = pattern_file;
-    config::require_within("--lost-ms", svc.lost_ms, 1, 60000);
+    common::require_within("--lost-ms", svc.lost_ms, 1, 60000);
     law.apply_to(svc.config);
     dds.apply_to(svc);
     svc.reference = reference;
@@ -473,7 +476,7 @@ struct ReplayCommand {
     return c;
   }
   int run() {
-    config::require_within("--lost-ms", replay.lost_ms, 1, 60000);
+    common::require_within("--lost-ms", replay.lost_ms, 1, 60000);
     law.apply_to(replay.config);
     replay.plot = !no_plot;
     const servo::ReplayResult r = servo::run_replay(replay);
@@ -490,7 +493,7 @@ struct ReplayCommand {
     std::printf("\n");
     if (!replay.output.empty()) {
       std::printf("servo replay: trace %s\n", (replay.output / "replay.csv").c_str());
-      if (replay.plot) config::run_plot_script("servo replay", "plot_replay.py", replay.output, replay.recording.filename().string());
+      if (replay.plot) common::run_plot_script("servo replay", "plot_replay.py", replay.output, replay.recording.filename().string());
     }
     std::fflush(stdout);
     const bool identical = r.differing == 0 && r.recorded_only == 0 && r.compared > 0;
@@ -527,7 +530,7 @@ int main(int argc, char** argv) {
   RunCommand run;
   ReplayCommand replay;
   ViewCommand view;
-  const config::Subcommands commands = {
+  const common::Subcommands commands = {
       {decode.add(app), [&] { return decode.run(); }},
       {run.add(app), [&] { return run.run(); }},
       {replay.add(app), [&] { return replay.run(); }},
@@ -536,10 +539,10 @@ int main(int argc, char** argv) {
   // a backstop for the formats whose header read_rgb does not read: OpenCV refuses to
   // decode beyond this many pixels (read once, before the first decode)
   setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(servo::kMaxImagePixels).c_str(), 1);
-  config::require_finite_numbers(app);
-  if (const int rc = config::parse_command_line(app, argc, argv, "servo"); rc >= 0) return rc;
+  common::require_finite_numbers(app);
+  if (const int rc = common::parse_command_line(app, argc, argv, "servo"); rc >= 0) return rc;
   // The decoder's per-frame OpenCV operations are too small to gain from OpenCV's thread
   // pool: measured 2.1 ms per VGA frame with it, 1.5 ms without (docs/performance.md).
   cv::setNumThreads(1);
-  return config::run_subcommand(commands, "servo");
+  return common::run_subcommand(commands, "servo");
 }

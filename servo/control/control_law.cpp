@@ -81,7 +81,7 @@ std::string to_string(ControlStatus s) {
 
 namespace {
 
-void check_params(const ControlLawParams& p) {
+void check_params(const ControlLawOptions& p) {
   const auto bad = [](const std::string& what) { throw std::invalid_argument("control law: " + what); };
   if (!(p.z_hat_m > 0) || !std::isfinite(p.z_hat_m)) bad("z_hat must be a positive depth, got " + std::to_string(p.z_hat_m));
   if (!(p.gain.lambda_zero > 0) || !(p.gain.lambda_inf > 0) || !(p.gain.slope_zero >= 0))
@@ -99,7 +99,7 @@ struct Depths {
   std::optional<double> current, desired;
 };
 
-Depths model_depths(const MatchedPoint& p, const ControlLawParams& params) {
+Depths model_depths(const MatchedPoint& p, const ControlLawOptions& params) {
   switch (params.model) {
     case InteractionModel::kDesiredConstantDepth: return {std::nullopt, params.z_hat_m};
     case InteractionModel::kDesired: return {std::nullopt, p.z_star};
@@ -170,7 +170,7 @@ struct UsablePoints {
   std::vector<Depths> depths;
 };
 
-UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
+UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLawOptions& params) {
   UsablePoints u;
   for (const MatchedPoint& p : all) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.x_star) || !std::isfinite(p.y_star))
@@ -189,7 +189,7 @@ UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLa
 
 // The stacked error s - s* and the model's interaction matrix L-hat; the depth each point's
 // rows used goes to z_model.
-void stack_system(const UsablePoints& u, const ControlLawParams& params, Eigen::VectorXd& error, Eigen::MatrixXd& L,
+void stack_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L,
                   std::vector<double>& z_model) {
   const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
   error.resize(2 * k);
@@ -220,7 +220,7 @@ void stack_system(const UsablePoints& u, const ControlLawParams& params, Eigen::
 
 // The robust task function by IRLS: weights from the residuals of the last estimate, e from
 // the weighted system. Returns the points' last weights.
-std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawParams& params,
+std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawOptions& params,
                                 Vector6d& task) {
   const Eigen::Index k = L.rows() / 2;
   std::vector<double> w(static_cast<std::size_t>(k), 1.0), residual(static_cast<std::size_t>(k));
@@ -244,7 +244,7 @@ std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd&
 
 }  // namespace
 
-ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawParams& params) {
+ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawOptions& params) {
   check_params(params);
   ControlOutput out;
   out.z_model.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
@@ -302,7 +302,7 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
 }
 
 std::vector<MatchedPoint> best_conditioned_subset(const std::vector<MatchedPoint>& points, std::size_t count,
-                                                  const ControlLawParams& params) {
+                                                  const ControlLawOptions& params) {
   if (points.size() <= count) return points;
   const auto rows = [&](const MatchedPoint& p) {
     const Depths d = model_depths(p, params);

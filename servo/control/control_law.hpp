@@ -58,7 +58,7 @@ std::string to_string(RobustEstimator e);
 // with r the residual's deviation from the median. kNone: all 1.
 std::vector<double> robust_weights(RobustEstimator e, const std::vector<double>& residuals, double min_scale);
 
-struct ControlLawParams {
+struct ControlLawOptions {
   InteractionModel model = InteractionModel::kDesiredConstantDepth;
   double z_hat_m = 0.9;               // the depth of kDesiredConstantDepth
   Gain gain;
@@ -102,7 +102,7 @@ struct ControlOutput {
 
 // Throws std::invalid_argument when a matched point has non-finite coordinates or the
 // parameters are malformed (non-positive gains, limits or z_hat).
-ControlOutput compute_control(const std::vector<MatchedPoint>& points, const ControlLawParams& params);
+ControlOutput compute_control(const std::vector<MatchedPoint>& points, const ControlLawOptions& params);
 
 // Moore-Penrose pseudo-inverse by SVD, dropping singular values below rel x the largest.
 Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel);
@@ -113,7 +113,7 @@ Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::Vect
 // Beyond the paper's experiments (§6, after [6]): choose `count` points greedily so that the
 // interaction matrix built from them is as well conditioned as possible.
 std::vector<MatchedPoint> best_conditioned_subset(const std::vector<MatchedPoint>& points, std::size_t count,
-                                                  const ControlLawParams& params);
+                                                  const ControlLawOptions& params);
 
 std::string to_string(ControlStatus s);
 

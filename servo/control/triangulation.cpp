@@ -2,13 +2,7 @@
 
 namespace control {
 
-Eigen::Vector3d ProjectorModel::spot_ray(int row, int col) const {
-  const double u = cx + (col - 0.5 * (cols - 1)) * spot_pitch_px;
-  const double v = cy + (row - 0.5 * (rows - 1)) * spot_pitch_px;
-  return Eigen::Vector3d((u - cx) / fx, (v - cy) / fy, 1.0).normalized();
-}
-
-std::optional<double> triangulate_depth(const Eigen::Vector2d& xy, int row, int col, const ProjectorModel& projector,
+std::optional<double> triangulate_depth(const Eigen::Vector2d& xy, int row, int col, const calibration::ProjectorModel& projector,
                                         const Eigen::Isometry3d& world_T_camera) {
   const Eigen::Isometry3d c_T_p = world_T_camera.inverse() * projector.world_T_projector;
   // camera ray: origin 0, direction a; projector ray: origin o, direction b (camera frame)

@@ -15,22 +15,14 @@
 #include <Eigen/Geometry>
 #include <optional>
 
+#include "servo/calibration/projector_model.hpp"
+
 namespace control {
-
-struct ProjectorModel {
-  double fx = 1500, fy = 1500, cx = 511.5, cy = 383.5;  // projector intrinsics (pixels)
-  double spot_pitch_px = 15;                             // pattern layout on its image plane
-  int rows = 20, cols = 20;                              // the pattern is centred on (cx, cy)
-  Eigen::Isometry3d world_T_projector = Eigen::Isometry3d::Identity();
-
-  // Unit direction, in the projector frame, of the ray through spot (row, col)'s centre.
-  Eigen::Vector3d spot_ray(int row, int col) const;
-};
 
 // Depth (m, camera frame) of the point seen at normalised (x, y) that the projector lit
 // through spot (row, col). Empty when the rays are (nearly) parallel or the point would be
 // behind either device.
-std::optional<double> triangulate_depth(const Eigen::Vector2d& xy, int row, int col, const ProjectorModel& projector,
+std::optional<double> triangulate_depth(const Eigen::Vector2d& xy, int row, int col, const calibration::ProjectorModel& projector,
                                         const Eigen::Isometry3d& world_T_camera);
 
 }  // namespace control

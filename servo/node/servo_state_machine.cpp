@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "servo/config/strict_yaml.hpp"
+#include "common/strict_yaml.hpp"
 
 namespace servo {
 namespace {
@@ -114,7 +114,7 @@ bool ServoStateMachine::frame_info_complete(const Stamp& s) const {
 std::string ServoStateMachine::reject_reason(const ImageView& img, const std::optional<CameraInfoMsg>& info) {
   // every size in 64 bits: width * 3 of a 32-bit width wraps (issue 9, item 1)
   if (img.encoding != "rgb8")
-    return "rejected image: encoding '" + config::printable(img.encoding, 32) + "', expected rgb8";
+    return "rejected image: encoding '" + common::printable(img.encoding, 32) + "', expected rgb8";
   if (img.width == 0 || img.height == 0) return "rejected image: empty (" + size_text(img.width, img.height) + ")";
   if (img.width > kMaxImageSide || img.height > kMaxImageSide ||
       static_cast<std::uint64_t>(img.width) * img.height > kMaxImagePixels)
@@ -171,7 +171,7 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     ++rejected_;
     return reply(img.stamp, bad);
   }
-  control::CameraIntrinsics& cam = pipeline_->config().camera;
+  calibration::CameraIntrinsics& cam = pipeline_->config().camera;
   cam.fx = info_->k[0];
   cam.cx = info_->k[2];
   cam.fy = info_->k[4];
@@ -187,7 +187,7 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
     spots = pipeline_->locate(rgb, pose, &detected);
   } catch (const std::exception& e) {
     ++rejected_;
-    return reply(img.stamp, "rejected image: " + config::printable(e.what(), 200));
+    return reply(img.stamp, "rejected image: " + common::printable(e.what(), 200));
   }
   return answer(img.stamp, spots, detected, pose);
 }
@@ -215,87 +215,90 @@ ServoReply ServoStateMachine::answer(const Stamp& stamp, const std::vector<Image
     r.detected = detected;
     return r;
   };
-
   // teach from the simulator's teach frame (camera at the desired pose); a simulator that
   // sends no status: from the first image after TEACH
   const bool teach_frame = sim ? sim->teach : (!sim_status_seen_ && state_ == ServoState::kTeaching);
-  if (teach_frame) {
-    const int n = pipeline_->teach(spots, pose);
-    matched_ = static_cast<std::uint32_t>(n);
-    iteration_ = 0;
-    divergence_.reset();
-    safe_stop_.reset();
-    if (!pipeline_->taught()) {
-      state_ = ServoState::kTeaching;
-      return with_spots(reply(stamp, "teach frame has no decodable spots: send TEACH again"));
-    }
-    state_ = timing_.autostart || started_ ? ServoState::kServoing : ServoState::kIdle;
-    ServoReply r = with_spots(reply(stamp, "taught " + std::to_string(n) + " features"));
-    r.taught = true;
-    return r;
+  if (teach_frame) return with_spots(teach(stamp, spots, pose));
+  std::string notice = sim ? follow_refused_jump(*sim, stamp) : std::string();
+  const std::optional<ServoReply> wait = waiting(stamp, sim);
+  ServoReply r = with_spots(wait ? *wait : servo_step(stamp, spots, pose));
+  r.notice = std::move(notice);
+  return r;
+}
+
+ServoReply ServoStateMachine::teach(const Stamp& stamp, const std::vector<ImageSpot>& spots,
+                                    const std::optional<Eigen::Isometry3d>& pose) {
+  const int n = pipeline_->teach(spots, pose);
+  matched_ = static_cast<std::uint32_t>(n);
+  iteration_ = 0;
+  divergence_.reset();
+  safe_stop_.reset();
+  if (!pipeline_->taught()) {
+    state_ = ServoState::kTeaching;
+    return reply(stamp, "teach frame has no decodable spots: send TEACH again");
   }
-  if (jump_pending_ && sim) {
-    if (!sim->running || !sim->applies_twist) {
-      jump_pending_ = false;  // the simulator obeyed: START is needed again
-    } else if (!last_running_stamp_ || !(*last_running_stamp_ == stamp)) {
-      last_running_stamp_ = stamp;
-      if (++running_frames_since_jump_ >= kRefusalFrames && pipeline_->taught()) {
-        jump_pending_ = false;
-        started_ = true;
-        state_ = ServoState::kServoing;
-        std::fprintf(stderr, "servo: the simulator runs on after RESET/LOAD_SCENARIO (it refused the command): "
-                             "servoing on\n");
-      }
+  state_ = timing_.autostart || started_ ? ServoState::kServoing : ServoState::kIdle;
+  ServoReply r = reply(stamp, "taught " + std::to_string(n) + " features");
+  r.taught = true;
+  return r;
+}
+
+std::string ServoStateMachine::follow_refused_jump(const SimFrameStatus& sim, const Stamp& stamp) {
+  if (!jump_pending_) return {};
+  if (!sim.running || !sim.applies_twist) {
+    jump_pending_ = false;  // the simulator obeyed: START is needed again
+  } else if (!last_running_stamp_ || !(*last_running_stamp_ == stamp)) {
+    last_running_stamp_ = stamp;
+    if (++running_frames_since_jump_ >= kRefusalFrames && pipeline_->taught()) {
+      jump_pending_ = false;
+      started_ = true;
+      state_ = ServoState::kServoing;
+      return "the simulator runs on after RESET/LOAD_SCENARIO (it refused the command): servoing on";
     }
   }
-  if (state_ == ServoState::kTeaching) return with_spots(reply(stamp, "waiting for the teach frame"));
+  return {};
+}
+
+std::optional<ServoReply> ServoStateMachine::waiting(const Stamp& stamp, const SimFrameStatus* sim) const {
+  if (state_ == ServoState::kTeaching) return reply(stamp, "waiting for the teach frame");
   if (state_ != ServoState::kServoing && state_ != ServoState::kConverged)
-    return with_spots(reply(stamp, pipeline_->taught() ? "waiting for START" : "no reference: send TEACH"));
+    return reply(stamp, pipeline_->taught() ? "waiting for START" : "no reference: send TEACH");
   // a frame whose twist the simulator will not apply (paused, or rendered before START took
   // effect) can neither move the robot nor prove convergence (issue 9, item 8)
-  if (sim && !sim->applies_twist) return with_spots(reply(stamp, "waiting: the simulator is not applying twists"));
+  if (sim && !sim->applies_twist) return reply(stamp, "waiting: the simulator is not applying twists");
+  return std::nullopt;
+}
 
+ServoReply ServoStateMachine::servo_step(const Stamp& stamp, const std::vector<ImageSpot>& spots,
+                                         const std::optional<Eigen::Isometry3d>& pose) {
   StepResult step;
   try {
     step = pipeline_->step(spots, pose);
   } catch (const std::exception& e) {
-    return with_spots(reply(stamp, config::printable(e.what(), 200)));
+    return reply(stamp, common::printable(e.what(), 200));
   }
   ++iteration_;
   error_norm_ = step.control.error_norm;
   matched_ = static_cast<std::uint32_t>(step.matched.size());
+  // a loop running away is stopped rather than followed; so is a safe stop that lasts (START resumes)
+  const std::string why = step.control.status == control::ControlStatus::kServoing
+                              ? divergence_.check(step.control.error_norm) : std::string();
   std::string reason;
-  if (step.control.status == control::ControlStatus::kServoing) {
-    const std::string why = divergence_.check(step.control.error_norm);
-    if (!why.empty()) {
-      // the loop is running away: stop the robot rather than follow it (START resumes)
-      state_ = ServoState::kStopped;
-      started_ = false;
-      ServoReply r = with_spots(reply(stamp, why + ": stopped"));
-      r.step = std::move(step);
-      return r;
-    }
+  if (why.empty()) {
+    state_ = step.control.status == control::ControlStatus::kConverged ? ServoState::kConverged : ServoState::kServoing;
+    if (step.control.status == control::ControlStatus::kConverged) reason = step.control.reason;
+    else if (step.control.status != control::ControlStatus::kServoing) reason = "safe stop: " + step.control.reason;
   }
-  switch (step.control.status) {
-    case control::ControlStatus::kServoing: state_ = ServoState::kServoing; break;
-    case control::ControlStatus::kConverged:
-      state_ = ServoState::kConverged;
-      reason = step.control.reason;
-      break;
-    default:
-      state_ = ServoState::kServoing;  // zero twist, keep trying
-      reason = "safe stop: " + step.control.reason;
-      break;
-  }
-  if (safe_stop_.lasting(step.control.status)) {
-    // it has lasted: stop rather than hold still for ever (START resumes)
+  const bool lasting = why.empty() && safe_stop_.lasting(step.control.status);
+  if (!why.empty() || lasting) {
     state_ = ServoState::kStopped;
     started_ = false;
-    ServoReply r = with_spots(reply(stamp, reason + " (" + std::to_string(safe_stop_.frames()) + " frames): stopped"));
+    ServoReply r = reply(stamp, lasting ? reason + " (" + std::to_string(safe_stop_.frames()) + " frames): stopped"
+                                        : why + ": stopped");
     r.step = std::move(step);
     return r;
   }
-  ServoReply r = with_spots(reply(stamp, reason));
+  ServoReply r = reply(stamp, reason);
   r.twist = step.control.twist;
   if (!r.twist.allFinite()) {
     r.twist.setZero();

@@ -14,13 +14,14 @@
 #include <string_view>
 #include <vector>
 
-#include "dds/sim_command.hpp"
+#include "protocol/servo_state.hpp"
+#include "protocol/sim_command.hpp"
 #include "servo/pipeline/servo_pipeline.hpp"
 
 namespace servo {
 
-// cell_msgs/ServoStatus states
-enum class ServoState : std::uint8_t { kIdle = 0, kTeaching = 1, kServoing = 2, kConverged = 3, kLost = 4, kStopped = 5 };
+// cell_msgs/ServoStatus states (protocol/servo_state.hpp, checked against the IDL)
+using cell_dds::ServoState;
 
 // Limits on what an image or camera_info may claim (docs/topics.md, Safety).
 inline constexpr std::uint32_t kMaxImageSide = 4096;
@@ -76,6 +77,9 @@ struct ServoReply {
   // false: publish nothing for this image. Its simulator status never came, so what the frame
   // is (teach frame? applied?) is unknown; in lockstep the simulator sends it again.
   bool answer = true;
+  // a line for the service's log, when something happened worth saying (the state machine
+  // prints nothing itself)
+  std::string notice;
 };
 
 struct ServoTiming {
@@ -126,6 +130,13 @@ class ServoStateMachine {
   // what follows the decoding: teaching, or one step of the control law
   ServoReply answer(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected,
                     const std::optional<Eigen::Isometry3d>& pose);
+  // the stages of answer(): the teach frame; a RESET or LOAD_SCENARIO the simulator refused
+  // (a notice when the servo follows it on); what a frame waits for; one law iteration
+  ServoReply teach(const Stamp& stamp, const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& pose);
+  std::string follow_refused_jump(const SimFrameStatus& sim, const Stamp& stamp);
+  std::optional<ServoReply> waiting(const Stamp& stamp, const SimFrameStatus* sim) const;
+  ServoReply servo_step(const Stamp& stamp, const std::vector<ImageSpot>& spots,
+                        const std::optional<Eigen::Isometry3d>& pose);
   const SimFrameStatus* sim_status_for(const Stamp& s) const;
   std::optional<Eigen::Isometry3d> pose_for(const Stamp& s) const;
 

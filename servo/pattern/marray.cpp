@@ -153,7 +153,7 @@ MArray trace_marray(int rows, int cols, int offset) {
 
 namespace {
 
-void check_generation_params(const GenerationParams& p) {
+void check_generation_params(const GenerationOptions& p) {
   const auto fail_arg = [](const std::string& what) { throw std::invalid_argument("pattern generate: " + what); };
   if (p.colours < 2 || p.colours > 10) fail_arg("colours must be in 2..10, got " + std::to_string(p.colours));
   if (p.window.rows < 1 || p.window.cols < 1) fail_arg("window must be at least 1 x 1");
@@ -167,7 +167,7 @@ void check_generation_params(const GenerationParams& p) {
 }
 
 // Why no array can exist (sphere packing), or "".
-std::string packing_failure(const GenerationParams& p, std::uint64_t space) {
+std::string packing_failure(const GenerationOptions& p, std::uint64_t space) {
   // Necessary condition (sphere packing): W windows, pairwise distance >= h, need
   // W * |ball of radius floor((h-1)/2)| <= k^(n m).
   const std::uint64_t windows =
@@ -184,7 +184,7 @@ std::string packing_failure(const GenerationParams& p, std::uint64_t space) {
 
 // distance 3 over 3 colours in 3 x 3 windows: random search and annealing do not find it
 // (issue 19), the algebraic construction does; the seed picks its starting power
-GenerationResult trace_construction(const GenerationParams& p) {
+GenerationResult trace_construction(const GenerationOptions& p) {
   GenerationResult result;
   const auto wall = std::chrono::steady_clock::now();
   MArray a = trace_marray(p.rows, p.cols, static_cast<int>((p.seed + 727) % 728));
@@ -204,7 +204,7 @@ GenerationResult trace_construction(const GenerationParams& p) {
 
 // Backtracking over the cells in raster order, each window's code kept at least min_hamming
 // from every placed one, with restarts; within the time budget.
-GenerationResult backtracking_search(const GenerationParams& p, std::uint64_t space) {
+GenerationResult backtracking_search(const GenerationOptions& p, std::uint64_t space) {
   GenerationResult result;
   const double t0 = cpu_seconds();
   const auto wall0 = std::chrono::steady_clock::now();
@@ -284,7 +284,7 @@ GenerationResult backtracking_search(const GenerationParams& p, std::uint64_t sp
 
 }  // namespace
 
-GenerationResult generate_marray(const GenerationParams& p) {
+GenerationResult generate_marray(const GenerationOptions& p) {
   check_generation_params(p);
   const std::uint64_t space = code_space_size(p.colours, p.window);
   if (space == std::numeric_limits<std::uint64_t>::max())

@@ -32,7 +32,7 @@ struct WindowShape {
   int size() const { return rows * cols; }
 };
 
-struct GenerationParams {
+struct GenerationOptions {
   int rows = 20;
   int cols = 20;
   int colours = 3;
@@ -53,7 +53,7 @@ struct GenerationResult {
 // Throws std::invalid_argument for malformed parameters (sizes < window, k outside 2..10,
 // h outside 1..window size). Requests that are well-formed but cannot be met (more windows
 // than codes, Hamming bound exceeded, time budget exhausted) come back as a failure value.
-GenerationResult generate_marray(const GenerationParams& params);
+GenerationResult generate_marray(const GenerationOptions& params);
 
 // The algebraic distance-3 array over 3 colours (3 x 3 windows): A[r][c] = Tr(x^(offset + r +
 // 107 c)) over GF(3^6) with modulus x^6 + x^5 + 2. At 20 x 20 its 324 windows are distinct and

@@ -1,6 +1,6 @@
 #include "servo/pattern/pattern_file.hpp"
 
-#include "servo/config/regular_file.hpp"
+#include "common/regular_file.hpp"
 
 #include <cstdio>
 #include <fstream>
@@ -71,8 +71,8 @@ MArray read_marray(const std::filesystem::path& path, int colours) {
   const std::uintmax_t limit = static_cast<std::uintmax_t>(kMaxPatternSide) * (kMaxPatternSide + 2) + 4096;
   std::string text;
   try {
-    text = config::read_regular_file(path, limit, "pattern file");
-  } catch (const config::FileError& e) {
+    text = common::read_regular_file(path, limit, "pattern file");
+  } catch (const common::FileError& e) {
     throw PatternFileError(e.what());
   }
   return parse_marray(text, path.string(), colours);

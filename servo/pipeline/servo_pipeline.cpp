@@ -25,7 +25,7 @@ std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpo
   std::vector<control::Feature> out;
   out.reserve(spots.size());
   for (const ImageSpot& s : spots) {
-    const Eigen::Vector2d xy = control::normalise(config_.camera, {s.u, s.v});
+    const Eigen::Vector2d xy = calibration::normalise(config_.camera, {s.u, s.v});
     control::Feature f{s.row, s.col, xy.x(), xy.y(), std::nullopt};
     if (wTc && config_.projector) f.z = control::triangulate_depth(xy, s.row, s.col, *config_.projector, *wTc);
     out.push_back(f);

@@ -10,7 +10,7 @@
 #include <optional>
 #include <vector>
 
-#include "servo/control/camera_intrinsics.hpp"
+#include "servo/calibration/camera_intrinsics.hpp"
 #include "servo/control/control_law.hpp"
 #include "servo/control/triangulation.hpp"
 #include "servo/vision/spot_decoder.hpp"
@@ -19,10 +19,10 @@ namespace servo {
 
 struct ServoConfig {
   vision::DecoderOptions decoder;
-  control::ControlLawParams law;
-  control::CameraIntrinsics camera;
+  control::ControlLawOptions law;
+  calibration::CameraIntrinsics camera;
   // the calibrated projector: needed to triangulate depths (models desired, current, mean)
-  std::optional<control::ProjectorModel> projector;
+  std::optional<calibration::ProjectorModel> projector;
   // Point selection (issue 13, item 5): > 0 servos on this many points, chosen at teaching
   // for the best-conditioned interaction matrix (control::best_conditioned_subset); 0: all.
   int points = 0;

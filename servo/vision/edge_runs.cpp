@@ -27,84 +27,49 @@ constexpr double kRunLargest = 1.2;
 constexpr int kRunGaps = 1;
 }  // namespace
 
-std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
-                                        const EpipolarCheck& check, const pattern::MArray& pattern,
-                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here) {
-  const std::size_t n = spots.size();
-  if (named_here) named_here->assign(n, 0);
-  if (decoded.empty() || n < 2) return decoded;
-  IdMap ids(pattern, n, decoded);
-  const auto spot_at = [&](int r, int c) { return ids.spot_at(r, c); };
-  const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
-  if (!near) return decoded;
-  // per pattern cell, in direction k: the blob found beyond the identified spot one step back
-  const std::size_t cells = static_cast<std::size_t>(pattern.rows) * pattern.cols;
-  std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
-  std::vector<DecodedSpot> added;
-  for (int k = 0; k < 4; ++k) {
-    const int dr = kIdStep[k][0], dc = kIdStep[k][1];
-    std::vector<int> candidate(cells, -1);
+namespace {
+
+// The runs beyond the identified lines in one direction k: per pattern cell, the blob found
+// beyond the identified spot one step back, then the lines of such cells read as runs.
+class EdgeRuns {
+ public:
+  EdgeRuns(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
+           const SpatialGrid& near, int k)
+      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), dr_(kIdStep[k][0]), dc_(kIdStep[k][1]),
+        candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1) {}
+
+  // each cell's candidate: the blob ahead of an identified spot along its step
+  void find_candidates(const std::vector<DecodedSpot>& decoded) {
     for (const DecodedSpot& from : decoded) {
-      const int r = from.row + dr, c = from.col + dc;
-      if (!ids.inside(r, c) || ids.taken(r, c)) continue;
-      const int back = spot_at(from.row - dr, from.col - dc);
+      const int r = from.row + dr_, c = from.col + dc_;
+      if (!ids_.inside(r, c) || ids_.taken(r, c)) continue;
+      const int back = ids_.spot_at(from.row - dr_, from.col - dc_);
       if (back < 0) continue;
-      const Spot& s = spots[from.spot];
-      const double vu = s.u - spots[back].u, vv = s.v - spots[back].v, step2 = vu * vu + vv * vv;
+      const Spot& s = spots_[from.spot];
+      const double vu = s.u - spots_[back].u, vv = s.v - spots_[back].v, step2 = vu * vu + vv * vv;
       if (step2 < 4.0) continue;
       int found = -1;
       double best = 1e300;
-      near->around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
-        const double du = spots[j].u - s.u, dv = spots[j].v - s.v;
+      near_.around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
+        const double du = spots_[j].u - s.u, dv = spots_[j].v - s.v;
         const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
         if (along < kRunNearest || along > kRunFarthest || aside > kRunAside) return;
         const double d2 = du * du + dv * dv;
         if (d2 < best) best = d2, found = j;
       });
-      if (found < 0 || ids.index_of(found) >= 0 || spots[found].truncated || spots[found].colour != pattern.at(r, c) ||
-          spots[found].strength < kGrowFaintest || spots[found].strength < kAlike * s.strength ||
-          spots[found].area_px > kRunLargest * s.area_px || !check.confirms_grown(found, {r, c}))
+      if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || spots_[found].colour != pattern_.at(r, c) ||
+          spots_[found].strength < kGrowFaintest || spots_[found].strength < kAlike * s.strength ||
+          spots_[found].area_px > kRunLargest * s.area_px || !check_.confirms_grown(found, {r, c}))
         continue;
-      candidate[static_cast<std::size_t>(r) * pattern.cols + c] = found;
+      candidate_[static_cast<std::size_t>(r) * pattern_.cols + c] = found;
     }
-    // runs across k: ids along the line across k, each with a candidate, one missing at most
-    // between two, each candidate offset from the one before as their sources are
-    const int pr = std::abs(dc);  // the axis across k (0: the runs lie along a row)
-    const auto cand = [&](int r, int c) {
-      return ids.inside(r, c) ? candidate[static_cast<std::size_t>(r) * pattern.cols + c] : -1;
-    };
-    const auto follows = [&](const pattern::SpotId& x, const pattern::SpotId& y) {
-      const int a = cand(x.row, x.col), b = cand(y.row, y.col);
-      const int sa = spot_at(x.row - dr, x.col - dc), sb = spot_at(y.row - dr, y.col - dc);
-      if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
-      const double su = spots[sb].u - spots[sa].u, sv = spots[sb].v - spots[sa].v;
-      const double eu = spots[b].u - spots[a].u - su, ev = spots[b].v - spots[a].v - sv;
-      return eu * eu + ev * ev <= kRunFollow * kRunFollow * (su * su + sv * sv);
-    };
-    const auto take_run = [&](const std::vector<pattern::SpotId>& run) {
-      if (static_cast<int>(run.size()) < kRunLength) return;
-      // no other placement of the whole run fits it as well, taken ids or not: in the crowded
-      // columns at a silhouette the lattice shears, and at a depth edge the surface behind goes
-      // on, so that the next line's spots, one over, can sit where this run's ids are predicted
-      // (their colours and epipolar lines then fit the shifted ids, each of them)
-      for (int orow = -1; orow <= 1; ++orow)
-        for (int ocol = -1; ocol <= 1; ++ocol) {
-          if (orow == 0 && ocol == 0) continue;
-          std::size_t fit = 0;
-          for (const pattern::SpotId& x : run) {
-            const int rr = x.row + orow, cc = x.col + ocol, j = cand(x.row, x.col);
-            fit += ids.inside(rr, cc) && pattern.at(rr, cc) == spots[j].colour && check.confirms(j, {rr, cc});
-          }
-          if (fit == run.size()) return;
-        }
-      for (const pattern::SpotId& x : run) {
-        const int j = cand(x.row, x.col);
-        const int cell = x.row * pattern.cols + x.col;
-        claimed_by[j] = claimed_by[j] == -1 || claimed_by[j] == cell ? cell : -2;
-        added.push_back({x.row, x.col, spots[j].u, spots[j].v, j});
-      }
-    };
-    const int lines = pr == 0 ? pattern.rows : pattern.cols, along = pr == 0 ? pattern.cols : pattern.rows;
+  }
+
+  // runs across k: ids along the line across k, each with a candidate, one missing at most
+  // between two, each candidate offset from the one before as their sources are
+  void read_runs(std::vector<int>& claimed_by, std::vector<DecodedSpot>& added) const {
+    const int pr = std::abs(dc_);  // the axis across k (0: the runs lie along a row)
+    const int lines = pr == 0 ? pattern_.rows : pattern_.cols, along = pr == 0 ? pattern_.cols : pattern_.rows;
     std::vector<pattern::SpotId> run;
     for (int line = 0; line < lines; ++line) {
       run.clear();
@@ -114,10 +79,10 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
         if (cand(x.row, x.col) < 0) continue;
         // a gap is an id no spot has, its source beside the run's
         const pattern::SpotId gap = pr == 0 ? pattern::SpotId{line, i - 1} : pattern::SpotId{i - 1, line};
-        const bool bridged = i - last == 1 || (i - last == 2 && gaps < kRunGaps && !ids.taken(gap.row, gap.col) &&
-                                               spot_at(gap.row - dr, gap.col - dc) >= 0);
+        const bool bridged = i - last == 1 || (i - last == 2 && gaps < kRunGaps && !ids_.taken(gap.row, gap.col) &&
+                                               ids_.spot_at(gap.row - dr_, gap.col - dc_) >= 0);
         if (!run.empty() && (!bridged || !follows(run.back(), x))) {
-          take_run(run);
+          take_run(run, claimed_by, added);
           run.clear();
           gaps = 0;
         }
@@ -125,10 +90,76 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
         run.push_back(x);
         last = i;
       }
-      take_run(run);
+      take_run(run, claimed_by, added);
     }
   }
+
+ private:
+  int cand(int r, int c) const {
+    return ids_.inside(r, c) ? candidate_[static_cast<std::size_t>(r) * pattern_.cols + c] : -1;
+  }
+  bool follows(const pattern::SpotId& x, const pattern::SpotId& y) const {
+    const int a = cand(x.row, x.col), b = cand(y.row, y.col);
+    const int sa = ids_.spot_at(x.row - dr_, x.col - dc_), sb = ids_.spot_at(y.row - dr_, y.col - dc_);
+    if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
+    const double su = spots_[sb].u - spots_[sa].u, sv = spots_[sb].v - spots_[sa].v;
+    const double eu = spots_[b].u - spots_[a].u - su, ev = spots_[b].v - spots_[a].v - sv;
+    return eu * eu + ev * ev <= kRunFollow * kRunFollow * (su * su + sv * sv);
+  }
+  void take_run(const std::vector<pattern::SpotId>& run, std::vector<int>& claimed_by,
+                std::vector<DecodedSpot>& added) const {
+    if (static_cast<int>(run.size()) < kRunLength) return;
+    // no other placement of the whole run fits it as well, taken ids or not: in the crowded
+    // columns at a silhouette the lattice shears, and at a depth edge the surface behind goes
+    // on, so that the next line's spots, one over, can sit where this run's ids are predicted
+    // (their colours and epipolar lines then fit the shifted ids, each of them)
+    for (int orow = -1; orow <= 1; ++orow)
+      for (int ocol = -1; ocol <= 1; ++ocol) {
+        if (orow == 0 && ocol == 0) continue;
+        std::size_t fit = 0;
+        for (const pattern::SpotId& x : run) {
+          const int rr = x.row + orow, cc = x.col + ocol, j = cand(x.row, x.col);
+          fit += ids_.inside(rr, cc) && pattern_.at(rr, cc) == spots_[j].colour && check_.confirms(j, {rr, cc});
+        }
+        if (fit == run.size()) return;
+      }
+    for (const pattern::SpotId& x : run) {
+      const int j = cand(x.row, x.col);
+      const int cell = x.row * pattern_.cols + x.col;
+      claimed_by[j] = claimed_by[j] == -1 || claimed_by[j] == cell ? cell : -2;
+      added.push_back({x.row, x.col, spots_[j].u, spots_[j].v, j, NamedBy::kEdgeRun});
+    }
+  }
+
+  const std::vector<Spot>& spots_;
+  const EpipolarCheck& check_;
+  const pattern::MArray& pattern_;
+  const IdMap& ids_;
+  const SpatialGrid& near_;
+  int dr_, dc_;
+  std::vector<int> candidate_;
+};
+
+}  // namespace
+
+std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
+                                        const EpipolarCheck& check, const pattern::MArray& pattern,
+                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here) {
+  const std::size_t n = spots.size();
+  if (named_here) named_here->assign(n, 0);
+  if (decoded.empty() || n < 2) return decoded;
+  IdMap ids(pattern, n, decoded);
+  const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
+  if (!near) return decoded;
+  std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
+  std::vector<DecodedSpot> added;
+  for (int k = 0; k < 4; ++k) {
+    EdgeRuns runs(spots, check, pattern, ids, *near, k);
+    runs.find_candidates(decoded);
+    runs.read_runs(claimed_by, added);
+  }
   // a blob two runs claim for two ids, or an id two runs give two blobs, is not named
+  const std::size_t cells = static_cast<std::size_t>(pattern.rows) * pattern.cols;
   std::vector<int> cell_claims(cells, 0);
   for (const DecodedSpot& a : added)
     if (claimed_by[a.spot] >= 0) ++cell_claims[static_cast<std::size_t>(a.row) * pattern.cols + a.col];
@@ -147,7 +178,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
     if (named_here) (*named_here)[a.spot] = 1;
   }
   // their links to the line beside them, where both ends had none
-  link_identified_neighbours(decoded, spot_at, graph);
+  link_identified_neighbours(decoded, [&](int r, int c) { return ids.spot_at(r, c); }, graph);
   return decoded;
 }
 

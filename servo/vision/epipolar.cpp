@@ -5,7 +5,7 @@
 
 namespace vision {
 
-EpipolarGeometry::EpipolarGeometry(const control::CameraIntrinsics& camera, const control::ProjectorModel& projector,
+EpipolarGeometry::EpipolarGeometry(const calibration::CameraIntrinsics& camera, const calibration::ProjectorModel& projector,
                                    const Eigen::Isometry3d& world_T_camera, double tolerance_px)
     : camera_(camera), rows_(projector.rows), cols_(projector.cols), tolerance_px_(tolerance_px) {
   const Eigen::Isometry3d c_T_p = world_T_camera.inverse() * projector.world_T_projector;
@@ -23,7 +23,7 @@ EpipolarGeometry::EpipolarGeometry(const control::CameraIntrinsics& camera, cons
     }
 }
 
-Eigen::Vector2d EpipolarGeometry::normalise(double u, double v) const { return control::normalise(camera_, {u, v}); }
+Eigen::Vector2d EpipolarGeometry::normalise(double u, double v) const { return calibration::normalise(camera_, {u, v}); }
 
 double EpipolarGeometry::residual_px(const Eigen::Vector2d& xy, const pattern::SpotId& id) const {
   constexpr double kNever = std::numeric_limits<double>::infinity();

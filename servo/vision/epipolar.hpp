@@ -12,8 +12,8 @@
 #include <Eigen/Geometry>
 #include <vector>
 
-#include "servo/control/camera_intrinsics.hpp"
-#include "servo/control/triangulation.hpp"
+#include "servo/calibration/camera_intrinsics.hpp"
+#include "servo/calibration/projector_model.hpp"
 #include "servo/pattern/window_table.hpp"
 
 namespace vision {
@@ -21,7 +21,7 @@ namespace vision {
 class EpipolarGeometry {
  public:
   // tolerance_px: how far from its epipolar line (camera pixels) a spot may be and keep its id
-  EpipolarGeometry(const control::CameraIntrinsics& camera, const control::ProjectorModel& projector,
+  EpipolarGeometry(const calibration::CameraIntrinsics& camera, const calibration::ProjectorModel& projector,
                    const Eigen::Isometry3d& world_T_camera, double tolerance_px);
 
   // Normalised, undistorted coordinates of a pixel.
@@ -41,7 +41,7 @@ class EpipolarGeometry {
     Eigen::Vector3d line;       // o x b, scaled so that |line . (x, y, 1)| is camera pixels
     Eigen::Vector3d direction;  // b: the projector ray's direction, camera frame
   };
-  control::CameraIntrinsics camera_;
+  calibration::CameraIntrinsics camera_;
   Eigen::Vector3d origin_;  // the projector's centre, camera frame
   std::vector<Ray> rays_;   // row-major over the pattern
   int rows_ = 0, cols_ = 0;

@@ -125,7 +125,7 @@ struct ChromaLevels {
   bool noisy = false;  // the sensor's noise sets the floor, not min_threshold
 };
 
-ChromaLevels chroma_levels(const cv::Mat& chroma, const SegmentationParams& p) {
+ChromaLevels chroma_levels(const cv::Mat& chroma, const SegmentationOptions& p) {
   const int W = chroma.cols, H = chroma.rows;
   std::array<int, 256> hist{};
   int sampled = 0;
@@ -304,7 +304,7 @@ constexpr double kBorderCutPx = 0.5;
 constexpr double kBorderReachPx = 1.5;
 
 // The blobs that are spots: their size, shape and fill, and a dominant palette colour.
-void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, bool smoothed, int W, int H, Segmentation& out) {
+void spots_of(const std::vector<Blob>& blobs, const SegmentationOptions& p, bool smoothed, int W, int H, Segmentation& out) {
   const std::vector<std::array<double, 3>> palette = palette_directions(p.colours);
   out.spots.reserve(blobs.size() + 1);
   std::vector<Spot> slivers;
@@ -361,7 +361,7 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationParams& p, bool 
 
 }  // namespace
 
-Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& p, SegmentationScratch* scratch) {
+Segmentation segment_spots(const cv::Mat& rgb, const SegmentationOptions& p, SegmentationScratch* scratch) {
   if (rgb.empty()) throw std::invalid_argument("segment_spots: empty image");
   if (rgb.type() != CV_8UC3)
     throw std::invalid_argument("segment_spots: expected an 8-bit 3-channel RGB image, got type " +

@@ -15,7 +15,7 @@
 
 namespace vision {
 
-struct SegmentationParams {
+struct SegmentationOptions {
   int colours = 3;             // symbols 0..k-1, coloured as pattern::kPalette
   // chroma floor (8-bit), above the sensor noise: where a spot's pixels end
   int min_threshold = 10;
@@ -61,11 +61,11 @@ struct SegmentationScratch {
 };
 
 // The 3 x 3 mean of an RGB8 image, each channel apart, its border replicated, rounded to the
-// nearest (SegmentationParams::smoothing). `ring`: room it reuses.
+// nearest (SegmentationOptions::smoothing). `ring`: room it reuses.
 void mean_3x3(const cv::Mat& rgb, cv::Mat& out, std::vector<std::uint16_t>& ring);
 
 // Throws std::invalid_argument when the image is empty or not 8-bit, 3-channel.
-Segmentation segment_spots(const cv::Mat& rgb, const SegmentationParams& params = {},
+Segmentation segment_spots(const cv::Mat& rgb, const SegmentationOptions& params = {},
                            SegmentationScratch* scratch = nullptr);
 
 }  // namespace vision

@@ -15,16 +15,21 @@ struct Spot {
   int area_px = 0;
   float strength = 0;    // mean chroma above the threshold
   bool truncated = false;  // cut by the image border: its centroid is biased
-  // narrower than a spot may be (SegmentationParams::max_elongation): a spot seen edge-on
+  // narrower than a spot may be (SegmentationOptions::max_elongation): a spot seen edge-on
   // beside a silhouette. Only the edge runs (decoder step 8) use slivers.
   bool sliver = false;
 };
+
+// Which decoder step named a spot (spot_decoder.hpp numbers the steps): the evidence behind
+// an id, from the strongest (the windows of the paper) to the weakest (a run along an edge).
+enum class NamedBy : unsigned char { kWindows = 0, kPropagation = 6, kLattice = 7, kEdgeRun = 8 };
 
 // A decoded spot: its identity in the pattern and where it is in the image.
 struct DecodedSpot {
   int row = 0, col = 0;
   double u = 0, v = 0;
   int spot = 0;  // index into the segmented spots
+  NamedBy by = NamedBy::kWindows;
 };
 
 // The four main directions of the adjacency graph, in image terms (rows grow downwards).

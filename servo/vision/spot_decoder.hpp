@@ -237,7 +237,7 @@ struct EpipolarOptions {
 };
 
 struct DecoderOptions {
-  SegmentationParams segmentation;
+  SegmentationOptions segmentation;
   ToleranceOptions tolerance;
   // Windows that must name a spot. The paper keeps a spot when all its windows agree, even
   // if there is only one; a single misread window (a wrong link or colour that happens to

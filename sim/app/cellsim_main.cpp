@@ -16,34 +16,35 @@
 
 #include "sim/app/experiment_recording.hpp"
 #include "dds/cli_flags.hpp"
-#include "servo/config/cli_numbers.hpp"
-#include "servo/config/projector_calibration.hpp"
+#include "common/cli_numbers.hpp"
+#include "servo/calibration/projector_calibration.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/pattern/window_table.hpp"
-#include "sim/loop/decode_sweep.hpp"
-#include "sim/loop/experiment.hpp"
-#include "servo/config/strict_yaml.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/decode_sweep.hpp"
+#include "sim/experiment/experiment.hpp"
+#include "common/strict_yaml.hpp"
 #include "dds/topics.hpp"
-#include "sim/loop/campaign.hpp"
-#include "sim/loop/divergence_search.hpp"
-#include "sim/loop/study.hpp"
-#include "sim/app/sim_service.hpp"
+#include "sim/experiment/campaign.hpp"
+#include "sim/experiment/divergence_search.hpp"
+#include "sim/experiment/study.hpp"
+#include "sim/service/sim_service.hpp"
 #include "dds/participant.hpp"
 #include "sim/geometry/se3.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {
 
-// A run's ending in the exit-code table (servo/config/exit_codes.hpp, README.md)
-int exit_code_of(cellsim::RunEnding e) {
-  namespace x = config::exit_code;
+// A run's ending in the exit-code table (common/exit_codes.hpp, README.md)
+int exit_code_of(experiment::RunEnding e) {
+  namespace x = common::exit_code;
   switch (e) {
-    case cellsim::RunEnding::kConverged: return x::kDone;
-    case cellsim::RunEnding::kDiverged: return x::kDiverged;
-    case cellsim::RunEnding::kCapped: return x::kCapped;
-    case cellsim::RunEnding::kNotTaught: return x::kNotTaught;
-    case cellsim::RunEnding::kRefused: return x::kRefused;
-    case cellsim::RunEnding::kStopped: break;
+    case experiment::RunEnding::kConverged: return x::kDone;
+    case experiment::RunEnding::kDiverged: return x::kDiverged;
+    case experiment::RunEnding::kCapped: return x::kCapped;
+    case experiment::RunEnding::kNotTaught: return x::kNotTaught;
+    case experiment::RunEnding::kRefused: return x::kRefused;
+    case experiment::RunEnding::kStopped: break;
   }
   return x::kStopped;
 }
@@ -60,24 +61,33 @@ void write_png_rgb(const std::string& path, const cv::Mat& rgb) {
   if (!cv::imwrite(path, bgr)) throw std::runtime_error(path + ": cannot write image");
 }
 
-// --pattern FILE: the pattern the projector casts (and the in-process servo decodes),
-// instead of the scenario's (issue 19: both patterns stay runnable)
-std::string g_pattern_override;
-
-sim::Scenario load_scenario_for_run(const std::string& file) {
-  sim::Scenario s = sim::load_scenario(file);
-  if (!g_pattern_override.empty()) {
-    std::error_code ec;
-    const std::filesystem::path p = std::filesystem::absolute(g_pattern_override, ec);
-    pattern::load_pattern(p, {3, 3});  // one line naming the file if it is not a pattern
-    s.projector.pattern = p;
+// The scenario a command runs: its file, and the override of its spec the command line gives,
+// applied before the spec is resolved: --pattern FILE, the pattern the projector casts (and the
+// in-process servo decodes) instead of the scenario's (issue 19: both patterns stay runnable).
+struct ScenarioArg {
+  std::string file;
+  std::string pattern;
+  void add(CLI::App* c, const char* what = "scenario YAML file", bool required = true) {
+    CLI::Option* o = c->add_option("scenario", file, what);
+    if (required) o->required();
+    c->add_option("--pattern", pattern,
+                  "pattern file the projector casts instead of the scenario's (e.g. "
+                  "servo/pattern/data/marray_20x20_k3_w3_d3.txt, the distance-3 one)");
   }
-  return s;
-}
+  sim::ResolvedScenario load() const {
+    sim::Scenario s = sim::read_scenario(file);
+    if (!pattern.empty()) {
+      std::error_code ec;
+      s.projector.pattern = std::filesystem::absolute(pattern, ec);
+      pattern::load_pattern(s.projector.pattern, {3, 3});  // one line naming the file if it is not a pattern
+    }
+    return sim::resolve(std::move(s));
+  }
+};
 
-int run_render(const std::string& scenario_file, const std::string& pose_spec, const std::string& out_png,
+int run_render(const ScenarioArg& scenario_arg, const std::string& pose_spec, const std::string& out_png,
                const std::string& truth_file, std::uint64_t frame, const std::vector<double>& observer) {
-  const sim::Scenario scenario = load_scenario_for_run(scenario_file);
+  const sim::ResolvedScenario scenario = scenario_arg.load();
   const Eigen::Isometry3d wTc = sim::resolve_pose(scenario, pose_spec);
   const auto cell = sim::build_cell(scenario);
   // the robot at the pose: the arm's links are drawn, lit and cast shadows
@@ -85,7 +95,7 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
   try {
     robot->reset(wTc);
   } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(scenario_file + ": --pose '" + config::printable(pose_spec) + "': " + e.what());
+    throw std::invalid_argument(scenario_arg.file + ": --pose '" + common::printable(pose_spec) + "': " + e.what());
   }
   const sim::LinkPoses links = robot->world_T_links();
   Eigen::Isometry3d view = wTc;
@@ -133,13 +143,13 @@ int run_render(const std::string& scenario_file, const std::string& pose_spec, c
   return 0;
 }
 
-int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) {
-  const auto cell = sim::build_cell(load_scenario_for_run(scenario_file));
+int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
+  const auto cell = sim::build_cell(scenario.load());
   if (o.projector)
-    servo::check_projector_against_pattern(*o.projector, cell->projector->pattern(), cell->scenario.projector.pattern);
+    calibration::check_projector_against_pattern(*o.projector, cell->projector->pattern(), cell->scenario.projector.pattern);
   if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
   const auto t0 = std::chrono::steady_clock::now();
-  const cellsim::SweepSummary s = cellsim::run_decode_sweep(*cell, o);
+  const experiment::SweepSummary s = experiment::run_decode_sweep(*cell, o);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("%s: %d poses (noise sigma", cell->scenario.name.c_str(), o.poses);
   for (double n : o.noise_sigmas) std::printf(" %.1f", n);
@@ -170,7 +180,7 @@ int run_decode_sweep(const std::string& scenario_file, cellsim::SweepOptions o) 
               s.total_correct_readable);
   std::printf("  decode time median %.2f ms, p99 %.2f ms\n", s.median_ms, s.p99_ms);
   if (!o.out_dir.empty()) std::printf("  per-pose table: %s\n", (o.out_dir / "sweep.csv").c_str());
-  return s.total_wrong == 0 ? config::exit_code::kDone : config::exit_code::kWrongIds;
+  return s.total_wrong == 0 ? common::exit_code::kDone : common::exit_code::kWrongIds;
 }
 
 struct LawFlags {
@@ -178,8 +188,8 @@ struct LawFlags {
   double z_hat = 0;  // 0: the scenario's desired distance
   double gain = 0.5;
   std::vector<double> adaptive;  // l0 linf slope
-  double converge_mm = 1e3 * control::ControlLawParams{}.convergence_translation_m;
-  double converge_deg = control::ControlLawParams{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
+  double converge_mm = 1e3 * control::ControlLawOptions{}.convergence_translation_m;
+  double converge_deg = control::ControlLawOptions{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
   bool epipolar = false;
   int points = 0;
   std::string robust = "none";
@@ -198,17 +208,17 @@ struct LawFlags {
         ->capture_default_str();
     c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m); default: the mean depth of the lit spots "
                                     "at the desired pose, from the simulator (the paper's runs pass 0.9 or 0.6)")
-        ->check(config::finite_in(0, 100));
-    c->add_option("--gain", gain, "constant gain lambda")->capture_default_str()->check(config::finite_in(1e-9, 1e3));
+        ->check(common::finite_in(0, 100));
+    c->add_option("--gain", gain, "constant gain lambda")->capture_default_str()->check(common::finite_in(1e-9, 1e3));
     c->add_option("--gain-adaptive", adaptive, "adaptive gain: lambda0 lambda_inf slope0")
         ->expected(3)
-        ->check(config::finite_in(0, 1e3));
+        ->check(common::finite_in(0, 1e3));
     c->add_option("--converge-mm", converge_mm, "task-function translation that counts as converged (mm)")
         ->capture_default_str()
-        ->check(config::finite_in(1e-9, 1e4));
+        ->check(common::finite_in(1e-9, 1e4));
     c->add_option("--converge-deg", converge_deg, "task-function rotation that counts as converged (deg)")
         ->capture_default_str()
-        ->check(config::finite_in(1e-9, 180));
+        ->check(common::finite_in(1e-9, 180));
   }
   void apply(servo::ServoConfig& cfg, double default_z_hat) const {
     cfg.law.model = control::parse_interaction_model(model);
@@ -244,7 +254,7 @@ struct ConditionFlags {
     c->add_option("--outliers", outliers,
                   "swap the ids of this fraction of the spots at every frame (seeded; wrong matches for the robust "
                   "law, issue 19)")
-        ->check(config::finite_in(0, 0.5))
+        ->check(common::finite_in(0, 0.5))
         ->capture_default_str();
   }
   sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
@@ -259,12 +269,12 @@ struct ConditionFlags {
   }
 };
 
-using cellsim::desired_depth;
+using experiment::desired_depth;
 
 // What `campaign` and `study` share: the draw of initial poses, the models, the law, the
 // errors and delays.
 struct CampaignFlags {
-  cellsim::CampaignOptions o;
+  experiment::CampaignOptions o;
   std::string models = "desired-constant-depth,desired,current,mean", source = "decoded", dir;
   LawFlags law;
   ConditionFlags conditions;
@@ -273,7 +283,7 @@ struct CampaignFlags {
   void add(CLI::App* c) {
     c->add_option("--runs", o.runs, "initial poses per model")->capture_default_str()->check(CLI::Range(1, 1000000));
     c->add_option("--models", models, "comma-separated models")->capture_default_str();
-    c->add_option("--seed", o.seed, "seed of the initial-pose draw")->capture_default_str()->check(config::whole_number());
+    c->add_option("--seed", o.seed, "seed of the initial-pose draw")->capture_default_str()->check(common::whole_number());
     c->add_option("--scale", o.scale, "initial offsets drawn in [-scale, scale] x the scenario's")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 100.0));
@@ -283,8 +293,8 @@ struct CampaignFlags {
     c->add_option("--features", source, "decoded | ideal")->capture_default_str();
     c->add_option("--threads", o.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 256));
     c->add_option("-o,--output", dir, "output folder");
-    c->add_option("--z-hat", law.z_hat, "depth of desired-constant-depth (m)")->check(config::finite_in(0, 100));
-    c->add_option("--gain", law.gain, "constant gain")->capture_default_str()->check(config::finite_in(1e-9, 1e3));
+    c->add_option("--z-hat", law.z_hat, "depth of desired-constant-depth (m)")->check(common::finite_in(0, 100));
+    c->add_option("--gain", law.gain, "constant gain")->capture_default_str()->check(common::finite_in(1e-9, 1e3));
     c->add_option("--points", law.points, "servo on this many best-conditioned points (0: all)")
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
@@ -293,10 +303,10 @@ struct CampaignFlags {
     c->add_flag("--no-plot", no_plot, "do not draw the plots");
     conditions.add(c);
   }
-  cellsim::CampaignOptions options(const sim::Cell& cell) const {
-    cellsim::CampaignOptions c = o;
-    c.source = cellsim::parse_feature_source(source);
-    c.base = cellsim::servo_config_for(cell);
+  experiment::CampaignOptions options(const sim::Cell& cell) const {
+    experiment::CampaignOptions c = o;
+    c.source = experiment::parse_feature_source(source);
+    c.base = experiment::servo_config_for(cell);
     law.apply(c.base, desired_depth(cell));
     for (std::size_t a = 0, b; a < models.size(); a = b + 1) {
       b = models.find(',', a);
@@ -317,18 +327,18 @@ const CLI::Validator non_empty_file(
     [](std::string& v) { return v.empty() ? std::string("an empty file name (name the MCAP file to write)") : std::string(); },
     "FILE");
 
-int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, const ConditionFlags& conditions,
+int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const ConditionFlags& conditions,
                        const std::string& source, int max_iterations, const std::string& initial,
                        const std::string& out_dir, bool plot, const cell_record::RecordOptions& record) {
-  const auto cell = sim::build_cell(load_scenario_for_run(scenario_file));
-  cellsim::ExperimentOptions o;
+  const auto cell = sim::build_cell(scenario.load());
+  experiment::ExperimentOptions o;
   o.errors = conditions.errors_for(cell->scenario);
   o.latency = conditions.latency_for(cell->scenario);
   o.outlier_fraction = conditions.outliers;
-  o.servo = cellsim::servo_config_for(*cell);
+  o.servo = experiment::servo_config_for(*cell);
   o.servo.divergence_ratio = conditions.divergence_ratio;
   law.apply(o.servo, desired_depth(*cell));
-  o.source = cellsim::parse_feature_source(source);
+  o.source = experiment::parse_feature_source(source);
   o.max_iterations = max_iterations;
   if (!initial.empty()) o.initial = sim::resolve_pose(cell->scenario, initial);
   o.out_dir = out_dir;
@@ -337,7 +347,7 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
     recording = std::make_unique<cellsim::ExperimentRecording>(
         *cell, record,
         mcap::KeyValues{{"scenario", cell->scenario.name},
-                        {"scenario_file", scenario_file},
+                        {"scenario_file", scenario.file},
                         {"seed", std::to_string(cell->scenario.seed)},
                         {"timing", "in-process (cellsim experiment): log and publish times are simulated time"},
                         {"model", law.model},
@@ -345,14 +355,14 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
                         {"images", record.images ? "recorded" : "left out (--record-no-images)"}});
     o.tap = recording.get();
   }
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   std::printf("%s, model %s (z-hat %.3f m), %s features%s\n", cell->scenario.name.c_str(), law.model.c_str(),
-              o.servo.law.z_hat_m, cellsim::to_string(o.source).c_str(),
-              o.source == cellsim::FeatureSource::kIdeal ? " (simulator truth)" : "");
+              o.servo.law.z_hat_m, experiment::to_string(o.source).c_str(),
+              o.source == loop::FeatureSource::kIdeal ? " (simulator truth)" : "");
   std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
   const std::string conds = sim::describe(*o.errors, *o.latency);
   if (conds != "none") std::printf("  errors and delays: %s\n", conds.c_str());
-  const bool ran = r.ending != cellsim::RunEnding::kNotTaught && r.ending != cellsim::RunEnding::kRefused;
+  const bool ran = r.ending != experiment::RunEnding::kNotTaught && r.ending != experiment::RunEnding::kRefused;
   if (ran)
     std::printf("  %s after %d iterations (%.2f s simulated)\n", r.stop_reason.c_str(), r.iterations,
                 r.iterations * cell->scenario.dt_s);
@@ -361,7 +371,7 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
   if (ran) std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
   if (!out_dir.empty() && ran) {
     // the plots are named only when they were drawn (--no-plot, or no Python: none)
-    const bool plotted = plot && cellsim::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
+    const bool plotted = plot && experiment::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
     std::printf("  trace: %s/trace.csv, features: %s/features.jsonl", out_dir.c_str(), out_dir.c_str());
     if (plotted) std::printf(", plots: %s/velocities.png %s/error_norm.png", out_dir.c_str(), out_dir.c_str());
     std::printf("\n");
@@ -372,12 +382,13 @@ int run_experiment_cli(const std::string& scenario_file, const LawFlags& law, co
 
 // One struct per subcommand: its flags, and what it runs once they are parsed.
 struct RenderCommand {
-  std::string scenario, pose = "desired", out, truth;
+  ScenarioArg scenario;
+  std::string pose = "desired", out, truth;
   std::uint64_t frame = 0;
   std::vector<double> observer;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("render", "render one camera frame of a scenario");
-    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    scenario.add(c);
     c->add_option("--pose", pose,
                   "desired | initial | \"x y z rx ry rz\": offset from the desired pose, cm and deg, as the "
                   "scenario's initial_offset is: translation along the axes of its offset frame (the desired camera "
@@ -397,14 +408,15 @@ struct RenderCommand {
 };
 
 struct DecodeSweepCommand {
-  std::string scenario, dir, projector;
-  cellsim::SweepOptions sweep;
+  ScenarioArg scenario;
+  std::string dir, projector;
+  experiment::SweepOptions sweep;
   bool tolerant = false, propagate = false, no_grow = false, no_two_votes = false, no_edge_runs = false;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
-    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    scenario.add(c);
     c->add_option("--poses", sweep.poses, "random poses")->capture_default_str()->check(CLI::PositiveNumber);
-    c->add_option("--seed", sweep.seed, "seed of the pose draw and the noise")->capture_default_str()->check(config::whole_number());
+    c->add_option("--seed", sweep.seed, "seed of the pose draw and the noise")->capture_default_str()->check(common::whole_number());
     c->add_option("--noise", sweep.noise_sigmas, "sensor noise sigmas to cycle through (8-bit units)");
     c->add_option("--min-votes", sweep.decoder.min_votes, "windows that must name a spot")->capture_default_str();
     c->add_option("--min-island", sweep.decoder.min_island, "smallest island of decoded spots kept (0: off)")
@@ -437,10 +449,10 @@ struct DecodeSweepCommand {
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")
-        ->check(config::finite_in(0, 100));
+        ->check(common::finite_in(0, 100));
     c->add_option("--max-rotation-deg", sweep.max_rotation_deg,
                   "draw each rotation component in +-this (default: the scenario's initial offset per axis)")
-        ->check(config::finite_in(0, 90));
+        ->check(common::finite_in(0, 90));
     c->add_option("-o,--output", dir, "folder for sweep.csv and overlays of poses with wrong ids");
     return c;
   }
@@ -451,7 +463,7 @@ struct DecodeSweepCommand {
     sweep.decoder.epipolar.two_exact_votes = !no_two_votes;
     sweep.decoder.epipolar.grow = !no_grow;
     sweep.decoder.epipolar.edge_runs = !no_edge_runs;
-    if (!projector.empty()) sweep.projector = servo::load_projector_calibration(projector);
+    if (!projector.empty()) sweep.projector = calibration::load_projector_calibration(projector);
     return run_decode_sweep(scenario, sweep);
   }
 };
@@ -468,7 +480,8 @@ void use_render_threads(int threads) {
 }
 
 struct ExperimentCommand {
-  std::string scenario, source = "decoded", initial, dir;
+  ScenarioArg scenario;
+  std::string source = "decoded", initial, dir;
   cell_record::RecordOptions record;
   bool no_images = false;
   LawFlags law;
@@ -479,7 +492,7 @@ struct ExperimentCommand {
   CLI::App* add(CLI::App& app) {
     auto* c =
         app.add_subcommand("experiment", "teach at the desired pose, start at the initial pose, servo (in-process)");
-    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    scenario.add(c);
     law.add(c);
     c->add_option("--features", source, "decoded | ideal (the simulator's true image positions)")->capture_default_str();
     c->add_option("--max-iterations", max_iterations, "iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
@@ -504,16 +517,16 @@ struct ExperimentCommand {
 };
 
 struct Fig5SearchCommand {
-  std::string scenario;
-  cellsim::DivergenceSearchOptions search;
+  ScenarioArg scenario;
+  experiment::DivergenceSearchOptions search;
   bool keep_spots = false;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("fig5-search",
                                  "seeded search for a Fig. 5 configuration: five spots and an initial pose for which "
                                  "L(s*, Z-hat) diverges and L(s*, Z*), L(s, Z) converge (ideal features)");
-    c->add_option("scenario", scenario, "scenario YAML file (the cylinder, projector and desired pose)")->required();
+    scenario.add(c, "scenario YAML file (the cylinder, projector and desired pose)");
     c->add_option("--tries", search.tries, "configurations drawn")->capture_default_str()->check(CLI::Range(1, 100000));
-    c->add_option("--seed", search.seed, "seed of the draw")->capture_default_str()->check(config::whole_number());
+    c->add_option("--seed", search.seed, "seed of the draw")->capture_default_str()->check(common::whole_number());
     c->add_option("--z-hat", search.z_hat_m, "depth of the constant-depth model (m)")
         ->capture_default_str()
         ->check(CLI::Range(0.01, 100.0));
@@ -537,14 +550,14 @@ struct Fig5SearchCommand {
   }
   int run() {
     search.vary_spots = !keep_spots;
-    const sim::Scenario sc = load_scenario_for_run(scenario);
-    const auto r = cellsim::search_divergence(sc, search);
+    const sim::ResolvedScenario sc = scenario.load();
+    const auto r = experiment::search_divergence(sc, search);
     int kept = 0;
     for (const auto& c : r.candidates) kept += c.kept;
     std::printf("%s: %d of %d configurations kept (L(s*, Z-hat = %.2f) diverges, L(s*, Z*) converges, L(s, Z) "
                 "converges faster)\n",
                 sc.name.c_str(), kept, search.tries, search.z_hat_m);
-    if (r.best < 0) return config::exit_code::kNoneFound;
+    if (r.best < 0) return common::exit_code::kNoneFound;
     const auto& b = r.candidates[static_cast<std::size_t>(r.best)];
     std::printf("  least displaced: try %d, spots", b.index);
     for (const auto& rc : b.spots) std::printf(" (%d, %d)", rc[0], rc[1]);
@@ -569,18 +582,19 @@ std::pair<int, int> parse_shard(const std::string& shard) {
                     ns = slash == std::string::npos ? "" : shard.substr(slash + 1);
   const int i = digits(is) ? std::stoi(is) : 0, n = digits(ns) ? std::stoi(ns) : 0;
   if (!digits(is) || !digits(ns) || n < 1 || n > 100000 || i < 1 || i > n)
-    throw std::invalid_argument("--shard '" + config::printable(shard) + "': expected I/N with 1 <= I <= N <= 100000");
+    throw std::invalid_argument("--shard '" + common::printable(shard) + "': expected I/N with 1 <= I <= N <= 100000");
   return {i, n};
 }
 
 struct CampaignCommand {
-  std::string scenario, shard, merge_out;
+  ScenarioArg scenario;
+  std::string shard, merge_out;
   std::vector<std::string> merge_dirs;
   CampaignFlags flags;
   CLI::App* merge = nullptr;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("campaign", "many random initial poses per interaction-matrix model");
-    c->add_option("scenario", scenario, "scenario YAML file");
+    scenario.add(c, "scenario YAML file", false);
     c->add_option("--shard", shard,
                   "run slice I of N (I/N): every N-th initial pose; merge the slices with `campaign merge`");
     merge = c->add_subcommand("merge", "combine the folders of a sharded campaign into the unsharded result");
@@ -592,48 +606,48 @@ struct CampaignCommand {
   int run() const {
     if (*merge) {
       std::vector<std::filesystem::path> dirs(merge_dirs.begin(), merge_dirs.end());
-      std::printf("%s", cellsim::merge_campaigns(dirs, merge_out).c_str());
-      if (!flags.no_plot) cellsim::plot_campaign(merge_out, "merged campaign");
+      std::printf("%s", experiment::merge_campaigns(dirs, merge_out).c_str());
+      if (!flags.no_plot) experiment::plot_campaign(merge_out, "merged campaign");
       return 0;
     }
-    if (scenario.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
+    if (scenario.file.empty()) throw std::invalid_argument("campaign: give a scenario file (or `campaign merge FOLDER...`)");
     if (flags.dir.empty()) throw std::invalid_argument("campaign: -o,--output FOLDER is required");
-    const auto cell = sim::build_cell(load_scenario_for_run(scenario));
-    cellsim::CampaignOptions o = flags.options(*cell);
+    const auto cell = sim::build_cell(scenario.load());
+    experiment::CampaignOptions o = flags.options(*cell);
     if (!shard.empty()) std::tie(o.shard_index, o.shard_count) = parse_shard(shard);
-    std::printf("%s", cellsim::run_campaign(*cell, o).c_str());
-    if (!flags.no_plot) cellsim::plot_campaign(flags.dir, cell->scenario.name + " campaign");
+    std::printf("%s", experiment::run_campaign(*cell, o).c_str());
+    if (!flags.no_plot) experiment::plot_campaign(flags.dir, cell->scenario.name + " campaign");
     return 0;
   }
 };
 
 struct StudyCommand {
-  std::string scenario;
+  ScenarioArg scenario;
   std::vector<std::string> axes;
   CampaignFlags flags;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("study", "a campaign at every point of one or two axes (depth, errors, delays, gain)");
-    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    scenario.add(c);
     std::string names;
-    for (const auto& n : cellsim::study_axis_names()) names += " " + n;
+    for (const auto& n : experiment::study_axis_names()) names += " " + n;
     c->add_option("--axis", axes, "NAME=V1,V2,... (once or twice: a grid); names:" + names)->required();
     flags.add(c);
     return c;
   }
   int run() const {
-    cellsim::StudyOptions so;
-    for (const auto& a : axes) so.axes.push_back(cellsim::parse_study_axis(a));
+    experiment::StudyOptions so;
+    for (const auto& a : axes) so.axes.push_back(experiment::parse_study_axis(a));
     if (so.axes.size() > 2) throw std::invalid_argument("study: at most two --axis");
     if (so.axes.size() == 2 && so.axes[0].name == so.axes[1].name)
-      throw std::invalid_argument("study: --axis " + config::printable(so.axes[0].name) +
+      throw std::invalid_argument("study: --axis " + common::printable(so.axes[0].name) +
                                   " given twice (give its values once: NAME=V1,V2,...)");
     if (flags.dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
-    const sim::Scenario sc = load_scenario_for_run(scenario);
+    const sim::ResolvedScenario sc = scenario.load();
     const auto cell = sim::build_cell(sc);
     so.campaign = flags.options(*cell);
     so.out_dir = flags.dir;
-    std::printf("%s", cellsim::run_study(sc, so).c_str());
-    if (!flags.no_plot) cellsim::plot_study(flags.dir, sc.name + " study");
+    std::printf("%s", experiment::run_study(sc, so).c_str());
+    if (!flags.no_plot) experiment::plot_study(flags.dir, sc.name + " study");
     return 0;
   }
 };
@@ -642,7 +656,7 @@ struct ServeCommand {
   std::string scenario, mode = "lockstep", trace;
   bool no_images = false;
   int render_threads = 0;
-  cellsim::ServiceOptions svc;
+  sim::ServiceOptions svc;
   cell_dds::DdsFlags dds;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("serve", "run the simulated cell as a DDS service");
@@ -674,38 +688,39 @@ struct ServeCommand {
     use_render_threads(render_threads);
     svc.scenario = scenario;
     if (mode != "lockstep" && mode != "realtime") throw std::invalid_argument("--mode must be lockstep or realtime");
-    config::require_within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
-    config::require_within("--republish-ms", svc.republish_ms, 1, 600000);
-    config::require_within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
-    svc.mode = mode == "lockstep" ? cellsim::TimingMode::kLockstep : cellsim::TimingMode::kRealtime;
+    common::require_within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
+    common::require_within("--republish-ms", svc.republish_ms, 1, 600000);
+    common::require_within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
+    svc.mode = mode == "lockstep" ? sim::TimingMode::kLockstep : sim::TimingMode::kRealtime;
     dds.apply_to(svc);
     svc.trace_dir = trace;
     svc.record_images = !no_images;
     if (no_images && svc.record.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
-    return cellsim::run_sim_service(svc);
+    return sim::run_sim_service(svc);
   }
 };
 
 struct CalibrationCommand {
-  std::string scenario, out;
+  ScenarioArg scenario;
+  std::string out;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("calibration", "write the projector calibration the servo triangulates with");
-    c->add_option("scenario", scenario, "scenario YAML file")->required();
+    scenario.add(c);
     c->add_option("-o,--output", out, "calibration YAML to write")->required();
     return c;
   }
   int run() const {
-    const sim::Scenario s = load_scenario_for_run(scenario);
+    const sim::ResolvedScenario s = scenario.load();
     const pattern::MArray a = pattern::read_marray(s.projector.pattern);
     const auto& k = s.projector.intrinsics;
-    control::ProjectorModel m;
+    calibration::ProjectorModel m;
     m.fx = k.fx, m.fy = k.fy, m.cx = k.cx, m.cy = k.cy;
     m.spot_pitch_px = s.projector.spot_pitch_px;
     m.rows = a.rows, m.cols = a.cols;
     // what a calibration would give: off by the scenario's projector errors, if any
     m.world_T_projector = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
     const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
-    servo::write_projector_calibration(m, out,
+    calibration::write_projector_calibration(m, out,
                                        "projector calibration of scenario " + s.name +
                                            (off ? " (with the scenario's projector errors: " +
                                                       sim::describe(s.errors, {}) + ")"
@@ -732,7 +747,7 @@ int main(int argc, char** argv) {
   StudyCommand study;
   ServeCommand serve;
   CalibrationCommand calibration;
-  const config::Subcommands commands = {
+  const common::Subcommands commands = {
       {render.add(app), [&] { return render.run(); }},
       {sweep.add(app), [&] { return sweep.run(); }},
       {experiment.add(app), [&] { return experiment.run(); }},
@@ -742,12 +757,7 @@ int main(int argc, char** argv) {
       {serve.add(app), [&] { return serve.run(); }},
       {calibration.add(app), [&] { return calibration.run(); }},
   };
-  for (const auto& [sub, run] : commands)
-    if (sub->get_name() != "serve")
-      sub->add_option("--pattern", g_pattern_override,
-                      "pattern file the projector casts instead of the scenario's (e.g. "
-                      "servo/pattern/data/marray_20x20_k3_w3_d3.txt, the distance-3 one)");
-  config::require_finite_numbers(app);
-  if (const int rc = config::parse_command_line(app, argc, argv, "cellsim"); rc >= 0) return rc;
-  return config::run_subcommand(commands, "cellsim");
+  common::require_finite_numbers(app);
+  if (const int rc = common::parse_command_line(app, argc, argv, "cellsim"); rc >= 0) return rc;
+  return common::run_subcommand(commands, "cellsim");
 }

@@ -7,8 +7,8 @@
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
-#include "servo/app/servo_messages.hpp"
-#include "sim/app/cell_messages.hpp"
+#include "servo/messages/servo_messages.hpp"
+#include "sim/messages/cell_messages.hpp"
 #include "std_msgsPubSubTypes.h"
 #include "tf2_msgsPubSubTypes.h"
 
@@ -30,7 +30,7 @@ void ExperimentRecording::put(const char* topic, Stream stream, const typename P
 }
 
 void ExperimentRecording::on_start(const servo::CameraInfoMsg& info, const sim::CellStateMachine& cell) {
-  auto ci = wire::camera_info(cell.scenario(), cell_dds::stamp_of(0, cell.dt()));
+  auto ci = sim::wire::camera_info(cell.scenario(), cell_dds::stamp_of(0, cell.dt()));
   // what the loop gave the servo (its calibrated camera), as the service's camera_info says it
   ci.width(info.width);
   ci.height(info.height);
@@ -38,11 +38,11 @@ void ExperimentRecording::on_start(const servo::CameraInfoMsg& info, const sim::
   ci.d(info.d);
   put<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(cell_dds::kCameraInfoTopic, Stream::kLatched, ci, 0);
   put<std_msgs::msg::dds_::String_PubSubType>(cell_dds::kRobotDescriptionTopic, Stream::kLatched,
-                                               wire::description(cell.scenario()), 0);
+                                               sim::wire::description(cell.scenario()), 0);
 }
 
 void ExperimentRecording::on_command(const sim::CommandMsg& c, double now_s) {
-  put<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kControlTopic, Stream::kCommand, wire::control(c), now_s);
+  put<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kControlTopic, Stream::kCommand, sim::wire::control(c), now_s);
 }
 
 void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb,
@@ -50,19 +50,19 @@ void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStat
   const auto stamp = cell_dds::stamp_of(f.index, cell.dt());
   const sim::Scenario& s = cell.scenario();
   put<cell_msgs::msg::dds_::SimStatus_PubSubType>(cell_dds::kSimStatusTopic, Stream::kFrame,
-                                                  wire::frame_status(f, cell, stamp, {}), now_s);
+                                                  sim::wire::frame_status(f, cell, stamp, {}), now_s);
   put<geometry_msgs::msg::dds_::PoseStamped_PubSubType>(cell_dds::kCameraPoseTopic, Stream::kFrame,
-                                                        wire::camera_pose(f, stamp), now_s);
-  put<tf2_msgs::msg::dds_::TFMessage_PubSubType>(cell_dds::kTfTopic, Stream::kFrame, wire::transforms(s, f, stamp), now_s);
-  if (wire::has_joints(s, f))
+                                                        sim::wire::camera_pose(f, stamp), now_s);
+  put<tf2_msgs::msg::dds_::TFMessage_PubSubType>(cell_dds::kTfTopic, Stream::kFrame, sim::wire::transforms(s, f, stamp), now_s);
+  if (sim::wire::has_joints(s, f))
     put<sensor_msgs::msg::dds_::JointState_PubSubType>(cell_dds::kJointStatesTopic, Stream::kFrame,
-                                                       wire::joint_state(f, stamp), now_s);
+                                                       sim::wire::joint_state(f, stamp), now_s);
   if (rgb)
-    put<sensor_msgs::msg::dds_::Image_PubSubType>(cell_dds::kImageTopic, Stream::kFrame, wire::image(*rgb, stamp), now_s);
+    put<sensor_msgs::msg::dds_::Image_PubSubType>(cell_dds::kImageTopic, Stream::kFrame, sim::wire::image(*rgb, stamp), now_s);
   else  // the ideal source: the truth is what the servo stepped on
     put<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>(cell_dds::kSpotTruthTopic, Stream::kFrame,
-                                                         wire::spot_truth(cell_, f, stamp), now_s);
-  put<rosgraph_msgs::msg::dds_::Clock_PubSubType>(cell_dds::kClockTopic, Stream::kClock, wire::clock(stamp), now_s);
+                                                         sim::wire::spot_truth(cell_, f, stamp), now_s);
+  put<rosgraph_msgs::msg::dds_::Clock_PubSubType>(cell_dds::kClockTopic, Stream::kClock, sim::wire::clock(stamp), now_s);
 }
 
 void ExperimentRecording::on_reply(const servo::ServoReply& r, double now_s) {

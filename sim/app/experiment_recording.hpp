@@ -11,7 +11,7 @@
 
 namespace cellsim {
 
-class ExperimentRecording : public LoopTap {
+class ExperimentRecording : public loop::LoopTap {
  public:
   ExperimentRecording(const sim::Cell& cell, cell_record::RecordOptions options, const mcap::KeyValues& metadata);
   void on_start(const servo::CameraInfoMsg& info, const sim::CellStateMachine& cell) override;

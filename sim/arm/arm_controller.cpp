@@ -12,6 +12,23 @@ double condition_of(const Eigen::JacobiSVD<Matrix6Xd>& svd) {
   const double lo = s[s.size() - 1];
   return lo > 1e-12 ? s[0] / lo : std::numeric_limits<double>::infinity();
 }
+
+// the share of the step q + qdot dt that keeps every joint inside its limits less the margin
+double joint_room(const ArmKinematics& kin, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, double dt,
+                  double margin) {
+  double fit = 1;
+  for (int i = 0; i < kin.dof(); ++i) {
+    const double step = qdot[i] * dt;
+    if (step > 0) {
+      const double room = kin.upper()[i] - margin - q[i];
+      if (step > room) fit = std::min(fit, std::max(0.0, room) / step);
+    } else if (step < 0) {
+      const double room = q[i] - (kin.lower()[i] + margin);
+      if (-step > room) fit = std::min(fit, std::max(0.0, room) / -step);
+    }
+  }
+  return fit;
+}
 }  // namespace
 
 ArmCommand ArmController::step(const ArmKinematics& kin, const Eigen::VectorXd& q, const Vector6d& twist_c,
@@ -68,17 +85,7 @@ ArmCommand ArmController::step(const ArmKinematics& kin, const Eigen::VectorXd& 
   qdot *= scale;
 
   // 4. joint position limits with a margin: the step stops short of the margin
-  double fit = 1;
-  for (int i = 0; i < n; ++i) {
-    const double step = qdot[i] * dt;
-    if (step > 0) {
-      const double room = kin.upper()[i] - p_.joint_margin_rad - q[i];
-      if (step > room) fit = std::min(fit, std::max(0.0, room) / step);
-    } else if (step < 0) {
-      const double room = q[i] - (kin.lower()[i] + p_.joint_margin_rad);
-      if (-step > room) fit = std::min(fit, std::max(0.0, room) / -step);
-    }
-  }
+  const double fit = joint_room(kin, q, qdot, dt, p_.joint_margin_rad);
   if (fit < 1) {
     qdot *= fit;
     scale *= fit;

@@ -21,7 +21,7 @@
 
 namespace sim {
 
-struct ArmControllerParams {
+struct ArmControllerOptions {
   double max_linear_mps = 0.5;
   double max_angular_radps = 1.0;
   double damping = 0.05;              // largest damping factor (at sigma_min = 0)
@@ -41,14 +41,14 @@ struct ArmCommand {
 
 class ArmController {
  public:
-  explicit ArmController(ArmControllerParams p = {}) : p_(p) {}
-  const ArmControllerParams& params() const { return p_; }
+  explicit ArmController(ArmControllerOptions p = {}) : p_(p) {}
+  const ArmControllerOptions& params() const { return p_; }
 
   // twist_c: (v, w) in the camera frame; dt: how long the command will be held.
   ArmCommand step(const ArmKinematics& kin, const Eigen::VectorXd& q, const Vector6d& twist_c, double dt) const;
 
  private:
-  ArmControllerParams p_;
+  ArmControllerOptions p_;
 };
 
 }  // namespace sim

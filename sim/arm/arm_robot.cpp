@@ -6,7 +6,7 @@
 namespace sim {
 
 ArmRobot::ArmRobot(std::shared_ptr<const RobotModel> model, const Eigen::Isometry3d& world_T_base, const World& objects,
-                   std::vector<std::string> object_names, ArmControllerParams params, Eigen::VectorXd home,
+                   std::vector<std::string> object_names, ArmControllerOptions params, Eigen::VectorXd home,
                    double physics_period_s)
     : model_(std::move(model)),
       world_T_base_(world_T_base),

@@ -19,7 +19,7 @@ class ArmRobot final : public Robot {
   // `objects` (the cell's static world) must outlive the robot. `home`: the IK seed for
   // the first pose asked for (an elbow-up configuration picks that family).
   ArmRobot(std::shared_ptr<const RobotModel> model, const Eigen::Isometry3d& world_T_base, const World& objects,
-           std::vector<std::string> object_names, ArmControllerParams params, Eigen::VectorXd home,
+           std::vector<std::string> object_names, ArmControllerOptions params, Eigen::VectorXd home,
            double physics_period_s = 0.001);
 
   Eigen::Isometry3d world_T_camera() const override { return world_T_camera_; }

@@ -58,13 +58,6 @@ void resolve_arm(Scenario& s) {
   }
 }
 
-Scenario load_scenario(const std::filesystem::path& file) {
-  Scenario s = read_scenario(file);
-  if (s.robot.arm_enabled) {
-    resolve_arm(s);
-    settle_workspace(s);
-  }
-  return s;
-}
+
 
 }  // namespace sim

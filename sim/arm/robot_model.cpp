@@ -13,8 +13,8 @@
 #include <mutex>
 #include <sstream>
 
-#include "servo/config/regular_file.hpp"
-#include "servo/config/strict_yaml.hpp"
+#include "common/regular_file.hpp"
+#include "common/strict_yaml.hpp"
 
 namespace sim {
 namespace {
@@ -137,7 +137,7 @@ TriangleMesh geometry_mesh(const std::filesystem::path& urdf_file, const urdf::G
       const auto& me = static_cast<const urdf::Mesh&>(*g);
       const std::string& name = me.filename;
       if (name.rfind("package://", 0) == 0 || name.find("://") != std::string::npos)
-        fail(urdf_file, where + ": mesh '" + config::printable(name) +
+        fail(urdf_file, where + ": mesh '" + common::printable(name) +
                             "': URIs are not resolved here; give a path relative to the URDF file");
       std::filesystem::path p(name);
       if (p.is_relative()) p = urdf_file.parent_path() / p;
@@ -171,13 +171,13 @@ bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkS
     triangles += m.triangles.size();
     if (triangles > kMaxArmTriangles)
       fail(file, "more than " + std::to_string(kMaxArmTriangles) + " triangles in the robot's meshes (the limit), at link '" +
-                     config::printable(link.name) + "'");
+                     common::printable(link.name) + "'");
     append(to, m);
   };
   const auto left = [&] { return kMaxArmTriangles - std::min(triangles, kMaxArmTriangles); };
   for (const auto& v : link.visual_array) {
     if (!v) continue;
-    add(out.visual, geometry_mesh(file, v->geometry, v->origin, "link '" + config::printable(link.name) + "' visual", left()));
+    add(out.visual, geometry_mesh(file, v->geometry, v->origin, "link '" + common::printable(link.name) + "' visual", left()));
     if (v->material) {
       const auto& c = v->material->color;
       const double grey = (c.r + c.g + c.b) / 3.0;
@@ -188,7 +188,7 @@ bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkS
   for (const auto& c : link.collision_array) {
     if (!c) continue;
     add(out.collision,
-        geometry_mesh(file, c->geometry, c->origin, "link '" + config::printable(link.name) + "' collision", left()));
+        geometry_mesh(file, c->geometry, c->origin, "link '" + common::printable(link.name) + "' collision", left()));
     any = true;
   }
   if (out.collision.triangles.empty()) {
@@ -196,7 +196,7 @@ bool read_shape(const std::filesystem::path& file, const urdf::Link& link, LinkS
     triangles += out.visual.triangles.size();
     if (triangles > kMaxArmTriangles)
       fail(file, "more than " + std::to_string(kMaxArmTriangles) + " triangles in the robot's meshes (the limit), at link '" +
-                     config::printable(link.name) + "'");
+                     common::printable(link.name) + "'");
   }
   return any;
 }
@@ -217,7 +217,7 @@ std::string numbers_problem(const char* text, std::size_t n) {
   std::size_t count = 0;
   double v = 0;
   while (in >> tok) {
-    if (!strict_number(tok, v)) return "'" + config::printable(tok, 32) + "' is not a finite number";
+    if (!strict_number(tok, v)) return "'" + common::printable(tok, 32) + "' is not a finite number";
     ++count;
   }
   if (count != n) return "has " + std::to_string(count) + " numbers, expected " + std::to_string(n);
@@ -232,7 +232,7 @@ std::map<std::string, std::pair<std::size_t, std::size_t>> check_urdf_geometry(c
                                                                                const std::string& text) {
   tinyxml2::XMLDocument doc;
   if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
-    fail(file, std::string("not a valid URDF: ") + config::printable(doc.ErrorStr() ? doc.ErrorStr() : "XML error", 160));
+    fail(file, std::string("not a valid URDF: ") + common::printable(doc.ErrorStr() ? doc.ErrorStr() : "XML error", 160));
   const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
   if (!robot) fail(file, "not a valid URDF: no <robot> element");
   std::map<std::string, std::pair<std::size_t, std::size_t>> counts;
@@ -244,7 +244,7 @@ std::map<std::string, std::pair<std::size_t, std::size_t>> check_urdf_geometry(c
       const std::string kind = e->Name();
       if (kind != "visual" && kind != "collision") continue;
       (kind == "visual" ? count.first : count.second)++;
-      const std::string where = "link '" + config::printable(name) + "' " + kind + " " +
+      const std::string where = "link '" + common::printable(name) + "' " + kind + " " +
                                 std::to_string(kind == "visual" ? count.first : count.second);
       const auto check = [&](const tinyxml2::XMLElement* el, const char* attr, std::size_t n, bool required) {
         const char* v = el->Attribute(attr);
@@ -276,7 +276,7 @@ std::map<std::string, std::pair<std::size_t, std::size_t>> check_urdf_geometry(c
         if (!shape->Attribute("filename")) fail(file, where + ": <mesh> has no filename");
         check(shape, "scale", 3, false);
       } else {
-        fail(file, where + ": unsupported geometry <" + config::printable(type, 32) + ">");
+        fail(file, where + ": unsupported geometry <" + common::printable(type, 32) + ">");
       }
     }
   }
@@ -379,7 +379,7 @@ urdf::ModelInterfaceSharedPtr parse_urdf(const std::filesystem::path& file, cons
   console_bridge::restorePreviousOutputHandler();
   if (!urdf)
     fail(file, "not a valid URDF: " +
-                   config::printable(captured.first_error.empty() ? "parse error" : captured.first_error, 160));
+                   common::printable(captured.first_error.empty() ? "parse error" : captured.first_error, 160));
   return urdf;
 }
 
@@ -461,8 +461,8 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
   RobotModel model;
   model.file = file;
   try {
-    model.urdf = config::read_regular_file(file, kMaxUrdfBytes, "robot description");
-  } catch (const config::FileError& e) {
+    model.urdf = common::read_regular_file(file, kMaxUrdfBytes, "robot description");
+  } catch (const common::FileError& e) {
     throw RobotModelError(e.what());
   }
   if (const std::string bad = check_xml_structure(model.urdf); !bad.empty()) fail(file, "not a valid URDF: " + bad);
@@ -472,13 +472,13 @@ RobotModel load_robot_model(const std::filesystem::path& file, const std::string
   for (const auto& [name, count] : geometry_counts) {
     const urdf::LinkConstSharedPtr link = urdf->getLink(name);
     if (link && (link->visual_array.size() != count.first || link->collision_array.size() != count.second))
-      fail(file, "link '" + config::printable(name) + "': " + std::to_string(count.first) + " visual and " +
+      fail(file, "link '" + common::printable(name) + "': " + std::to_string(count.first) + " visual and " +
                      std::to_string(count.second) + " collision elements, but the URDF parser read " +
                      std::to_string(link->visual_array.size()) + " and " + std::to_string(link->collision_array.size()));
   }
   model.name = urdf->getName();
   urdf::LinkConstSharedPtr tip = urdf->getLink(camera_link);
-  if (!tip) fail(file, "no link named '" + config::printable(camera_link) + "' (the camera link)");
+  if (!tip) fail(file, "no link named '" + common::printable(camera_link) + "' (the camera link)");
 
   const std::vector<urdf::LinkConstSharedPtr> links = chain_to(file, *urdf, tip, camera_link);
   model.root_link = links.front()->name;

@@ -3,12 +3,13 @@
 #include <algorithm>
 #include <random>
 
-namespace cellsim {
+namespace loop {
 
 namespace {
 
-sim::CellParams lockstep_params(long max_steps) {
-  sim::CellParams p;
+sim::CellOptions lockstep_params(long max_steps, const sim::Latency& latency) {
+  sim::CellOptions p;
+  p.latency = latency;
   p.timing = sim::Timing::kLockstep;
   p.exit_on_converged = true;
   p.exit_on_stop = true;
@@ -20,7 +21,7 @@ sim::CellParams lockstep_params(long max_steps) {
   return p;
 }
 
-servo::CameraInfoMsg camera_info_of(const control::CameraIntrinsics& c, const sim::CameraSpec& size) {
+servo::CameraInfoMsg camera_info_of(const calibration::CameraIntrinsics& c, const sim::CameraSpec& size) {
   servo::CameraInfoMsg m;
   m.width = static_cast<std::uint32_t>(size.intrinsics.width);
   m.height = static_cast<std::uint32_t>(size.intrinsics.height);
@@ -46,13 +47,13 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       noise_seed_(setup.noise_seed),
       source_(setup.source),
       outlier_fraction_(setup.outlier_fraction),
-      cell_(setup.scenario, lockstep_params(setup.max_steps), std::move(setup.robot)),
+      cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot)),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
   scratch_.threads = setup.render_threads;
-  camera_info_ = camera_info_of(setup.servo.camera, setup.scenario.camera);
+  camera_info_ = camera_info_of(setup.servo.camera, cell.scenario.camera);
   const std::string why = servo_.on_camera_info(camera_info_);
-  if (!why.empty()) throw std::invalid_argument(setup.scenario.file.string() + ": " + why);
+  if (!why.empty()) throw std::invalid_argument(cell.scenario.file.string() + ": " + why);
 }
 
 void InMemoryLoop::set_tap(LoopTap* tap) {
@@ -166,4 +167,4 @@ int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::
   return static_cast<int>(n);
 }
 
-}  // namespace cellsim
+}  // namespace loop

@@ -17,15 +17,15 @@
 #include <vector>
 
 #include "servo/node/servo_state_machine.hpp"
-#include "sim/cell/cell_state_machine.hpp"
+#include "sim/session/cell_state_machine.hpp"
 #include "sim/render/renderer.hpp"
 
-namespace cellsim {
+namespace loop {
 
 enum class FeatureSource { kDecoded, kIdeal };  // ideal: the simulator's true image positions
 
 struct LoopSetup {
-  sim::Scenario scenario;             // as the cell runs it (its errors and latency chosen)
+  sim::Latency latency;               // the run's delays (the scenario's unless an experiment chose others)
   std::unique_ptr<sim::Robot> robot;  // what carries the camera (its belief set)
   servo::ServoConfig servo;           // the servo's configuration; its camera goes out as camera_info
   std::uint64_t noise_seed = 0;       // frame k's image noise: sim::frame_seed(noise_seed, k)
@@ -75,7 +75,7 @@ class InMemoryLoop {
   // frames moved into them.
   sim::CellOutput round(std::vector<LoopExchange>& exchanges);
 
-  // The same round in two halves, for a controller outside the loop (cellsim::ServoEnv): the
+  // The same round in two halves, for a controller outside the loop (experiment::ServoEnv): the
   // frames are rendered and the servo's replies computed, but nothing is delivered back...
   sim::CellOutput observe(std::vector<LoopExchange>& exchanges);
   // ...until the caller answers a frame with its own twist (the servo's status goes with it).
@@ -105,4 +105,4 @@ class InMemoryLoop {
 int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
                     std::vector<std::pair<int, int>>* wrong = nullptr);
 
-}  // namespace cellsim
+}  // namespace loop

@@ -18,11 +18,11 @@
 #include <memory>
 #include <string>
 
-#include "servo/config/strict_yaml.hpp"
+#include "common/strict_yaml.hpp"
 #include "servo/node/servo_state_machine.hpp"
-#include "sim/arm/arm_scenario.hpp"
-#include "sim/loop/experiment.hpp"
-#include "sim/loop/servo_env.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/experiment.hpp"
+#include "sim/experiment/servo_env.hpp"
 #include "sim/python/gymnasium_layer.hpp"
 #include "sim/render/renderer.hpp"
 
@@ -103,12 +103,12 @@ struct Scenario {
 // The servo's configuration for a scenario, as `cellsim experiment` makes it.
 servo::ServoConfig servo_config(const Scenario& s, const std::string& model, double z_hat, double gain,
                                 const std::string& robust) {
-  servo::ServoConfig cfg = cellsim::servo_config_for(*s.cell);
+  servo::ServoConfig cfg = experiment::servo_config_for(*s.cell);
   cfg.law.model = control::parse_interaction_model(model);
   // as the CLI's --z-hat: finite, in [0, 100] m, 0 the scenario's desired depth
   if (!(std::isfinite(z_hat) && z_hat >= 0 && z_hat <= 100))
     throw py::value_error("z_hat must be in [0, 100] m (0: the scenario's desired depth), got " + std::to_string(z_hat));
-  cfg.law.z_hat_m = z_hat > 0 ? z_hat : cellsim::desired_depth(*s.cell);
+  cfg.law.z_hat_m = z_hat > 0 ? z_hat : experiment::desired_depth(*s.cell);
   if (!(gain > 0 && gain < 100)) throw py::value_error("gain must be in (0, 100)");
   cfg.law.gain = {gain, gain, 0};
   cfg.law.robust = control::parse_robust_estimator(robust);
@@ -192,12 +192,12 @@ struct Servo {
   }
 };
 
-py::dict experiment(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
+py::dict run_experiment_dict(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
                     int max_iterations, const std::string& features) {
   if (max_iterations < 1 || max_iterations > 100000) throw py::value_error("max_iterations must be in [1, 100000]");
-  cellsim::ExperimentOptions o;
+  experiment::ExperimentOptions o;
   o.servo = servo_config(s, model, z_hat, gain, robust);
-  o.source = cellsim::parse_feature_source(features);
+  o.source = experiment::parse_feature_source(features);
   o.max_iterations = max_iterations;
   // Ctrl-C stops the run at the next round (a signal reaches Python only when it holds the GIL)
   bool interrupted = false;
@@ -206,13 +206,13 @@ py::dict experiment(const Scenario& s, const std::string& model, double z_hat, d
     interrupted = interrupted || PyErr_CheckSignals() != 0;
     return interrupted;
   };
-  cellsim::ExperimentResult r;
+  experiment::ExperimentResult r;
   {
     py::gil_scoped_release release;  // a long run: other Python threads go on
-    r = cellsim::run_experiment(*s.cell, o);
+    r = experiment::run_experiment(*s.cell, o);
   }
   if (interrupted) throw py::error_already_set();  // the KeyboardInterrupt PyErr_CheckSignals raised
-  using I = cellsim::IterationRecord;
+  using I = experiment::IterationRecord;
   const auto& tr = r.trace;
   py::array_t<double> twist({static_cast<py::ssize_t>(tr.size()), py::ssize_t{6}});
   for (std::size_t i = 0; i < tr.size(); ++i)
@@ -242,24 +242,24 @@ struct Env {
       : scenario(s), images(observation == "image") {
     if (observation != "features" && observation != "image")
       throw py::value_error("observation must be 'features' or 'image', got '" + observation + "'");
-    cellsim::EnvOptions o;
+    experiment::EnvOptions o;
     o.servo = servo_config(s, model, z_hat, gain, robust);
     o.max_steps = max_steps;
     o.images = true;  // the observation in image mode, render() in both
-    env = std::make_unique<cellsim::ServoEnv>(*s.cell, o);
+    env = std::make_unique<experiment::ServoEnv>(*s.cell, o);
     rows = s.cell->projector->pattern().rows;
     cols = s.cell->projector->pattern().cols;
   }
   Scenario scenario;
   bool images;
-  std::unique_ptr<cellsim::ServoEnv> env;
+  std::unique_ptr<experiment::ServoEnv> env;
   int rows = 0, cols = 0;
   cv::Mat last_image;
 
   // One row per pattern id, row-major, whatever the frame shows (a fixed shape, as Gymnasium
   // wants): (x, y, x*, y*, seen), normalised image coordinates; zeros and seen = 0 where the id
   // is not matched to s* in this frame. The image mode: the H x W x 3 frame.
-  py::object obs(const cellsim::EnvObservation& o) {
+  py::object obs(const experiment::EnvObservation& o) {
     last_image = o.image;
     if (images) {
       const auto& k = scenario.cell->scenario.camera.intrinsics;
@@ -284,7 +284,7 @@ struct Env {
     const auto& r = scenario.cell->scenario.robot;
     return py::make_tuple(r.max_linear_mps, r.max_angular_radps);
   }
-  py::dict info(const cellsim::EnvStep& s) const {
+  py::dict info(const experiment::EnvStep& s) const {
     const auto& o = s.observation;
     py::array_t<int> ids({static_cast<py::ssize_t>(o.matched.size()), py::ssize_t{2}});
     for (std::size_t i = 0; i < o.matched.size(); ++i) {
@@ -314,7 +314,7 @@ struct Env {
       const bool whole = py::isinstance<py::int_>(seed) && !py::isinstance<py::bool_>(seed);
       if (!whole || seed < py::int_(0) || seed > py::int_(std::numeric_limits<std::uint64_t>::max()))
         throw py::value_error("reset: seed must be None or a whole number from 0 to 2**64 - 1, got " +
-                              config::printable(py::str(py::repr(seed)).cast<std::string>(), 60));
+                              common::printable(py::str(py::repr(seed)).cast<std::string>(), 60));
       draw = seed.cast<std::uint64_t>();
     }
     std::optional<Eigen::Isometry3d> initial;
@@ -322,11 +322,11 @@ struct Env {
       for (const auto& [key, value] : *options) {
         const std::string k = py::str(key).cast<std::string>();
         if (k != "initial_pose")
-          throw py::value_error("reset: unknown option '" + config::printable(k, 60) + "' (known: initial_pose)");
+          throw py::value_error("reset: unknown option '" + common::printable(k, 60) + "' (known: initial_pose)");
       }
       if (options->contains("initial_pose")) initial = scenario.pose((*options)["initial_pose"]);
     }
-    const cellsim::EnvStep s = env->reset(draw, initial);
+    const experiment::EnvStep s = env->reset(draw, initial);
     return py::make_tuple(obs(s.observation), info(s));
   }
   py::tuple step(const py::object& action) {
@@ -335,7 +335,7 @@ struct Env {
       throw py::value_error("twist: 6 numbers (vx vy vz wx wy wz, m/s and rad/s, camera frame)");
     control::Vector6d t;
     for (int i = 0; i < 6; ++i) t[i] = a.at(i);
-    const cellsim::EnvStep s = env->step(t);
+    const experiment::EnvStep s = env->step(t);
     return py::make_tuple(obs(s.observation), s.reward, s.terminated, s.truncated, info(s));
   }
 };
@@ -376,7 +376,7 @@ PYBIND11_MODULE(cellsim, m) {
       .def("decode", &Servo::decode, py::arg("image"), "spots of an H x W x 3 uint8 RGB image: dict of row, col, u, v")
       .def("teach", &Servo::teach, py::arg("image"), "the features of this image become s*; returns how many")
       .def("step", &Servo::step, py::arg("image"), "one iteration: dict of twist (6), error_norm, decoded, matched");
-  m.def("experiment", &experiment, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
+  m.def("experiment", &run_experiment_dict, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
         py::arg("features") = "decoded",
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns");

@@ -8,7 +8,6 @@
 #include <random>
 
 #include "servo/pattern/pattern_file.hpp"
-#include "sim/arm/arm_robot.hpp"
 #include "sim/render/shading.hpp"
 
 namespace sim {
@@ -122,34 +121,6 @@ std::vector<std::uint8_t> never_shadowed_planes(const SceneTriangles& tris, cons
 
 namespace {
 
-// The scenario's objects into the cell's world. load_mesh walks each file (bounded counts)
-// before assimp imports it; the scene's total is checked as the meshes come, so at most one
-// mesh beyond the limit is ever held.
-void load_objects(const Scenario& scenario, Cell& cell) {
-  std::size_t total = 0;
-  for (const ObjectSpec& o : scenario.objects) {
-    TriangleMesh mesh = load_mesh(o.mesh);
-    if (o.scale != Eigen::Vector3d::Ones())
-      for (auto& v : mesh.vertices) v = v.cwiseProduct(o.scale);
-    total += mesh.triangles.size();
-    if (total > kMaxSceneTriangles)
-      throw MeshError(scenario.file.string() + ": objects: more than " + std::to_string(kMaxSceneTriangles) +
-                      " triangles in the scene (the limit), reached at mesh " + o.mesh.string());
-    cell.world.add_object(std::move(mesh), o.world_T_object, o.albedo);
-    cell.object_names.push_back(o.name);
-  }
-}
-
-// The arm's link meshes (none for the free-flying camera), in their link frames.
-void load_arm_meshes(const Scenario& scenario, Cell& cell) {
-  if (!scenario.robot.arm_enabled || !scenario.robot.model) return;
-  const RobotModel& m = *scenario.robot.model;
-  if (m.root_has_shape) cell.arm_meshes.add(m.root_shape.visual, 0, m.root_shape.albedo);
-  for (std::size_t i = 0; i < m.chain.size(); ++i)
-    if (m.chain[i].has_shape && !m.chain[i].shape.visual.triangles.empty())
-      cell.arm_meshes.add(m.chain[i].shape.visual, static_cast<int>(i) + 1, m.chain[i].shape.albedo);
-}
-
 // The projector's beam window over its depth buffer (Cell::beam) and what the renderer keeps of
 // it: the depth there, the planes never in shadow, each triangle's gap to the window.
 void fit_beam(Cell& cell) {
@@ -167,46 +138,42 @@ void fit_beam(Cell& cell) {
   cell.beam_gap = beam_gaps(cell.triangles, *cell.projector, w, d.margin);
 }
 
-}  // namespace
 
-std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
-  auto cell = std::make_unique<Cell>();
-  cell->scenario = scenario;
-  load_objects(scenario, *cell);
-  load_arm_meshes(scenario, *cell);
-  cell->triangles = collect_triangles(cell->world);
-  cell->textures = pool_textures(cell->world);
-
-  pattern::MArray marray = pattern::load_pattern(scenario.projector.pattern, {3, 3});
-  cell->projector = std::make_unique<Projector>(scenario.projector, std::move(marray));
-  cell->camera = std::make_unique<CameraModel>(scenario.camera.intrinsics, scenario.camera.distortion);
-
-  rasterize(cell->triangles, cell->projector->projector_T_world(), scenario.projector.intrinsics, 0,
-            cell->projector_depth);
-  cell->spot_hits = cell->projector->cast_spots(cell->world);
-  for (const SpotHit& h : cell->spot_hits)
+// The projector's view of the static scene (its depth buffer, the spots' hits) and the beam
+// window over it.
+void light_the_scene(Cell& cell) {
+  rasterize(cell.triangles, cell.projector->projector_T_world(), cell.scenario.projector.intrinsics, 0,
+            cell.projector_depth);
+  cell.spot_hits = cell.projector->cast_spots(cell.world);
+  for (const SpotHit& h : cell.spot_hits)
     if (h.centre)
-      cell->farthest_spot_m = std::max(cell->farthest_spot_m, (h.centre->point_w - scenario.projector.world_T_projector.translation()).norm());
-  fit_beam(*cell);
+      cell.farthest_spot_m = std::max(cell.farthest_spot_m, (h.centre->point_w - cell.scenario.projector.world_T_projector.translation()).norm());
+  fit_beam(cell);
 
+}
+
+// The camera's rays: the margin its depth buffer needs so every distorted pixel's ray lands in
+// it, each pixel's cell there (double precision, the previous renderer's), and the lens as the
+// shading kernel reads it.
+void lay_out_lens(Cell& cell) {
   // the margin the camera's depth buffer needs so every distorted pixel's ray lands in it
-  const Intrinsics& k = scenario.camera.intrinsics;
-  const auto& rays = cell->camera->pixel_rays();
+  const Intrinsics& k = cell.scenario.camera.intrinsics;
+  const auto& rays = cell.camera->pixel_rays();
   double excess = 0;
   for (std::size_t i = 0; i < rays.size(); i += 2) {
     const double u = k.fx * rays[i] + k.cx, v = k.fy * rays[i + 1] + k.cy;
     excess = std::max({excess, -u, -v, u - (k.width - 1), v - (k.height - 1)});
   }
-  cell->camera_margin_px = static_cast<int>(std::ceil(std::min(excess, 4.0 * k.width))) + 2;
-  const int m = cell->camera_margin_px, zw = k.width + 2 * m, zh = k.height + 2 * m;
-  cell->pixel_to_zbuffer.resize(rays.size() / 2);
-  for (std::size_t i = 0; i < cell->pixel_to_zbuffer.size(); ++i) {
+  cell.camera_margin_px = static_cast<int>(std::ceil(std::min(excess, 4.0 * k.width))) + 2;
+  const int m = cell.camera_margin_px, zw = k.width + 2 * m, zh = k.height + 2 * m;
+  cell.pixel_to_zbuffer.resize(rays.size() / 2);
+  for (std::size_t i = 0; i < cell.pixel_to_zbuffer.size(); ++i) {
     const int zu = DepthBuffer::nearest(k.fx * rays[2 * i] + k.cx) + m;
     const int zv = DepthBuffer::nearest(k.fy * rays[2 * i + 1] + k.cy) + m;
-    cell->pixel_to_zbuffer[i] = zu < 0 || zv < 0 || zu >= zw || zv >= zh ? -1 : zv * zw + zu;
+    cell.pixel_to_zbuffer[i] = zu < 0 || zv < 0 || zu >= zw || zv >= zh ? -1 : zv * zw + zu;
   }
 
-  Cell::Lens& lens = cell->lens;
+  Cell::Lens& lens = cell.lens;
   lens.stride = (k.width + 15) & ~15;
   const std::size_t padded = static_cast<std::size_t>(lens.stride) * k.height;
   lens.ray_x.assign(padded, std::numeric_limits<float>::quiet_NaN());
@@ -237,49 +204,28 @@ std::unique_ptr<Cell> build_cell(const Scenario& scenario) {
       if (lens.zcell[j] >= 0) lo = std::min(lo, lens.zcell[j]), hi = std::max(hi, lens.zcell[j]);
     if (hi >= 0 && hi - lo < 32) lens.zrun[g] = lo;
   }
-  const pattern::MArray& pat = cell->projector->pattern();
-  cell->spot_symbol.assign(pat.cells.size(), shading::kUnlitSymbol);
-  for (int r = 0; r < pat.rows; ++r)
-    for (int c = 0; c < pat.cols; ++c)
-      if (cell->projector->is_lit(r, c)) cell->spot_symbol[static_cast<std::size_t>(r) * pat.cols + c] = pat.at(r, c);
-
-  std::mt19937_64 rng(scenario.seed);
-  std::normal_distribution<float> gauss(0.f, 1.f);
-  cell->noise_pool.resize(std::size_t{1} << 16);
-  for (float& x : cell->noise_pool) x = gauss(rng);
-  return cell;
 }
 
-std::unique_ptr<Robot> make_robot(const Cell& cell) {
-  const Scenario& s = cell.scenario;
-  if (!s.robot.arm_enabled || !s.robot.model) {
-    auto cam = std::make_unique<FreeFlyingCamera>(s.world_T_desired, s.robot.max_linear_mps, s.robot.max_angular_radps);
-    if (s.errors.any()) cam->set_belief(scenario_errors(s).robot);
-    return cam;
-  }
-  const ArmSpec& a = s.robot.arm;
-  ArmControllerParams p;
-  p.max_linear_mps = s.robot.max_linear_mps;
-  p.max_angular_radps = s.robot.max_angular_radps;
-  p.damping = a.damping;
-  p.slowdown_condition = a.slowdown_condition;
-  p.stop_condition = a.stop_condition;
-  p.joint_margin_rad = a.joint_margin_rad;
-  Eigen::VectorXd home = s.robot.desired_q;
-  if (a.home_rad.size() == static_cast<std::size_t>(home.size()))
-    home = Eigen::Map<const Eigen::VectorXd>(a.home_rad.data(), home.size());
-  auto arm = std::make_unique<ArmRobot>(s.robot.model, a.world_T_base, cell.world, cell.object_names, p, home,
-                                        1.0 / a.physics_hz);
-  arm->pin(s.world_T_desired, s.robot.desired_q);
-  arm->pin(s.world_T_initial(), s.robot.initial_q);
-  try {
-    arm->reset(s.world_T_desired);
-  } catch (const std::invalid_argument& e) {
-    // the file whose pose it is (issue 18, item 18): "the arm would be in collision there" alone named none
-    throw std::invalid_argument(s.file.string() + ": desired_pose: " + e.what());
-  }
-  if (s.errors.any()) arm->set_belief(scenario_errors(s).robot);
-  return arm;
+// Each spot's symbol (unlit ones marked) and the noise pool the sensor reads.
+void draw_symbols_and_noise(Cell& cell) {
+  const pattern::MArray& pat = cell.projector->pattern();
+  cell.spot_symbol.assign(pat.cells.size(), shading::kUnlitSymbol);
+  for (int r = 0; r < pat.rows; ++r)
+    for (int c = 0; c < pat.cols; ++c)
+      if (cell.projector->is_lit(r, c)) cell.spot_symbol[static_cast<std::size_t>(r) * pat.cols + c] = pat.at(r, c);
+
+  std::mt19937_64 rng(cell.scenario.seed);
+  std::normal_distribution<float> gauss(0.f, 1.f);
+  cell.noise_pool.resize(std::size_t{1} << 16);
+  for (float& x : cell.noise_pool) x = gauss(rng);
+}
+
+}  // namespace
+
+void prepare_rendering(Cell& cell) {
+  light_the_scene(cell);
+  lay_out_lens(cell);
+  draw_symbols_and_noise(cell);
 }
 
 }  // namespace sim

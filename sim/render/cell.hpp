@@ -11,7 +11,6 @@
 #include "sim/render/projector.hpp"
 #include "sim/render/rasterizer.hpp"
 #include "sim/render/texturing.hpp"
-#include "sim/arm/arm_scenario.hpp"
 #include "sim/scenario/scenario.hpp"
 #include "sim/scene/world.hpp"
 
@@ -31,7 +30,8 @@ inline double gap_beyond(const Eigen::AlignedBox2d& box, const Eigen::AlignedBox
 }
 
 struct Cell {
-  Scenario scenario;
+  explicit Cell(ResolvedScenario s) : scenario(std::move(s)) {}
+  const ResolvedScenario scenario;
   World world;
   SceneTriangles triangles;
   TexturePool textures;  // the objects' textures, for the shading kernel
@@ -85,13 +85,9 @@ struct Cell {
   std::vector<std::string> object_names;
 };
 
-// Loads meshes and the pattern named by the scenario. Throws MeshError or
-// pattern::PatternFileError (one line naming the file) when one is unusable.
-std::unique_ptr<Cell> build_cell(const Scenario& scenario);
-
-// The robot the scenario names, at the desired pose: the free-flying camera, or the arm
-// (its desired and initial poses pinned to the joint angles resolved at load), believing
-// what the scenario's calibration errors make its controller believe (scenario_errors).
-std::unique_ptr<Robot> make_robot(const Cell& cell);
+// The renderer's own tables of a cell whose world, projector and camera are in place (what
+// sim::build_cell, sim/cell, loads): the projector's view of the static scene and its beam
+// window, the lens laid out for the shading kernel, the spots' symbols, the noise pool.
+void prepare_rendering(Cell& cell);
 
 }  // namespace sim

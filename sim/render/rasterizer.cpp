@@ -478,13 +478,59 @@ void clear_band(const Intrinsics& k, int margin, int row0, int rows, DepthBuffer
   out.triangle.assign(n, -1);
 }
 
+namespace {
+
+// a quad on the screen that is convex, turning one way at every corner, and not degenerate
+bool convex_quad(const ScreenVertex (&q)[4]) {
+  double turn_sign = 0;
+  for (int c = 0; c < 4; ++c) {
+    const ScreenVertex &o = q[c], &p1 = q[(c + 1) % 4], &p2 = q[(c + 2) % 4];
+    const double cross = (p1.u - o.u) * (p2.v - p1.v) - (p1.v - o.v) * (p2.u - p1.u);
+    if (std::abs(cross) < 1e-9 || (turn_sign != 0 && (cross > 0) != (turn_sign > 0))) return false;
+    turn_sign = cross;
+  }
+  return true;
+}
+
+// a triangle clipped against the near plane (Sutherland-Hodgman): a triangle or a quad
+// remains; returns its corner count
+int clip_near(const Eigen::Vector3d (&v)[3], Eigen::Vector3d (&poly)[4]) {
+  int count = 0;
+  for (int e = 0; e < 3; ++e) {
+    const Eigen::Vector3d& p = v[e];
+    const Eigen::Vector3d& q = v[(e + 1) % 3];
+    const bool pin = p.z() >= kNear, qin = q.z() >= kNear;
+    if (pin) poly[count++] = p;
+    if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
+  }
+  return count;
+}
+
+ScreenVertex to_screen(const Intrinsics& k, const Eigen::Vector3d& p) {
+  const Eigen::Vector2d s = pinhole_pixel(k, p);
+  return ScreenVertex{s.x(), s.y(), 1.0 / p.z()};
+}
+
+// each vertex of triangles [first, end) once: in the viewer's frame, and on its image where in
+// front of the near plane
+void project_vertices(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
+                      const Intrinsics& k, std::vector<Eigen::Vector3d>& seen, std::vector<ScreenVertex>& screen) {
+  std::size_t v_first = tris.vertex_w.size();
+  for (std::size_t i = first; i < tris.a.size(); ++i)
+    for (const std::int32_t v : tris.corner[i]) v_first = std::min(v_first, static_cast<std::size_t>(v));
+  seen.resize(tris.vertex_w.size());
+  screen.resize(tris.vertex_w.size());
+  for (std::size_t v = v_first; v < tris.vertex_w.size(); ++v) {
+    seen[v] = viewer_T_world * tris.vertex_w[v];
+    if (seen[v].z() >= kNear) screen[v] = to_screen(k, seen[v]);
+  }
+}
+
+}  // namespace
+
 void project_triangles(const SceneTriangles& tris, std::size_t first, const Eigen::Isometry3d& viewer_T_world,
                        const Intrinsics& k, int margin, bool cull, std::vector<ScreenTriangle>& out, bool by_plane,
                        const std::vector<std::uint8_t>* moved, std::int32_t moved_by) {
-  const auto to_screen = [&](const Eigen::Vector3d& p) {
-    const Eigen::Vector2d s = pinhole_pixel(k, p);
-    return ScreenVertex{s.x(), s.y(), 1.0 / p.z()};
-  };
   const auto add = [&](const ScreenVertex* p, int n, std::int32_t id) {
     ScreenTriangle& t = out.emplace_back();  // built in place (a polygon is 250 bytes), zeroed
     for (int i = 0; i < n; ++i) t.u[i] = p[i].u, t.v[i] = p[i].v, t.inv_z[i] = p[i].inv_z;
@@ -503,25 +549,12 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
   const auto culled = [&](std::size_t i) {
     return cull && faces_away(tris, i, viewer);
   };
-  // each vertex of triangles [first, end) once: in the viewer's frame, and on its image where
-  // in front of the near plane
   const std::size_t end = tris.a.size();
   // (append_triangles builds them; triangles without them are projected one by one, unpaired)
   const bool indexed = tris.corner.size() == end && tris.quad_extra.size() == end && tris.quad_edge.size() == end;
   thread_local std::vector<Eigen::Vector3d> seen;
   thread_local std::vector<ScreenVertex> screen;
-  std::size_t v_first = tris.vertex_w.size();
-  if (indexed)
-    for (std::size_t i = first; i < end; ++i)
-      for (const std::int32_t v : tris.corner[i]) v_first = std::min(v_first, static_cast<std::size_t>(v));
-  if (indexed) {
-    seen.resize(tris.vertex_w.size());
-    screen.resize(tris.vertex_w.size());
-    for (std::size_t v = v_first; v < tris.vertex_w.size(); ++v) {
-      seen[v] = viewer_T_world * tris.vertex_w[v];
-      if (seen[v].z() >= kNear) screen[v] = to_screen(seen[v]);
-    }
-  }
+  if (indexed) project_vertices(tris, first, viewer_T_world, k, seen, screen);
   for (std::size_t i = first; i < end; ++i) {
     if (culled(i)) continue;
     Eigen::Vector3d v[3];
@@ -534,7 +567,7 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
     const std::int32_t id = id_of(i);
     if (behind == 0) {
       ScreenVertex s[3];
-      for (int q = 0; q < 3; ++q) s[q] = indexed ? screen[static_cast<std::size_t>(tris.corner[i][q])] : to_screen(v[q]);
+      for (int q = 0; q < 3; ++q) s[q] = indexed ? screen[static_cast<std::size_t>(tris.corner[i][q])] : to_screen(k, v[q]);
       // the next triangle, the other half of a flat quad: one polygon
       const std::size_t j = i + 1;
       if (by_plane && indexed && j < end && tris.quad_extra[i] >= 0 && tris.plane_of[j] == tris.plane_of[i] &&
@@ -544,16 +577,7 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
           // the quad: the new vertex between the shared edge's ends, in this triangle's order
           const int e = tris.quad_edge[i];
           const ScreenVertex q[4] = {s[e], screen[extra], s[(e + 1) % 3], s[(e + 2) % 3]};
-          // convex, turning one way at every corner, and not degenerate
-          double turn_sign = 0;
-          bool convex = true;
-          for (int c = 0; c < 4 && convex; ++c) {
-            const ScreenVertex &o = q[c], &p1 = q[(c + 1) % 4], &p2 = q[(c + 2) % 4];
-            const double cross = (p1.u - o.u) * (p2.v - p1.v) - (p1.v - o.v) * (p2.u - p1.u);
-            if (std::abs(cross) < 1e-9 || (turn_sign != 0 && (cross > 0) != (turn_sign > 0))) convex = false;
-            turn_sign = cross;
-          }
-          if (convex) {
+          if (convex_quad(q)) {
             add(q, 4, id);
             ++i;  // the other half is in the quad
             continue;
@@ -563,18 +587,10 @@ void project_triangles(const SceneTriangles& tris, std::size_t first, const Eige
       add(s, 3, id);
       continue;
     }
-    // clip against the near plane (Sutherland-Hodgman): a triangle or a quad remains
     Eigen::Vector3d poly[4];
-    int count = 0;
-    for (int e = 0; e < 3; ++e) {
-      const Eigen::Vector3d& p = v[e];
-      const Eigen::Vector3d& q = v[(e + 1) % 3];
-      const bool pin = p.z() >= kNear, qin = q.z() >= kNear;
-      if (pin) poly[count++] = p;
-      if (pin != qin) poly[count++] = p + (q - p) * ((kNear - p.z()) / (q.z() - p.z()));
-    }
+    const int count = clip_near(v, poly);
     for (int f = 1; f + 1 < count; ++f) {
-      const ScreenVertex s[3] = {to_screen(poly[0]), to_screen(poly[f]), to_screen(poly[f + 1])};
+      const ScreenVertex s[3] = {to_screen(k, poly[0]), to_screen(k, poly[f]), to_screen(k, poly[f + 1])};
       add(s, 3, id);
     }
   }

@@ -209,217 +209,271 @@ constexpr int kFreeCell = 1 << 30;
 // The row buffers shade_rows works through (kRowArrays x Frame::stride values).
 enum RowArray { kRowTriangle, kRowPu, kRowPv, kRowZp, kRowSigma, kRowWeight, kRowAmbient, kRowLit };
 
+// The row buffers of shade_rows, laid out in its scratch (kRowArrays x Frame::stride values).
+struct Rows {
+  Rows(float* scratch, std::size_t stride)
+      : tri(reinterpret_cast<std::int32_t*>(scratch + kRowTriangle * stride)), pu(scratch + kRowPu * stride),
+        pv(scratch + kRowPv * stride), zp(scratch + kRowZp * stride), sigma(scratch + kRowSigma * stride),
+        weight(scratch + kRowWeight * stride), ambient(scratch + kRowAmbient * stride),
+        lit(reinterpret_cast<std::int32_t*>(scratch + kRowLit * stride)) {}
+  std::int32_t* tri;
+  float *pu, *pv, *zp, *sigma, *weight, *ambient;
+  // per pixel: the projector depth's cell to look up (plus kFreeCell where the static scene
+  // casts no shadow on the point's plane), or -1 (no surface, or beyond the beam); after the
+  // lookups, 0 (lit) or -1
+  std::int32_t* lit;
+};
+
+// The kernel's stages work on whole rows, each a loop of lookups independent of one another;
+// always inlined, they compile to the one loop nest they were written as.
+#define CELL_STAGE [[gnu::always_inline]] inline
+
+// 1. the triangle behind each pixel (the z-buffer's band holds every cell these rows see)
 template <class L>
-void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch) {
+CELL_STAGE void find_triangles(const Frame& f, std::size_t first, const Rows& rows) {
+  using I = typename L::I;
+  using M = typename L::M;
+  const I base = L::seti(static_cast<int>(f.cell_base));
+  for (int u = 0; u < f.width; u += L::N) {
+    const I at = L::loadi(f.zcell + first + u);
+    const I cell = L::subi(at, base);
+    const M seen = L::mand(L::mand(L::lei(L::seti(0), at), L::lei(L::seti(0), cell)),
+                           L::lei(cell, L::seti(static_cast<int>(f.cells) - 1)));
+    const int run = f.zrun[(first + u) / 16];
+    L::storei(rows.tri + u, L::gatheri_run(f.cell_triangle, f.cells, cell, seen,
+                                          run < 0 ? -1 : run - static_cast<std::int64_t>(f.cell_base)));
+  }
+}
+
+// The ambient light of lanes whose triangles all lie outside the beam (Frame::outside_from):
+// neither the point nor the projector is needed (the full path gives the same: G = 0).
+template <class L>
+CELL_STAGE typename L::F ambient_alone(const Frame& f, typename L::I tri, typename L::M has) {
+  using F = typename L::F;
+  using M = typename L::M;
+  const std::size_t fields = triangle_stride(f.triangle_count);
+  const float* ambient = f.triangles + kAmbient * fields;
+  F a = L::set(0.0f);
+  if (!L::permute_fields(ambient, fields, 1, tri, has, &a)) {
+    const int t = L::lane(tri, L::first(has));
+    const M same = L::mand(has, L::eqi(tri, L::seti(t)));
+    a = L::sel(same, L::set(ambient[t]), L::set(0.0f));
+    const M left = L::mand(has, L::mnot(same));
+    if (L::any(left)) a = L::sel(left, L::gather(ambient, tri, left), a);
+  }
+  return a;
+}
+
+// The lanes' triangles' fields: where their ids lie in one run of 32 (a wall's one plane, a
+// tessellated surface's few neighbouring ones), two loads and a permutation per field, where
+// the unit has them; else each distinct one broadcast (a row of pixels crosses few), up to
+// four, then gathers.
+template <class L>
+CELL_STAGE void triangle_fields(const Frame& f, typename L::I tri, typename L::M has, typename L::F (&field)[kTriangleFields]) {
+  using M = typename L::M;
+  const std::size_t fields = triangle_stride(f.triangle_count);
+  for (auto& x : field) x = L::set(0.0f);
+  M left = has;
+  const auto broadcast = [&] {
+    const int t = L::lane(tri, L::first(left));
+    const M same = L::mand(left, L::eqi(tri, L::seti(t)));
+    for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * fields + t]), field[k]);
+    left = L::mand(left, L::mnot(same));
+  };
+  if (!L::permute_fields(f.triangles, fields, kTriangleFields, tri, has, field)) {
+    for (int pass = 0; pass < 4 && L::any(left); ++pass) broadcast();
+    if (L::any(left))
+      for (int k = 0; k < kTriangleFields; ++k)
+        field[k] = L::sel(left, L::gather(f.triangles + k * fields, tri, left), field[k]);
+  }
+}
+
+// 2. the surface point of N pixels: where it lies on the projector's plane, how blurred, what
+// it returns; and the projector depth cell its shadow test reads (Rows::lit)
+template <class L>
+CELL_STAGE void surface_point(const Frame& f, std::size_t first, int u, const Rows& rows) {
+  using F = typename L::F;
+  using I = typename L::I;
+  using M = typename L::M;
+  const F zero = L::set(0.0f);
+  const I none = L::seti(-1);
+  const DepthView& pd = f.projector_depth;
+  const I tri = L::loadi(rows.tri + u);
+  const M has = L::lei(L::seti(0), tri);
+  if (!L::any(has) || !L::any(L::mand(has, L::lei(tri, L::seti(f.outside_from - 1))))) {
+    L::store(rows.ambient + u, L::any(has) ? ambient_alone<L>(f, tri, has) : zero);
+    L::storei(rows.lit + u, none);
+    return;
+  }
+  F field[kTriangleFields];
+  triangle_fields<L>(f, tri, has, field);
+  const F dx = L::load(f.ray_x + first + u), dy = L::load(f.ray_y + first + u);
+  const F inv_zc = L::add(L::add(L::mul(field[kG0], dx), L::mul(field[kG1], dy)), field[kG2]);
+  const auto row_of = [&](int k) {
+    const float* m = f.m[k];
+    return L::add(L::add(L::add(L::mul(L::set(m[0]), dx), L::mul(L::set(m[1]), dy)), L::set(m[2])),
+                  L::mul(L::set(m[3]), inv_zc));
+  };
+  const F h0 = row_of(0), h1 = row_of(1), h2 = row_of(2);
+  L::store(rows.ambient + u, L::sel(has, field[kAmbient], zero));
+  // z_c = 1 / s and 1 / h_2 from one division
+  const F both = L::div(L::set(1.0f), L::mul(inv_zc, h2));
+  const F zc = L::mul(both, h2);
+  const F zp = L::mul(h2, zc);
+  const M ok = L::mand(has, L::mand(L::gt(inv_zc, L::set(1e-6f)), L::gt(zp, L::set(1e-3f))));
+  if (!L::any(ok)) {
+    L::storei(rows.lit + u, none);
+    return;
+  }
+  const F inv_h2 = L::mul(both, inv_zc);
+  const F pu = L::mul(h0, inv_h2), pv = L::mul(h1, inv_h2);
+  // the projector's depth cell nearest to (u_p, v_p): beyond its window no spot reaches, and a
+  // point there takes the ambient light alone (most of a frame: the walls beside the beam), so
+  // its blur and returned light are not needed
+  const I x = L::addi(floor_int<L>(L::add(pu, L::set(0.5f))), L::seti(pd.offset_x));
+  const I y = L::addi(floor_int<L>(L::add(pv, L::set(0.5f))), L::seti(pd.offset_y));
+  const M inside = L::mand(L::mand(L::lei(L::seti(0), x), L::lei(x, L::seti(pd.width - 1))),
+                           L::mand(L::lei(L::seti(0), y), L::lei(y, L::seti(pd.height - 1))));
+  const M beam = L::mand(ok, inside);
+  if (!L::any(beam)) {
+    L::storei(rows.lit + u, none);
+    return;
+  }
+  // the projector's defocus at z_p, with the camera pixel's own size on its plane
+  const F outside = L::max(L::max(zero, L::sub(L::set(f.focus_near), zp)), L::sub(zp, L::set(f.focus_far)));
+  const F blur = L::add(L::set(f.focused_blur), L::mul(L::set(f.defocus_per_m), outside));
+  const F pixel = L::mul(L::set(f.pixel_scale), inv_h2);
+  const F sigma = L::add(L::sqrt(L::add(L::mul(blur, blur), L::mul(L::mul(L::set(0.083f), pixel), pixel))), L::set(1e-6f));
+  // the light returned: K / |L|^3
+  const F lx = L::sub(L::set(f.qx), L::mul(dx, zc));
+  const F ly = L::sub(L::set(f.qy), L::mul(dy, zc));
+  const F lz = L::sub(L::set(f.qz), zc);
+  const F dist2 = L::add(L::add(L::mul(lx, lx), L::mul(ly, ly)), L::mul(lz, lz));
+  // K < 0: the plane is never in the static scene's shadow (Cell::never_shadowed), |K| its K
+  const M free = L::lt(field[kReturn], zero);
+  const F k_return = L::max(field[kReturn], L::sub(zero, field[kReturn]));
+  L::store(rows.weight + u, L::div(k_return, L::mul(dist2, L::sqrt(dist2))));
+  L::store(rows.pu + u, pu);
+  L::store(rows.pv + u, pv);
+  L::store(rows.zp + u, zp);
+  L::store(rows.sigma + u, sigma);
+  const I at = L::addi(L::muli(y, L::seti(pd.width)), x);
+  // step 3 looks these cells up a row later: asked for now, they arrive meanwhile (the lookups
+  // of a curved surface's shadowed points wander over the projector's depth, and waiting for
+  // them was a fifth of the cylinder's frame)
+  L::prefetch(pd.inv_depth, at, L::mand(beam, L::mnot(free)));
+  if (f.arm_depth.inv_depth) L::prefetch(f.arm_depth.inv_depth, at, beam);
+  L::storei(rows.lit + u, L::seli(beam, L::seli(free, L::addi(at, L::seti(kFreeCell)), at), none));
+}
+
+// 3. shadows: again lookups independent of one another
+template <class L>
+CELL_STAGE void shadow_tests(const Frame& f, const Rows& rows) {
+  using F = typename L::F;
+  using I = typename L::I;
+  using M = typename L::M;
+  for (int u = 0; u < f.width; u += L::N) {
+    const I marked = L::loadi(rows.lit + u);
+    const M look = L::lei(L::seti(0), marked);
+    if (!L::any(look)) continue;
+    const M free = L::lei(L::seti(kFreeCell), marked);
+    const I at = L::seli(free, L::subi(marked, L::seti(kFreeCell)), marked);
+    const M check = L::mand(look, L::mnot(free));
+    const F zp = L::load(rows.zp + u);
+    M dark = L::any(check) ? shadowed<L>(f.projector_depth.inv_depth, at, zp, check) : check;
+    if (f.arm_depth.inv_depth) dark = L::mor(dark, shadowed<L>(f.arm_depth.inv_depth, at, zp, look));
+    L::storei(rows.lit + u, L::seli(L::mand(look, L::mnot(dark)), L::seti(0), L::seti(-1)));
+  }
+}
+
+// The sensor on N pixels' light of one channel: exposure, read and shot noise, rounded and
+// clamped to 8 bits. `known`/`known_sd`: the standard deviation of the last values seen, kept
+// while the values repeat (the ambient on one surface).
+template <class L>
+CELL_STAGE typename L::I sense(const Frame& f, typename L::F light, const float* noise, typename L::F& known,
+                               typename L::F& known_sd) {
+  using F = typename L::F;
+  const F value = L::mul(L::set(f.gain), light);
+  F level = value;
+  if (f.noisy) {
+    if (!L::all(L::eq(value, known))) {
+      known_sd = L::sqrt(L::add(L::set(f.read_var), L::mul(L::set(f.shot), L::max(value, L::set(0.0f)))));
+      known = value;
+    }
+    level = L::add(value, L::mul(known_sd, L::load(noise)));
+  }
+  // rounded, clamped to [0, 255] (where the unit's byte store saturates, the store clamps
+  // above: the truncation of anything from 255 up is 255 or more, INT_MIN beyond int)
+  const F above_zero = L::max(L::add(level, L::set(0.5f)), L::set(0.0f));
+  if constexpr (requires { L::kStoreSaturates; })
+    return L::cvtt(above_zero);
+  else
+    return L::cvtt(L::min(above_zero, L::set(255.0f)));
+}
+
+// 4. the spots' light, then the sensor, into image row v
+template <class L>
+CELL_STAGE void expose_row(const Frame& f, int v, int v1, std::size_t first, const Rows& rows, std::uint8_t* row,
+                           const std::uint32_t* offsets) {
   using F = typename L::F;
   using I = typename L::I;
   using M = typename L::M;
   constexpr int N = L::N;
-  const F zero = L::set(0.0f);
-  const I none = L::seti(-1);
+  std::uint8_t bytes[3 * 16];
+  F known = L::set(-1.0f), known_sd = L::set(0.0f);
+  for (int u = 0; u < f.width; u += N) {
+    // the next row's lens tables (3.7 MB a frame, beyond the core's cache) asked for while
+    // this one is finished: step 1 of each row waited for them
+    if (v + 1 < v1) {
+      const std::size_t next = first + static_cast<std::size_t>(f.stride) + static_cast<std::size_t>(u);
+      _mm_prefetch(reinterpret_cast<const char*>(f.zcell + next), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(f.ray_x + next), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(f.ray_y + next), _MM_HINT_T0);
+    }
+    F r = L::load(rows.ambient + u), g = r, b = r;
+    const M lit = L::lei(L::seti(0), L::loadi(rows.lit + u));
+    if (L::any(lit))
+      add_spots<L>(f, lit, L::load(rows.pu + u), L::load(rows.pv + u), L::load(rows.sigma + u), L::load(rows.weight + u),
+                   r, g, b);
+    if (f.tint || f.texel)
+      surface_colour<L>(f, L::loadi(rows.tri + u), L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
+    const F rgb[3] = {r, g, b};
+    I out[3];
+    const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);
+    for (int c = 0; c < 3; ++c)
+      out[c] = sense<L>(f, rgb[c], f.noise_pool + offsets[c * 256 + u / kNoiseChunk] + noise_at, known, known_sd);
+    if (u + N <= f.width) {
+      L::store_rgb(row + 3 * u, out[0], out[1], out[2]);
+    } else {
+      L::store_rgb(bytes, out[0], out[1], out[2]);
+      for (int k = 0; k < 3 * (f.width - u); ++k) row[3 * u + k] = bytes[k];
+    }
+  }
+}
+
+template <class L>
+void shade_rows(const Frame& f, int v0, int v1, std::uint8_t* image, std::size_t step, float* scratch) {
   const std::size_t stride = static_cast<std::size_t>(f.stride);
-  std::int32_t* const tri_row = reinterpret_cast<std::int32_t*>(scratch + kRowTriangle * stride);
-  float* const pu_row = scratch + kRowPu * stride;
-  float* const pv_row = scratch + kRowPv * stride;
-  float* const zp_row = scratch + kRowZp * stride;
-  float* const sigma_row = scratch + kRowSigma * stride;
-  float* const weight_row = scratch + kRowWeight * stride;
-  float* const ambient_row = scratch + kRowAmbient * stride;
-  // per pixel: the projector depth's cell to look up (plus kFreeCell where the static scene
-  // casts no shadow on the point's plane), or -1 (no surface, or beyond the beam); after the
-  // lookups, 0 (lit) or -1
-  std::int32_t* const lit_row = reinterpret_cast<std::int32_t*>(scratch + kRowLit * stride);
-  const DepthView& pd = f.projector_depth;
-  const std::size_t fields = triangle_stride(f.triangle_count);
+  const Rows rows(scratch, stride);
   const int chunks = (f.stride + kNoiseChunk - 1) / kNoiseChunk;
   std::uint32_t offsets_buf[3 * 256];  // widths are bounded at load (Intrinsics: at most 4096)
-  std::uint8_t bytes[3 * 16];
   for (int v = v0; v < v1; ++v) {
     const std::size_t first = static_cast<std::size_t>(v) * stride;
-    // 1. the triangle behind each pixel (the z-buffer's band holds every cell these rows see)
-    const I base = L::seti(static_cast<int>(f.cell_base));
-    for (int u = 0; u < f.width; u += N) {
-      const I at = L::loadi(f.zcell + first + u);
-      const I cell = L::subi(at, base);
-      const M seen = L::mand(L::mand(L::lei(L::seti(0), at), L::lei(L::seti(0), cell)),
-                             L::lei(cell, L::seti(static_cast<int>(f.cells) - 1)));
-      const int run = f.zrun[(first + u) / 16];
-      L::storei(tri_row + u, L::gatheri_run(f.cell_triangle, f.cells, cell, seen,
-                                            run < 0 ? -1 : run - static_cast<std::int64_t>(f.cell_base)));
-    }
-    // 2. the surface point: where it lies on the projector's plane, how blurred, what it returns
-    for (int u = 0; u < f.width; u += N) {
-      const I tri = L::loadi(tri_row + u);
-      const M has = L::lei(L::seti(0), tri);
-      if (!L::any(has)) {
-        L::store(ambient_row + u, zero);
-        L::storei(lit_row + u, none);
-        continue;
-      }
-      // every lane's triangle outside the beam (Frame::outside_from): the ambient light alone,
-      // with neither the point nor the projector needed (the full path gives the same: G = 0)
-      if (!L::any(L::mand(has, L::lei(tri, L::seti(f.outside_from - 1))))) {
-        const float* ambient = f.triangles + kAmbient * fields;
-        F a = zero;
-        if (!L::permute_fields(ambient, fields, 1, tri, has, &a)) {
-          const int t = L::lane(tri, L::first(has));
-          const M same = L::mand(has, L::eqi(tri, L::seti(t)));
-          a = L::sel(same, L::set(ambient[t]), zero);
-          const M left = L::mand(has, L::mnot(same));
-          if (L::any(left)) a = L::sel(left, L::gather(ambient, tri, left), a);
-        }
-        L::store(ambient_row + u, a);
-        L::storei(lit_row + u, none);
-        continue;
-      }
-      // the lanes' triangles: where their ids lie in one run of 32 (a wall's one plane, a
-      // tessellated surface's few neighbouring ones), two loads and a permutation per field,
-      // where the unit has them; else each distinct one broadcast (a row of pixels crosses
-      // few), up to four, then gathers
-      F field[kTriangleFields];
-      for (F& x : field) x = zero;
-      M left = has;
-      const auto broadcast = [&] {
-        const int t = L::lane(tri, L::first(left));
-        const M same = L::mand(left, L::eqi(tri, L::seti(t)));
-        for (int k = 0; k < kTriangleFields; ++k) field[k] = L::sel(same, L::set(f.triangles[k * fields + t]), field[k]);
-        left = L::mand(left, L::mnot(same));
-      };
-      if (!L::permute_fields(f.triangles, fields, kTriangleFields, tri, has, field)) {
-        for (int pass = 0; pass < 4 && L::any(left); ++pass) broadcast();
-        if (L::any(left))
-          for (int k = 0; k < kTriangleFields; ++k)
-            field[k] = L::sel(left, L::gather(f.triangles + k * fields, tri, left), field[k]);
-      }
-      const F dx = L::load(f.ray_x + first + u), dy = L::load(f.ray_y + first + u);
-      const F inv_zc = L::add(L::add(L::mul(field[kG0], dx), L::mul(field[kG1], dy)), field[kG2]);
-      const auto row_of = [&](int k) {
-        const float* m = f.m[k];
-        return L::add(L::add(L::add(L::mul(L::set(m[0]), dx), L::mul(L::set(m[1]), dy)), L::set(m[2])),
-                      L::mul(L::set(m[3]), inv_zc));
-      };
-      const F h0 = row_of(0), h1 = row_of(1), h2 = row_of(2);
-      L::store(ambient_row + u, L::sel(has, field[kAmbient], zero));
-      // z_c = 1 / s and 1 / h_2 from one division
-      const F both = L::div(L::set(1.0f), L::mul(inv_zc, h2));
-      const F zc = L::mul(both, h2);
-      const F zp = L::mul(h2, zc);
-      const M ok = L::mand(has, L::mand(L::gt(inv_zc, L::set(1e-6f)), L::gt(zp, L::set(1e-3f))));
-      if (!L::any(ok)) {
-        L::storei(lit_row + u, none);
-        continue;
-      }
-      const F inv_h2 = L::mul(both, inv_zc);
-      const F pu = L::mul(h0, inv_h2), pv = L::mul(h1, inv_h2);
-      // the projector's depth cell nearest to (u_p, v_p): beyond its window no spot reaches,
-      // and a point there takes the ambient light alone (most of a frame: the walls beside
-      // the beam), so its blur and returned light are not needed
-      const I x = L::addi(floor_int<L>(L::add(pu, L::set(0.5f))), L::seti(pd.offset_x));
-      const I y = L::addi(floor_int<L>(L::add(pv, L::set(0.5f))), L::seti(pd.offset_y));
-      const M inside = L::mand(L::mand(L::lei(L::seti(0), x), L::lei(x, L::seti(pd.width - 1))),
-                               L::mand(L::lei(L::seti(0), y), L::lei(y, L::seti(pd.height - 1))));
-      const M beam = L::mand(ok, inside);
-      if (!L::any(beam)) {
-        L::storei(lit_row + u, none);
-        continue;
-      }
-      // the projector's defocus at z_p, with the camera pixel's own size on its plane
-      const F outside = L::max(L::max(zero, L::sub(L::set(f.focus_near), zp)), L::sub(zp, L::set(f.focus_far)));
-      const F blur = L::add(L::set(f.focused_blur), L::mul(L::set(f.defocus_per_m), outside));
-      const F pixel = L::mul(L::set(f.pixel_scale), inv_h2);
-      const F sigma = L::add(L::sqrt(L::add(L::mul(blur, blur), L::mul(L::mul(L::set(0.083f), pixel), pixel))),
-                             L::set(1e-6f));
-      // the light returned: K / |L|^3
-      const F lx = L::sub(L::set(f.qx), L::mul(dx, zc));
-      const F ly = L::sub(L::set(f.qy), L::mul(dy, zc));
-      const F lz = L::sub(L::set(f.qz), zc);
-      const F dist2 = L::add(L::add(L::mul(lx, lx), L::mul(ly, ly)), L::mul(lz, lz));
-      // K < 0: the plane is never in the static scene's shadow (Cell::never_shadowed), |K| its K
-      const M free = L::lt(field[kReturn], zero);
-      const F k_return = L::max(field[kReturn], L::sub(zero, field[kReturn]));
-      L::store(weight_row + u, L::div(k_return, L::mul(dist2, L::sqrt(dist2))));
-      L::store(pu_row + u, pu);
-      L::store(pv_row + u, pv);
-      L::store(zp_row + u, zp);
-      L::store(sigma_row + u, sigma);
-      const I at = L::addi(L::muli(y, L::seti(pd.width)), x);
-      // step 3 looks these cells up a row later: asked for now, they arrive meanwhile (the
-      // lookups of a curved surface's shadowed points wander over the projector's depth, and
-      // waiting for them was a fifth of the cylinder's frame)
-      L::prefetch(pd.inv_depth, at, L::mand(beam, L::mnot(free)));
-      if (f.arm_depth.inv_depth) L::prefetch(f.arm_depth.inv_depth, at, beam);
-      L::storei(lit_row + u, L::seli(beam, L::seli(free, L::addi(at, L::seti(kFreeCell)), at), none));
-    }
-    // 3. shadows: again lookups independent of one another
-    for (int u = 0; u < f.width; u += N) {
-      const I marked = L::loadi(lit_row + u);
-      const M look = L::lei(L::seti(0), marked);
-      if (!L::any(look)) continue;
-      const M free = L::lei(L::seti(kFreeCell), marked);
-      const I at = L::seli(free, L::subi(marked, L::seti(kFreeCell)), marked);
-      const M check = L::mand(look, L::mnot(free));
-      const F zp = L::load(zp_row + u);
-      M dark = L::any(check) ? shadowed<L>(pd.inv_depth, at, zp, check) : check;
-      if (f.arm_depth.inv_depth) dark = L::mor(dark, shadowed<L>(f.arm_depth.inv_depth, at, zp, look));
-      L::storei(lit_row + u, L::seli(L::mand(look, L::mnot(dark)), L::seti(0), none));
-    }
-    // 4. the spots' light, then the sensor: exposure, read and shot noise, 8-bit quantisation
+    find_triangles<L>(f, first, rows);
+    for (int u = 0; u < f.width; u += L::N) surface_point<L>(f, first, u, rows);
+    shadow_tests<L>(f, rows);
+    // each channel's noise offsets for the row's chunks
     for (int c = 0; c < 3; ++c) {
       if constexpr (requires { L::noise_offsets(f, v, c, chunks, offsets_buf); })
         L::noise_offsets(f, v, c, chunks < 256 ? chunks : 256, offsets_buf + c * 256);  // where the unit has 64-bit lanes
       else
         for (int k = 0; k < chunks && k < 256; ++k) offsets_buf[c * 256 + k] = noise_offset(f, v, c, k);
     }
-    F known = L::set(-1.0f), known_sd = zero;  // the standard deviation of the last values seen
-    std::uint8_t* row = image + static_cast<std::size_t>(v) * step;
-    for (int u = 0; u < f.width; u += N) {
-      // the next row's lens tables (3.7 MB a frame, beyond the core's cache) asked for while
-      // this one is finished: step 1 of each row waited for them
-      if (v + 1 < v1) {
-        const std::size_t next = first + stride + static_cast<std::size_t>(u);
-        _mm_prefetch(reinterpret_cast<const char*>(f.zcell + next), _MM_HINT_T0);
-        _mm_prefetch(reinterpret_cast<const char*>(f.ray_x + next), _MM_HINT_T0);
-        _mm_prefetch(reinterpret_cast<const char*>(f.ray_y + next), _MM_HINT_T0);
-      }
-      F r = L::load(ambient_row + u), g = r, b = r;
-      const M lit = L::lei(L::seti(0), L::loadi(lit_row + u));
-      if (L::any(lit))
-        add_spots<L>(f, lit, L::load(pu_row + u), L::load(pv_row + u), L::load(sigma_row + u), L::load(weight_row + u),
-                     r, g, b);
-      if (f.tint || f.texel)
-        surface_colour<L>(f, L::loadi(tri_row + u), L::load(f.ray_x + first + u), L::load(f.ray_y + first + u), r, g, b);
-      const F rgb[3] = {r, g, b};
-      I out[3];
-      const std::size_t noise_at = static_cast<std::size_t>(u % kNoiseChunk);
-      for (int c = 0; c < 3; ++c) {
-        const F value = L::mul(L::set(f.gain), rgb[c]);
-        F level = value;
-        if (f.noisy) {
-          // the same standard deviation while the values repeat (the ambient on one surface)
-          if (!L::all(L::eq(value, known))) {
-            known_sd = L::sqrt(L::add(L::set(f.read_var), L::mul(L::set(f.shot), L::max(value, zero))));
-            known = value;
-          }
-          const float* noise = f.noise_pool + offsets_buf[c * 256 + u / kNoiseChunk] + noise_at;
-          level = L::add(value, L::mul(known_sd, L::load(noise)));
-        }
-        // rounded, clamped to [0, 255] (where the unit's byte store saturates, the store clamps
-        // above: the truncation of anything from 255 up is 255 or more, INT_MIN beyond int)
-        const F above_zero = L::max(L::add(level, L::set(0.5f)), zero);
-        if constexpr (requires { L::kStoreSaturates; })
-          out[c] = L::cvtt(above_zero);
-        else
-          out[c] = L::cvtt(L::min(above_zero, L::set(255.0f)));
-      }
-      if (u + N <= f.width) {
-        L::store_rgb(row + 3 * u, out[0], out[1], out[2]);
-      } else {
-        L::store_rgb(bytes, out[0], out[1], out[2]);
-        for (int k = 0; k < 3 * (f.width - u); ++k) row[3 * u + k] = bytes[k];
-      }
-    }
+    expose_row<L>(f, v, v1, first, rows, image + static_cast<std::size_t>(v) * step, offsets_buf);
   }
 }
+
+#undef CELL_STAGE
 
 }  // namespace
 }  // namespace sim::shading

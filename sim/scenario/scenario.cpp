@@ -1,6 +1,6 @@
 #include "sim/scenario/scenario.hpp"
 
-#include "servo/config/strict_yaml.hpp"
+#include "common/strict_yaml.hpp"
 
 #include <cmath>
 #include <set>
@@ -14,7 +14,7 @@ namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
-using config::Reader;
+using common::Reader;
 
 // a position in the cell, within kMaxCoordinateM of the world origin
 Eigen::Vector3d vec3(const Reader& r, double limit = kMaxCoordinateM) {
@@ -241,7 +241,7 @@ void read_workspace(const Reader& top, Scenario& s) {
 }
 
 Scenario read_scenario_yaml(const std::filesystem::path& file) {
-  const YAML::Node root = config::load_yaml_file(file, "scenario file");
+  const YAML::Node root = common::load_yaml_file(file, "scenario file");
   Scenario s;
   s.file = std::filesystem::absolute(file).lexically_normal();
   const Reader top(s.file, root, "");
@@ -306,7 +306,7 @@ Scenario read_scenario(const std::filesystem::path& file) {
     Scenario s = read_scenario_yaml(file);
     if (!s.robot.arm_enabled) settle_workspace(s);  // an arm's poses are known once it is resolved
     return s;
-  } catch (const config::ConfigError& e) {
+  } catch (const common::ConfigError& e) {
     throw ScenarioError(e.what());
   }
 }
@@ -329,7 +329,7 @@ void settle_workspace(Scenario& s) {
 Eigen::Isometry3d resolve_pose(const Scenario& s, const std::string& spec) {
   if (spec == "desired") return s.world_T_desired;
   if (spec == "initial") return s.world_T_initial();
-  const std::string shown = config::printable(spec);
+  const std::string shown = common::printable(spec);
   if (spec.size() > 200) throw std::invalid_argument("pose '" + shown + "': more than 200 characters");
   std::istringstream in(spec);
   std::array<double, 6> v{};

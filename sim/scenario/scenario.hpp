@@ -1,6 +1,6 @@
 // A scenario: the cell (objects, projector, camera), the task (desired and initial camera
 // poses), timing and the seed. Plain data, read from YAML by read_scenario: the spec as the
-// file gives it, with no URDF read and no IK run (sim/arm/arm_scenario.hpp's load_scenario
+// file gives it, with no URDF read and no IK run (sim/cell/build_cell.hpp's load_scenario
 // resolves the arm).
 #pragma once
 
@@ -154,8 +154,19 @@ DrawnErrors scenario_errors(const Scenario& scenario, const CalibrationErrors& e
 // The scenario as the file gives it. Throws ScenarioError (one line naming the file and the
 // key) on unknown keys, wrong types, missing files, non-positive focal lengths or sizes, NaN
 // or infinite numbers. A scenario with an arm has its arm unresolved (no model, no joint
-// angles) and its workspace unsettled: sim::load_scenario (sim/arm/arm_scenario.hpp) does both.
+// angles) and its workspace unsettled: sim::load_scenario (sim/cell/build_cell.hpp) does both.
 Scenario read_scenario(const std::filesystem::path& file);
+
+// A scenario ready to build a cell from: read, its arm resolved (URDF, IK of the desired and
+// initial poses) and its workspace settled. Only sim::resolve (sim/cell/build_cell.hpp) makes
+// one, and sim::build_cell takes nothing else: a spec that was never resolved cannot reach a
+// cell (a type error, where an unresolved arm scenario used to give a free-flying camera). Read
+// it as the Scenario it is; to change one, change a copy of the spec and resolve that.
+class ResolvedScenario : public Scenario {
+ private:
+  explicit ResolvedScenario(Scenario s) : Scenario(std::move(s)) {}
+  friend ResolvedScenario resolve(Scenario spec);
+};
 
 // The workspace's default (the desired and initial positions with a margin) when the file
 // gave none, and the check that both poses lie in it. Throws ScenarioError.

@@ -1,6 +1,6 @@
 #include "sim/scene/mesh_check.hpp"
 
-#include "servo/config/regular_file.hpp"
+#include "common/regular_file.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -409,8 +409,8 @@ MeshFileCounts check_stl(const std::filesystem::path& p, const std::string& data
 
 std::string read_mesh_file(const std::filesystem::path& path) {
   try {
-    return config::read_regular_file(path, kMaxMeshFileBytes, "mesh file");
-  } catch (const config::FileError& e) {
+    return common::read_regular_file(path, kMaxMeshFileBytes, "mesh file");
+  } catch (const common::FileError& e) {
     throw MeshError(e.what());
   }
 }

@@ -4,7 +4,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "servo/config/regular_file.hpp"
+#include "common/regular_file.hpp"
 #include "sim/scene/triangle_mesh.hpp"
 
 namespace sim {
@@ -26,8 +26,8 @@ std::uint32_t big_endian(const std::string& d, std::size_t at) {
 Texture load_texture(const std::filesystem::path& file) {
   std::string data;
   try {
-    data = config::read_regular_file(file, kMaxTextureFileBytes, "texture");
-  } catch (const config::FileError& e) {
+    data = common::read_regular_file(file, kMaxTextureFileBytes, "texture");
+  } catch (const common::FileError& e) {
     throw MeshError(e.what());
   }
   // the signature, then IHDR as the first chunk (the PNG standard's order): the size is known

@@ -16,7 +16,7 @@
 #include <map>
 #include <string>
 
-#include "servo/config/regular_file.hpp"
+#include "common/regular_file.hpp"
 
 namespace sim {
 namespace {
@@ -36,8 +36,8 @@ class MeshFolderIO : public Assimp::IOSystem {
     const std::filesystem::path path = side_file(mesh_, name, ".mtl");
     std::string data;
     try {
-      data = config::read_regular_file(path, kMaxMaterialFileBytes, "material library");
-    } catch (const config::FileError& e) {
+      data = common::read_regular_file(path, kMaxMaterialFileBytes, "material library");
+    } catch (const common::FileError& e) {
       throw MeshError(e.what());
     }
     check_material_data(path, data);

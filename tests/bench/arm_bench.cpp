@@ -11,6 +11,7 @@
 #include "sim/arm/arm_controller.hpp"
 #include "sim/arm/arm_robot.hpp"
 #include "sim/arm/kinematics.hpp"
+#include "sim/cell/build_cell.hpp"
 #include "sim/render/cell.hpp"
 #include "sim/scenario/scenario.hpp"
 

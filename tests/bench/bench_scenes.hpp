@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <string>
 
-#include "sim/arm/arm_scenario.hpp"
+#include "sim/cell/build_cell.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/scenario/scenario.hpp"
 
@@ -14,7 +14,7 @@ namespace bench {
 inline sim::Scenario scaled_scenario(const std::string& name, int pattern_size, double image_scale) {
   sim::Scenario s = sim::load_scenario(std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + name + ".yaml");
   if (pattern_size != 20) {
-    pattern::GenerationParams p;
+    pattern::GenerationOptions p;
     p.rows = p.cols = pattern_size;
     const auto path = std::filesystem::temp_directory_path() / ("bench_pattern_" + std::to_string(pattern_size) + ".txt");
     pattern::write_marray(path, *pattern::generate_marray(p).array);

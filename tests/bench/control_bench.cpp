@@ -21,7 +21,7 @@ std::vector<control::MatchedPoint> points(int n) {
 
 void BM_ControlLaw(benchmark::State& state) {
   const auto p = points(static_cast<int>(state.range(0)));
-  control::ControlLawParams params;
+  control::ControlLawOptions params;
   params.model = control::InteractionModel::kMean;  // the costliest model: two matrices per point
   for (auto _ : state) benchmark::DoNotOptimize(control::compute_control(p, params).twist);
 }

@@ -14,7 +14,8 @@
 
 #include "bench/bench_scenes.hpp"
 #include "servo/vision/spot_decoder.hpp"
-#include "sim/loop/experiment.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/experiment.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {
@@ -22,8 +23,8 @@ namespace {
 struct Frame {
   cv::Mat rgb;
   pattern::MArray pattern;
-  control::CameraIntrinsics camera;
-  control::ProjectorModel projector;  // the exact calibration (`cellsim calibration`)
+  calibration::CameraIntrinsics camera;
+  calibration::ProjectorModel projector;  // the exact calibration (`cellsim calibration`)
   Eigen::Isometry3d world_T_camera;
 };
 
@@ -35,11 +36,11 @@ const Frame& frame(const std::string& scenario, int pattern_size = 20, double im
   auto& f = cache[{scenario, pattern_size, image_scale}];
   if (!f.rgb.empty()) return f;
   const sim::Scenario s = bench::scaled_scenario(scenario, pattern_size, image_scale);
-  const auto cell = sim::build_cell(s);
+  const auto cell = sim::build_cell(sim::resolve(s));
   f.rgb = sim::render_image(*cell, s.world_T_desired, 1);
   f.pattern = cell->projector->pattern();
-  f.camera = cellsim::camera_intrinsics_of(*cell);
-  f.projector = cellsim::projector_model_of(*cell);
+  f.camera = experiment::camera_intrinsics_of(*cell);
+  f.projector = experiment::projector_model_of(*cell);
   f.world_T_camera = s.world_T_desired;
   return f;
 }
@@ -155,7 +156,7 @@ const Frame& frame_of_pattern(const std::string& scenario, const std::string& pa
   if (!f.rgb.empty()) return f;
   sim::Scenario s = sim::load_scenario(std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + scenario + ".yaml");
   s.projector.pattern = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/" + pattern_file;
-  const auto cell = sim::build_cell(s);
+  const auto cell = sim::build_cell(sim::resolve(s));
   f.rgb = sim::render_image(*cell, s.world_T_initial(), 1);
   f.pattern = cell->projector->pattern();
   return f;

@@ -8,13 +8,14 @@
 #include <memory>
 
 #include "bench/bench_scenes.hpp"
+#include "sim/cell/build_cell.hpp"
 #include "sim/render/renderer.hpp"
 #include "support/previous_renderer.hpp"
 
 namespace {
 
 std::unique_ptr<sim::Cell> make_cell(const std::string& name, int pattern_size = 20, double image_scale = 1.0) {
-  return sim::build_cell(bench::scaled_scenario(name, pattern_size, image_scale));
+  return sim::build_cell(sim::resolve(bench::scaled_scenario(name, pattern_size, image_scale)));
 }
 
 void render(benchmark::State& state, const sim::Cell& cell) {

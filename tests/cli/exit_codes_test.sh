@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 43: every command's exit code follows one table (servo/config/exit_codes.hpp,
+# Issue 43: every command's exit code follows one table (common/exit_codes.hpp,
 # README.md): converged 0, refused 1, usage 2, diverged 4, capped 5, not taught 7, and
 # `cellsim serve`'s session end the same way. A script or a Slurm job tells them apart.
 set -u

@@ -11,17 +11,18 @@
 
 #include <unistd.h>
 
-#include "sim/loop/experiment.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/experiment.hpp"
 #include "support/numeric_text.hpp"
 
 namespace {
 
 const std::string kDir = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
 
-cellsim::ExperimentOptions options(const sim::Cell& cell, control::InteractionModel model, cellsim::FeatureSource source,
+experiment::ExperimentOptions options(const sim::Cell& cell, control::InteractionModel model, loop::FeatureSource source,
                                    int cap) {
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(cell);
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(cell);
   o.servo.law.model = model;
   o.servo.law.z_hat_m = 0.6;
   o.source = source;
@@ -29,7 +30,7 @@ cellsim::ExperimentOptions options(const sim::Cell& cell, control::InteractionMo
   return o;
 }
 
-bool same_trace(const cellsim::ExperimentResult& a, const cellsim::ExperimentResult& b) {
+bool same_trace(const experiment::ExperimentResult& a, const experiment::ExperimentResult& b) {
   if (a.trace.size() != b.trace.size()) return false;
   for (std::size_t k = 0; k < a.trace.size(); ++k) {
     const auto &x = a.trace[k], &y = b.trace[k];
@@ -51,12 +52,12 @@ std::string read(const std::filesystem::path& p) {
 // of a scenario that has none: the decoded arm on the cylinder, and the ideal fig5.
 TEST(CellErrorsLoop, ZeroErrorsAndDelaysChangeNothingBitForBit) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder.yaml"));
-  auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, cellsim::FeatureSource::kDecoded, 25);
-  const auto plain = cellsim::run_experiment(*cell, o);
+  auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, loop::FeatureSource::kDecoded, 25);
+  const auto plain = experiment::run_experiment(*cell, o);
   o.errors = sim::CalibrationErrors{};
   o.errors->seed = 77;  // a seed alone draws nothing
   o.latency = sim::Latency{};
-  EXPECT_TRUE(same_trace(plain, cellsim::run_experiment(*cell, o)));
+  EXPECT_TRUE(same_trace(plain, experiment::run_experiment(*cell, o)));
 
   // the same zeros written in a scenario file
   std::string text = read(kDir + "fig5.yaml");
@@ -69,8 +70,8 @@ TEST(CellErrorsLoop, ZeroErrorsAndDelaysChangeNothingBitForBit) {
   const auto zero_cell = sim::build_cell(sim::load_scenario(file));
   std::filesystem::remove(file);
   const auto fig5 = sim::build_cell(sim::load_scenario(kDir + "fig5.yaml"));
-  const auto a = cellsim::run_experiment(*fig5, options(*fig5, control::InteractionModel::kCurrent, cellsim::FeatureSource::kIdeal, 400));
-  const auto b = cellsim::run_experiment(*zero_cell, options(*zero_cell, control::InteractionModel::kCurrent, cellsim::FeatureSource::kIdeal, 400));
+  const auto a = experiment::run_experiment(*fig5, options(*fig5, control::InteractionModel::kCurrent, loop::FeatureSource::kIdeal, 400));
+  const auto b = experiment::run_experiment(*zero_cell, options(*zero_cell, control::InteractionModel::kCurrent, loop::FeatureSource::kIdeal, 400));
   EXPECT_TRUE(a.converged) << a.stop_reason;
   EXPECT_TRUE(same_trace(a, b));
 }
@@ -84,9 +85,9 @@ TEST(CellErrorsLoop, ZeroErrorsAndDelaysChangeNothingBitForBit) {
 // Bit-reproducibility on one machine is the next test's.
 TEST(CellErrorsLoop, TracesEqualThoseBeforeTheErrorsExisted) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder.yaml"));
-  auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, cellsim::FeatureSource::kIdeal, 60);
+  auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, loop::FeatureSource::kIdeal, 60);
   o.out_dir = std::filesystem::temp_directory_path() / ("_test_golden_cylinder_ideal_" + std::to_string(::getpid()));
-  cellsim::run_experiment(*cell, o);
+  experiment::run_experiment(*cell, o);
   const std::string now = read(o.out_dir / "trace.csv"), features = read(o.out_dir / "features.jsonl");
   std::filesystem::remove_all(o.out_dir);
   const std::string golden = std::string(CELL_SOURCE_DIR) + "/tests/data/golden/";
@@ -106,9 +107,9 @@ TEST(CellErrorsLoop, TheSameRunTwiceGivesTheSameBits) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder.yaml"));
   std::string trace[2], features[2];
   for (int k = 0; k < 2; ++k) {
-    auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, cellsim::FeatureSource::kIdeal, 40);
+    auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, loop::FeatureSource::kIdeal, 40);
     o.out_dir = std::filesystem::temp_directory_path() / ("_test_twice_" + std::to_string(::getpid()) + "_" + std::to_string(k));
-    cellsim::run_experiment(*cell, o);
+    experiment::run_experiment(*cell, o);
     trace[k] = read(o.out_dir / "trace.csv");
     features[k] = read(o.out_dir / "features.jsonl");
     std::filesystem::remove_all(o.out_dir);
@@ -123,13 +124,13 @@ TEST(CellErrorsLoop, TheSameRunTwiceGivesTheSameBits) {
 // to converge near the goal; the campaign measures how far that goes).
 TEST(CellErrorsLoop, CalibrationErrorsChangeThePathNotTheTaughtGoal) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "fig5.yaml"));
-  const auto exact = cellsim::run_experiment(
-      *cell, options(*cell, control::InteractionModel::kCurrent, cellsim::FeatureSource::kIdeal, 800));
+  const auto exact = experiment::run_experiment(
+      *cell, options(*cell, control::InteractionModel::kCurrent, loop::FeatureSource::kIdeal, 800));
   for (const char* which : {"focal_pct=5", "principal_point_px=10", "projector_position_mm=20", "hand_eye_rotation_deg=3"}) {
-    auto o = options(*cell, control::InteractionModel::kCurrent, cellsim::FeatureSource::kIdeal, 800);
+    auto o = options(*cell, control::InteractionModel::kCurrent, loop::FeatureSource::kIdeal, 800);
     o.errors = sim::CalibrationErrors{};
     sim::set_error(*o.errors, which);
-    const auto r = cellsim::run_experiment(*cell, o);
+    const auto r = experiment::run_experiment(*cell, o);
     EXPECT_FALSE(same_trace(exact, r)) << which << " changed nothing";
     EXPECT_TRUE(r.converged) << which << ": " << r.stop_reason;
     EXPECT_LT(r.final_translation_error_m, 2e-3) << which;
@@ -140,12 +141,12 @@ TEST(CellErrorsLoop, CalibrationErrorsChangeThePathNotTheTaughtGoal) {
 // the pose the robot reports is not the true one.
 TEST(CellErrorsLoop, ArmKinematicErrorsChangeThePath) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder.yaml"));
-  auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, cellsim::FeatureSource::kIdeal, 700);
-  const auto exact = cellsim::run_experiment(*cell, o);
+  auto o = options(*cell, control::InteractionModel::kDesiredConstantDepth, loop::FeatureSource::kIdeal, 700);
+  const auto exact = experiment::run_experiment(*cell, o);
   o.errors = sim::CalibrationErrors{};
   o.errors->link_length_pct = 1;
   o.errors->joint_offset_deg = 0.5;
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_TRUE(exact.converged) << exact.stop_reason;
   EXPECT_FALSE(same_trace(exact, r));
   EXPECT_TRUE(r.converged) << r.stop_reason;
@@ -157,10 +158,10 @@ TEST(CellErrorsLoop, ArmKinematicErrorsChangeThePath) {
 TEST(CellErrorsLoop, DelaysHoldTheRobotAndTheImageBack) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "fig5.yaml"));
   const auto run = [&](const std::string& latency) {
-    auto o = options(*cell, control::InteractionModel::kDesired, cellsim::FeatureSource::kIdeal, 40);
+    auto o = options(*cell, control::InteractionModel::kDesired, loop::FeatureSource::kIdeal, 40);
     o.latency = sim::Latency{};
     if (!latency.empty()) sim::set_latency(*o.latency, latency);
-    return cellsim::run_experiment(*cell, o);
+    return experiment::run_experiment(*cell, o);
   };
   const auto none = run(""), processing = run("processing_frames=3"), acquisition = run("acquisition_frames=2"),
              actuation = run("actuation_s=0.02");

@@ -3,7 +3,7 @@
 // participant listens like any outside client), never on their logs.
 #include <gtest/gtest.h>
 
-#include "servo/config/exit_codes.hpp"
+#include "common/exit_codes.hpp"
 #include <unistd.h>
 
 #include <atomic>
@@ -23,7 +23,8 @@
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
-#include "sim/loop/experiment.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/experiment.hpp"
 #include "sim/geometry/se3.hpp"
 
 namespace {
@@ -66,12 +67,12 @@ TEST(DdsLoop, PlaneConvergesInLockstepAndMatchesTheInProcessTrace) {
 
   // the same scenario and seed in the in-process runner: the same trace, number for number
   const auto cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml"));
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
   o.servo.law.z_hat_m = 0.9;
   o.out_dir = tmp_dir("plane_in_process");
   o.write_features = false;
-  cellsim::run_experiment(*cell, o);
+  experiment::run_experiment(*cell, o);
   const auto body = [](const std::string& file) {
     std::ifstream f(file);
     std::string line, all;
@@ -114,24 +115,24 @@ TEST(DdsLoop, ErrorsAndDelaysOfTheScenarioGiveTheInProcessTrace) {
     ASSERT_EQ(sim.wait_exit(120s), 0) << "cellsim did not finish; see " << dir;
   }
   const auto cell = sim::build_cell(sim::load_scenario(scenario));
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
   o.servo.law.z_hat_m = 0.9;
   o.max_iterations = 60;
   o.out_dir = tmp_dir("errors_latency_in_process");
   o.write_features = false;
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_EQ(r.stop_reason, "iteration cap (60) reached");
   const auto service = trace_rows(dir + "/trace.csv"), in_process = trace_rows(o.out_dir.string() + "/trace.csv");
   ASSERT_GE(service.size(), 30u) << "see " << dir;
   ASSERT_GE(in_process.size(), service.size());
   for (std::size_t i = 0; i < service.size(); ++i) EXPECT_EQ(service[i], in_process[i]) << "row " << i;
   // the errors reached the servo: the same run without them is another trace
-  cellsim::ExperimentOptions exact = o;
+  experiment::ExperimentOptions exact = o;
   exact.errors = sim::CalibrationErrors{};
   exact.latency = sim::Latency{};
   exact.out_dir = tmp_dir("errors_latency_exact");
-  cellsim::run_experiment(*cell, exact);
+  experiment::run_experiment(*cell, exact);
   EXPECT_NE(trace_rows(exact.out_dir.string() + "/trace.csv")[5], in_process[5]);
 }
 
@@ -193,18 +194,18 @@ TEST(DdsLoop, ASafeStopAndACollisionEndTheServicesRunWhereTheyEndTheInProcessOne
                    "--trace", run_dir},
                   domain, run_dir + "/sim.log");
       // a session a stop ended exits "stopped" (README, exit codes), the in-process run's ending
-      ASSERT_EQ(sim.wait_exit(180s), config::exit_code::kStopped) << "cellsim did not end stopped; see " << run_dir;
+      ASSERT_EQ(sim.wait_exit(180s), common::exit_code::kStopped) << "cellsim did not end stopped; see " << run_dir;
     }
     const auto cell = sim::build_cell(sim::load_scenario(c.scenario));
-    cellsim::ExperimentOptions o;
-    o.servo = cellsim::servo_config_for(*cell);
+    experiment::ExperimentOptions o;
+    o.servo = experiment::servo_config_for(*cell);
     o.servo.law.z_hat_m = 0.9;
     o.max_iterations = 600;
     o.out_dir = run_dir + "/in_process";
     o.write_features = false;
-    const auto r = cellsim::run_experiment(*cell, o);
+    const auto r = experiment::run_experiment(*cell, o);
     EXPECT_EQ(r.stop_reason.rfind(c.stop, 0), 0u) << c.name << ": " << r.stop_reason;
-    EXPECT_EQ(r.ending, cellsim::RunEnding::kStopped) << c.name;
+    EXPECT_EQ(r.ending, experiment::RunEnding::kStopped) << c.name;
     const auto service = trace_rows(run_dir + "/trace.csv"), in_process = trace_rows(o.out_dir.string() + "/trace.csv");
     EXPECT_LT(in_process.size(), 600u) << c.name;
     EXPECT_EQ(service, in_process) << c.name << ": see " << run_dir;

@@ -5,27 +5,28 @@
 #include <filesystem>
 #include <fstream>
 
-#include "sim/loop/experiment.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/experiment.hpp"
 
 namespace {
 
 const std::string kDir = std::string(CELL_SOURCE_DIR) + "/sim/scenarios/";
 
-cellsim::ExperimentResult run(const std::string& name, control::InteractionModel model, double z_hat,
-                              cellsim::FeatureSource source, int cap, double divergence_ratio = 0) {
+experiment::ExperimentResult run(const std::string& name, control::InteractionModel model, double z_hat,
+                              loop::FeatureSource source, int cap, double divergence_ratio = 0) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + name + ".yaml"));
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
   o.servo.law.model = model;
   o.servo.law.z_hat_m = z_hat;
   o.source = source;
   o.max_iterations = cap;
   o.servo.divergence_ratio = divergence_ratio;
-  return cellsim::run_experiment(*cell, o);
+  return experiment::run_experiment(*cell, o);
 }
 
 TEST(InProcessLoop, PlaneConvergesUnder1mmAnd0_1Deg) {
-  const auto r = run("plane", control::InteractionModel::kDesiredConstantDepth, 0.9, cellsim::FeatureSource::kDecoded, 600);
+  const auto r = run("plane", control::InteractionModel::kDesiredConstantDepth, 0.9, loop::FeatureSource::kDecoded, 600);
   EXPECT_TRUE(r.converged) << r.stop_reason;
   EXPECT_LT(r.final_translation_error_m, 1e-3);
   EXPECT_LT(r.final_rotation_error_deg, 0.1);
@@ -49,15 +50,15 @@ TEST(InProcessLoop, RobustLawConvergesWithTenPercentOfTheMatchesSwapped) {
                        Case{"plane", 0.9, 700, control::RobustEstimator::kHuber},
                        Case{"cylinder", 0.6, 800, control::RobustEstimator::kTukey}}) {
     const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string(c.scenario) + ".yaml"));
-    cellsim::ExperimentOptions o;
-    o.servo = cellsim::servo_config_for(*cell);
+    experiment::ExperimentOptions o;
+    o.servo = experiment::servo_config_for(*cell);
     o.servo.law.z_hat_m = c.z_hat;
     o.max_iterations = c.cap;
     o.outlier_fraction = 0.1;
-    const auto plain = cellsim::run_experiment(*cell, o);
+    const auto plain = experiment::run_experiment(*cell, o);
     o.servo.law.robust = c.robust;
     o.out_dir = std::filesystem::temp_directory_path() / ("_test_robust_" + std::string(c.scenario));
-    const auto robust = cellsim::run_experiment(*cell, o);
+    const auto robust = experiment::run_experiment(*cell, o);
     const std::string what = std::string(c.scenario) + " " + control::to_string(c.robust);
     EXPECT_FALSE(plain.converged) << what << ": the plain law converged despite the swaps";
     EXPECT_TRUE(robust.converged) << what << ": " << robust.stop_reason;
@@ -79,12 +80,12 @@ TEST(InProcessLoop, RobustLawConvergesWithTenPercentOfTheMatchesSwapped) {
 // law sees exactly those 8 at every iteration, and the run differs from the all-points one.
 TEST(InProcessLoop, PlaneConvergesOnEightBestConditionedPoints) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "plane.yaml"));
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
   o.servo.law.z_hat_m = 0.9;
   o.servo.points = 8;
   o.max_iterations = 600;
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_TRUE(r.converged) << r.stop_reason;
   EXPECT_LT(r.final_translation_error_m, 2e-3);
   ASSERT_FALSE(r.trace.empty());
@@ -92,19 +93,19 @@ TEST(InProcessLoop, PlaneConvergesOnEightBestConditionedPoints) {
     EXPECT_EQ(row.matched, 8) << "t " << row.t_s;
     EXPECT_GT(row.decoded, 300);
   }
-  const auto all = run("plane", control::InteractionModel::kDesiredConstantDepth, 0.9, cellsim::FeatureSource::kDecoded, 600);
+  const auto all = run("plane", control::InteractionModel::kDesiredConstantDepth, 0.9, loop::FeatureSource::kDecoded, 600);
   EXPECT_NE(all.trace.front().twist, r.trace.front().twist);
 }
 
 TEST(InProcessLoop, CylinderConvergesUnder1mmAnd0_1Deg) {
-  const auto r = run("cylinder", control::InteractionModel::kDesiredConstantDepth, 0.6, cellsim::FeatureSource::kDecoded, 900);
+  const auto r = run("cylinder", control::InteractionModel::kDesiredConstantDepth, 0.6, loop::FeatureSource::kDecoded, 900);
   EXPECT_TRUE(r.converged) << r.stop_reason;
   EXPECT_LT(r.final_translation_error_m, 1e-3);
   EXPECT_LT(r.final_rotation_error_deg, 0.1);
 }
 
 TEST(InProcessLoop, HamConvergesUnder1mmAnd0_1Deg) {
-  const auto r = run("ham", control::InteractionModel::kDesiredConstantDepth, 0.6, cellsim::FeatureSource::kDecoded, 900);
+  const auto r = run("ham", control::InteractionModel::kDesiredConstantDepth, 0.6, loop::FeatureSource::kDecoded, 900);
   EXPECT_TRUE(r.converged) << r.stop_reason;
   EXPECT_LT(r.final_translation_error_m, 1e-3);
   EXPECT_LT(r.final_rotation_error_deg, 0.1);
@@ -114,12 +115,12 @@ TEST(InProcessLoop, HamConvergesUnder1mmAnd0_1Deg) {
 // of the spots mid-run): the decoder keeps identifying what is left and the servo converges.
 TEST(InProcessLoop, CylinderConvergesWhileTheArmShadowsPartOfThePattern) {
   const auto cell = sim::build_cell(sim::load_scenario(kDir + "cylinder_occlusion.yaml"));
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(*cell);
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
   o.servo.law.z_hat_m = 0.6;
   o.max_iterations = 900;
   o.out_dir = std::filesystem::path(CELL_BINARY_DIR) / "test_out" / "cylinder_occlusion";
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_TRUE(r.converged) << r.stop_reason;
   EXPECT_LT(r.final_translation_error_m, 1e-3);
   EXPECT_LT(r.final_rotation_error_deg, 0.1);
@@ -141,7 +142,7 @@ TEST(InProcessLoop, CylinderConvergesWhileTheArmShadowsPartOfThePattern) {
 // The paper's Fig. 5: with every depth taken as 0.9 m the loop diverges; with the true
 // desired depths it converges, and with the current ones sooner.
 TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
-  const auto coarse = run("fig5", control::InteractionModel::kDesiredConstantDepth, 0.9, cellsim::FeatureSource::kIdeal, 800, 2);
+  const auto coarse = run("fig5", control::InteractionModel::kDesiredConstantDepth, 0.9, loop::FeatureSource::kIdeal, 800, 2);
   ASSERT_TRUE(coarse.diverged) << coarse.stop_reason;
   EXPECT_NE(coarse.stop_reason.find("diverging"), std::string::npos) << coarse.stop_reason;
   ASSERT_GE(coarse.trace.size(), 200u);
@@ -153,8 +154,8 @@ TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
     for (std::size_t k = from; k < to; ++k) m = std::max(m, field(t[k]));
     return m;
   };
-  const auto e = [](const cellsim::IterationRecord& r) { return r.error_norm; };
-  const auto pose = [](const cellsim::IterationRecord& r) { return r.translation_error_m; };
+  const auto e = [](const experiment::IterationRecord& r) { return r.error_norm; };
+  const auto pose = [](const experiment::IterationRecord& r) { return r.translation_error_m; };
   const std::size_t n = t.size();
   EXPECT_GT(t.back().error_norm, 2 * t.front().error_norm);
   EXPECT_GT(peak(n - 100, n, e), 1.1 * peak(n - 200, n - 100, e));
@@ -163,10 +164,10 @@ TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
   EXPECT_GT(coarse.final_translation_error_m, t.front().translation_error_m);
   EXPECT_GT(peak(n - 100, n, pose), 1.05 * peak(n - 200, n - 100, pose));
 
-  const auto desired = run("fig5", control::InteractionModel::kDesired, 0.9, cellsim::FeatureSource::kIdeal, 800, 2);
+  const auto desired = run("fig5", control::InteractionModel::kDesired, 0.9, loop::FeatureSource::kIdeal, 800, 2);
   EXPECT_TRUE(desired.converged) << desired.stop_reason;
   EXPECT_LT(desired.final_translation_error_m, 1e-3);
-  const auto current = run("fig5", control::InteractionModel::kCurrent, 0.9, cellsim::FeatureSource::kIdeal, 800, 2);
+  const auto current = run("fig5", control::InteractionModel::kCurrent, 0.9, loop::FeatureSource::kIdeal, 800, 2);
   EXPECT_TRUE(current.converged) << current.stop_reason;
   EXPECT_LT(current.iterations, desired.iterations);  // the paper: L(s, Z) cancels the task sooner
 }
@@ -176,9 +177,9 @@ TEST(InProcessLoop, Fig5ConstantDepth0_9DivergesButTrueDepthsConverge) {
 namespace {
 
 // a run's options for the scenario's servo, without features.jsonl
-cellsim::ExperimentOptions quiet_options(const sim::Cell& cell, double z_hat, int cap) {
-  cellsim::ExperimentOptions o;
-  o.servo = cellsim::servo_config_for(cell);
+experiment::ExperimentOptions quiet_options(const sim::Cell& cell, double z_hat, int cap) {
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(cell);
   o.servo.law.z_hat_m = z_hat;
   o.max_iterations = cap;
   o.write_features = false;
@@ -198,9 +199,9 @@ TEST(InProcessLoop, ACollisionEndsTheRunAndNamesWhatTouched) {
       0.5 * (s.world_T_initial().translation() + s.world_T_desired.translation());
   obstacle.scale = Eigen::Vector3d::Constant(0.15);
   s.objects.push_back(obstacle);
-  const auto cell = sim::build_cell(s);
-  cellsim::ExperimentOptions o = quiet_options(*cell, 0.9, 600);
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto cell = sim::build_cell(sim::resolve(s));
+  experiment::ExperimentOptions o = quiet_options(*cell, 0.9, 600);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_FALSE(r.converged);
   EXPECT_TRUE(r.robot_stopped) << r.stop_reason;
   EXPECT_LT(r.iterations, 600);
@@ -216,12 +217,12 @@ TEST(InProcessLoop, ACollisionEndsTheRunAndNamesWhatTouched) {
 TEST(InProcessLoop, TheUpperArmClearsTheBaseNearTheCylindersGoal) {
   sim::Scenario s = sim::load_scenario(kDir + "cylinder.yaml");
   s.projector.pattern = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/marray_20x20_k3_w3.txt";
-  const auto cell = sim::build_cell(s);
-  cellsim::ExperimentOptions o = quiet_options(*cell, 0.6, 900);
+  const auto cell = sim::build_cell(sim::resolve(s));
+  experiment::ExperimentOptions o = quiet_options(*cell, 0.6, 900);
   o.servo.law.model = control::InteractionModel::kCurrent;
   o.initial = sim::offset_pose(s.world_T_desired, {-3.522, -5.523, 7.442}, {-3.354, -12.750, -1.406},
                                s.offset_frame_rotation_deg);
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_FALSE(r.robot_stopped) << r.stop_reason;
   EXPECT_TRUE(r.converged) << r.stop_reason;
 }
@@ -232,10 +233,10 @@ TEST(InProcessLoop, TheUpperArmClearsTheBaseNearTheCylindersGoal) {
 TEST(InProcessLoop, ASafeStopThatLastsEndsTheRunAsItStopsTheService) {
   sim::Scenario s = sim::load_scenario(kDir + "plane.yaml");
   s.robot.arm_enabled = false;  // the free-flying camera: any pose is reachable
-  const auto cell = sim::build_cell(s);
-  cellsim::ExperimentOptions o = quiet_options(*cell, 0.9, 200);
+  const auto cell = sim::build_cell(sim::resolve(s));
+  experiment::ExperimentOptions o = quiet_options(*cell, 0.9, 200);
   o.initial = s.world_T_desired * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX());
-  const auto r = cellsim::run_experiment(*cell, o);
+  const auto r = experiment::run_experiment(*cell, o);
   EXPECT_FALSE(r.converged);
   EXPECT_EQ(r.iterations, o.servo.safe_stop_frames);
   EXPECT_EQ(r.stop_reason.rfind("safe stop: ", 0), 0u) << r.stop_reason;
@@ -251,8 +252,8 @@ TEST(InProcessLoop, AStepRefusedAtTheWorkspaceBorderDoesNotEndTheRun) {
   const Eigen::Vector3d start = s.world_T_initial().translation();
   s.workspace.min_m = start - Eigen::Vector3d::Constant(0.005);
   s.workspace.max_m = start + Eigen::Vector3d::Constant(0.005);
-  const auto cell = sim::build_cell(s);
-  const auto r = cellsim::run_experiment(*cell, quiet_options(*cell, 0.9, 60));
+  const auto cell = sim::build_cell(sim::resolve(s));
+  const auto r = experiment::run_experiment(*cell, quiet_options(*cell, 0.9, 60));
   EXPECT_FALSE(r.robot_stopped) << r.stop_reason;
   EXPECT_EQ(r.stop_reason, "iteration cap (60) reached");
   int refused = 0;

@@ -20,13 +20,14 @@
 #include "geometry_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
 #include "dds/topics.hpp"
-#include "servo/app/servo_replay.hpp"
+#include "servo/service/servo_replay.hpp"
 #include "servo/node/servo_state_machine.hpp"
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/arm/arm_robot.hpp"
-#include "sim/cell/cell_state_machine.hpp"
-#include "sim/loop/campaign.hpp"
-#include "sim/loop/experiment.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/session/cell_state_machine.hpp"
+#include "sim/experiment/campaign.hpp"
+#include "sim/experiment/experiment.hpp"
 #include "sim/render/renderer.hpp"
 #include "sim/scene/mesh_check.hpp"
 #include "sim/scene/triangle_mesh.hpp"
@@ -184,17 +185,17 @@ struct CampaignTarget : Target {
   CampaignTarget() {
     const auto cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/fig5.yaml"));
     for (int shard = 1; shard <= 2; ++shard) {
-      cellsim::CampaignOptions o;
+      experiment::CampaignOptions o;
       o.runs = 3;
       o.models = {control::InteractionModel::kCurrent};
-      o.base = cellsim::servo_config_for(*cell);
-      o.source = cellsim::FeatureSource::kIdeal;
+      o.base = experiment::servo_config_for(*cell);
+      o.source = loop::FeatureSource::kIdeal;
       o.max_iterations = 5;
       o.threads = 1;
       o.shard_index = shard;
       o.shard_count = 2;
       o.out_dir = dir / std::to_string(shard);
-      cellsim::run_campaign(*cell, o);
+      experiment::run_campaign(*cell, o);
     }
     json = read((dir / "2" / "campaign.json").string());
     csv = read((dir / "2" / "campaign.csv").string());
@@ -205,7 +206,7 @@ struct CampaignTarget : Target {
     std::ofstream(dir / "2" / "campaign.json", std::ios::binary) << (mutate_json ? mutated(json, rng) : json);
     std::ofstream(dir / "2" / "campaign.csv", std::ios::binary) << (mutate_json ? csv : mutated(csv, rng));
     try {
-      cellsim::merge_campaigns({dir / "1", dir / "2"}, dir / "merged");
+      experiment::merge_campaigns({dir / "1", dir / "2"}, dir / "merged");
     } catch (const std::invalid_argument& e) {
       if (std::strchr(e.what(), '\n')) std::abort();  // one line
     }
@@ -237,7 +238,7 @@ struct DecoderTarget : Target {
   std::unique_ptr<sim::Cell> cell_d3 = [] {
     sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
     s.projector.pattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3_d3.txt";
-    return sim::build_cell(s);
+    return sim::build_cell(sim::resolve(s));
   }();
   cv::Mat image_d3 = sim::render_image(*cell_d3, cell_d3->scenario.world_T_initial(), 1);
   vision::SpotDecoder decoder_d3{pattern::WindowTable(cell_d3->projector->pattern(), {3, 3})};
@@ -268,7 +269,7 @@ struct DecoderTarget : Target {
       const double scale = rng() % 10 == 0 ? 1e3 : 0.02;
       std::uniform_real_distribution<double> u(-1, 1);
       wTc.translation() += scale * Eigen::Vector3d(u(rng), u(rng), u(rng));
-      geometry.emplace(cellsim::camera_intrinsics_of(*cell), cellsim::projector_model_of(*cell), wTc,
+      geometry.emplace(experiment::camera_intrinsics_of(*cell), experiment::projector_model_of(*cell), wTc,
                        0.5 + static_cast<double>(rng() % 100) / 10.0);
     }
     try {
@@ -331,7 +332,7 @@ struct CellTarget : Target {
   sim::Scenario scenario = sim::load_scenario(kSrc + "/sim/scenarios/plane.yaml");
   sim::CellStateMachine lockstep{scenario, {}};
   sim::CellStateMachine realtime{scenario, [] {
-                                   sim::CellParams p;
+                                   sim::CellOptions p;
                                    p.timing = sim::Timing::kRealtime;
                                    return p;
                                  }()};

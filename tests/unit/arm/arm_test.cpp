@@ -151,7 +151,7 @@ struct Ur5e : ::testing::Test {
 };
 
 TEST_F(Ur5e, ATwistThatWouldCrossAJointLimitStopsAtTheMargin) {
-  ArmControllerParams p;
+  ArmControllerOptions p;
   const ArmController c(p);
   Eigen::VectorXd q = home();
   q[0] = kin.upper()[0] - p.joint_margin_rad - 0.01;  // the base joint 10 mrad from its margin
@@ -210,7 +210,7 @@ TEST_F(Ur5e, NearASingularityJointSpeedsStayBoundedAndTheStatusSaysSo) {
 }
 
 TEST_F(Ur5e, VelocityLimitsScaleAllJointsTogether) {
-  ArmControllerParams p;
+  ArmControllerOptions p;
   p.max_linear_mps = 100;
   p.max_angular_radps = 100;
   const ArmController c(p);

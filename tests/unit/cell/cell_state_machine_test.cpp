@@ -1,8 +1,8 @@
 // The simulator's state machine on a fake clock: every command in every state, the
 // lockstep and realtime stepping, the watchdog's timing, and the twist checks (issue 9).
-#include "sim/arm/arm_scenario.hpp"
 #include "sim/arm/robot_model.hpp"
-#include "sim/cell/cell_state_machine.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/session/cell_state_machine.hpp"
 
 #include <gtest/gtest.h>
 
@@ -45,7 +45,7 @@ Vector6d vx(double v) {
 struct Fixture : ::testing::Test {
   Scenario scenario = load_scenario(kScenarios + "plane.yaml");
   double dt = scenario.dt_s;
-  std::unique_ptr<CellStateMachine> make(Timing timing, CellParams p = {}) {
+  std::unique_ptr<CellStateMachine> make(Timing timing, CellOptions p = {}) {
     p.timing = timing;
     return std::make_unique<CellStateMachine>(scenario, p);
   }
@@ -89,7 +89,7 @@ TEST_F(Lockstep, SteppingTimeLeavesIdleTimeOutAndLateAnswersAreNotRejections) {
 // load) gets the same teach frame again, with the same index, and the commands behind it wait
 // until it is taught: a new TEACH would render another frame, with other noise.
 TEST_F(Lockstep, AnUntaughtAnswerToTheTeachFrameGetsTheSameFrameAgain) {
-  CellParams p;
+  CellOptions p;
   p.republish_s = 0.5;
   auto m = make(Timing::kLockstep, p);
   m->on_command(cmd(cell_dds::SimCommand::kTeach), 0);
@@ -158,7 +158,7 @@ TEST_F(Lockstep, TeachWithNoServoGivesUpAndKeepsObeyingCommands) {
   m->poll(0);
   m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0.1);
   m->on_command(cmd(cell_dds::SimCommand::kStart), 0.1);
-  CellOutput o = m->poll(CellParams{}.teach_timeout_s + 0.5);  // past the teach timeout
+  CellOutput o = m->poll(CellOptions{}.teach_timeout_s + 0.5);  // past the teach timeout
   bool said = false;
   for (const auto& l : o.log) said |= l.find("teach frame") != std::string::npos;
   EXPECT_TRUE(said);
@@ -248,7 +248,7 @@ TEST_F(Lockstep, AnAnswerWaitsForItsStatusWhateverTheDeliveryOrder) {
 // status of the awaited frame is kept and the step does not wait its grace time; a forged
 // CONVERGED from the future does not end the session.
 TEST_F(Lockstep, StatusesForFramesNotSentYetAreRefusedAndCannotStallAStep) {
-  CellParams p;
+  CellOptions p;
   p.exit_on_converged = true;
   auto m = make(Timing::kLockstep, p);
   m->on_command(cmd(cell_dds::SimCommand::kStep, "", 3), 0);
@@ -288,7 +288,7 @@ TEST_F(Lockstep, RefusalsAreSaidBoundedEscapedAndCounted) {
 }
 
 TEST_F(Lockstep, UnansweredFrameIsSentAgain) {
-  CellParams p;
+  CellOptions p;
   p.republish_s = 1.0;
   auto m = make(Timing::kLockstep, p);
   m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
@@ -353,13 +353,13 @@ TEST_F(Lockstep, MotionOutOfTheWorkspaceIsNotMade) {
 
 // item 12: a CONVERGED status ends the session only when the camera is at the goal
 TEST_F(Lockstep, ConvergedIsCheckedAgainstTheTruePose) {
-  CellParams p;
+  CellOptions p;
   p.exit_on_converged = true;
   auto m = make(Timing::kLockstep, p);
   m->on_command(cmd(cell_dds::SimCommand::kReset, "initial"), 0);
   m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   m->poll(0);
-  m->on_servo_status(status_for(0, dt, kServoConverged), 0);
+  m->on_servo_status(status_for(0, dt, cell_dds::to_wire(cell_dds::ServoState::kConverged)), 0);
   CellOutput o = m->poll(0.01);
   EXPECT_FALSE(o.done);
   bool said = false;
@@ -369,7 +369,7 @@ TEST_F(Lockstep, ConvergedIsCheckedAgainstTheTruePose) {
   auto at_goal = make(Timing::kLockstep, p);
   at_goal->on_command(cmd(cell_dds::SimCommand::kStart), 0);
   at_goal->poll(0);
-  at_goal->on_servo_status(status_for(0, dt, kServoConverged), 0);
+  at_goal->on_servo_status(status_for(0, dt, cell_dds::to_wire(cell_dds::ServoState::kConverged)), 0);
   at_goal->on_twist(twist_for(0, dt, Vector6d::Zero()), 0);
   EXPECT_TRUE(at_goal->poll(0.01).done);
 }
@@ -393,7 +393,7 @@ TEST_F(Realtime, FramesAtTheCameraRateAndNoMotionWhenIdle) {
 
 // item 17: the watchdog stops the robot at its deadline, not at the next frame tick
 TEST_F(Realtime, WatchdogStopsTheRobotAtItsDeadline) {
-  CellParams p;
+  CellOptions p;
   p.watchdog_s = 0.1;
   auto m = make(Timing::kRealtime, p);
   m->on_command(cmd(cell_dds::SimCommand::kStart), 0);
@@ -504,7 +504,7 @@ namespace {
 
 TEST(LockstepArm, ACollisionStopsTheArmAndTheStatusAndTraceSayWhy) {
   const auto cell = build_cell(load_scenario(kScenarios + "ham.yaml"));
-  CellParams p;
+  CellOptions p;
   p.timing = Timing::kLockstep;
   CellStateMachine m(cell->scenario, p, make_robot(*cell));
   const double dt = cell->scenario.dt_s;

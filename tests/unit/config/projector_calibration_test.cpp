@@ -1,6 +1,6 @@
 // The projector calibration file: what write_projector_calibration writes,
 // load_projector_calibration reads back, and a broken file is one line naming it.
-#include "servo/config/projector_calibration.hpp"
+#include "servo/calibration/projector_calibration.hpp"
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,7 @@ std::string temp_file(const char* name) {
 }
 
 TEST(ProjectorCalibration, WhatIsWrittenIsReadBack) {
-  control::ProjectorModel m;
+  calibration::ProjectorModel m;
   m.fx = 1512.25, m.fy = 1498.5, m.cx = 510.75, m.cy = 384.125;
   m.spot_pitch_px = 14.5;
   m.rows = 20, m.cols = 20;
@@ -24,8 +24,8 @@ TEST(ProjectorCalibration, WhatIsWrittenIsReadBack) {
   m.world_T_projector.translation() = Eigen::Vector3d(0.4, -0.2, 1.1);
   m.world_T_projector.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
   const std::string f = temp_file("projector_calibration.yaml");
-  servo::write_projector_calibration(m, f, "written by a test");
-  const control::ProjectorModel r = servo::load_projector_calibration(f);
+  calibration::write_projector_calibration(m, f, "written by a test");
+  const calibration::ProjectorModel r = calibration::load_projector_calibration(f);
   EXPECT_DOUBLE_EQ(r.fx, m.fx);
   EXPECT_DOUBLE_EQ(r.fy, m.fy);
   EXPECT_DOUBLE_EQ(r.cx, m.cx);
@@ -43,7 +43,7 @@ TEST(ProjectorCalibration, WhatIsWrittenIsReadBack) {
 
 TEST(ProjectorCalibration, AFolderThatCannotBeWrittenIsNamed) {
   try {
-    servo::write_projector_calibration({}, "/proc/no/such/folder/p.yaml", "x");
+    calibration::write_projector_calibration({}, "/proc/no/such/folder/p.yaml", "x");
     FAIL() << "no error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/proc/no/such/folder/p.yaml"), std::string::npos) << e.what();

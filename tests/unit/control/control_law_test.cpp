@@ -6,7 +6,7 @@
 #include <cmath>
 #include <random>
 
-#include "servo/control/camera_intrinsics.hpp"
+#include "servo/calibration/camera_intrinsics.hpp"
 #include "servo/control/interaction_matrix.hpp"
 #include "servo/control/triangulation.hpp"
 
@@ -72,7 +72,7 @@ TEST(ControlLaw, ZeroTwistAtTheGoal) {
   const auto pts = scene_points(50, 2);
   for (auto model : {InteractionModel::kDesiredConstantDepth, InteractionModel::kDesired, InteractionModel::kCurrent,
                      InteractionModel::kMean}) {
-    ControlLawParams p;
+    ControlLawOptions p;
     p.model = model;
     const ControlOutput out = compute_control(matched(pts, pts), p);
     EXPECT_EQ(out.status, ControlStatus::kConverged) << to_string(model);
@@ -87,7 +87,7 @@ TEST(ControlLaw, ExactCurrentModelDecaysExponentiallyAtRateLambda) {
   Vector6d offset;
   offset << 0.01, -0.008, 0.015, 0.01, -0.012, 0.008;  // a small displacement
   std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
-  ControlLawParams p;
+  ControlLawOptions p;
   p.model = InteractionModel::kCurrent;
   p.gain = {0.7, 0.7, 0};
   p.max_linear_mps = p.max_angular_radps = 10;
@@ -140,7 +140,7 @@ TEST(ControlLaw, RobustLawIgnoresSwappedMatches) {
   Vector6d offset;
   offset << 0.02, -0.01, 0.03, 0.02, -0.015, 0.01;
   const std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
-  ControlLawParams p;
+  ControlLawOptions p;
   p.model = InteractionModel::kCurrent;
   const ControlOutput clean = compute_control(matched(now, goal), p);
   auto wrong = matched(now, goal);
@@ -171,11 +171,11 @@ TEST(ControlLaw, SaturationKeepsTheScrewDirection) {
   Vector6d offset;
   offset << 0.2, -0.1, 0.3, 0.3, -0.2, 0.1;
   const std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
-  ControlLawParams p;
+  ControlLawOptions p;
   p.model = InteractionModel::kDesired;
   p.gain = {2.0, 2.0, 0};
   const ControlOutput free = [&] {
-    ControlLawParams q = p;
+    ControlLawOptions q = p;
     q.max_linear_mps = q.max_angular_radps = 1e9;
     return compute_control(matched(now, goal), q);
   }();
@@ -200,7 +200,7 @@ TEST(ControlLaw, AdaptiveGain) {
 TEST(ControlLaw, SafeStopWithTooFewPoints) {
   const auto pts = scene_points(3, 5);
   auto m = matched(pts, scene_points(3, 6));
-  ControlLawParams p;
+  ControlLawOptions p;
   const ControlOutput out = compute_control(m, p);
   EXPECT_EQ(out.status, ControlStatus::kTooFewPoints);
   EXPECT_EQ(out.twist.norm(), 0.0);
@@ -216,12 +216,12 @@ TEST(ControlLaw, NonFiniteInputIsRejectedNamingThePoint) {
   auto m = matched(scene_points(10, 7), scene_points(10, 8));
   m[4].x = std::nan("");
   try {
-    compute_control(m, ControlLawParams{});
+    compute_control(m, ControlLawOptions{});
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("(0, 4)"), std::string::npos) << e.what();
   }
-  ControlLawParams bad;
+  ControlLawOptions bad;
   bad.z_hat_m = -1;
   EXPECT_THROW(compute_control(matched(scene_points(10, 7), scene_points(10, 8)), bad), std::invalid_argument);
 }
@@ -263,7 +263,7 @@ TEST(MatchFeatures, OnlySpotsSeenInBoth) {
 }
 
 TEST(Triangulation, RecoversTheDepthOfALitPoint) {
-  ProjectorModel proj;
+  calibration::ProjectorModel proj;
   proj.world_T_projector.translation() = Eigen::Vector3d(0.6, -0.2, 0.1);
   proj.world_T_projector.linear() = Eigen::AngleAxisd(-0.5, Eigen::Vector3d::UnitY()).toRotationMatrix();
   const Eigen::Isometry3d wTc = Eigen::Isometry3d::Identity();
@@ -276,13 +276,13 @@ TEST(Triangulation, RecoversTheDepthOfALitPoint) {
     EXPECT_NEAR(*z, X.z(), 1e-9);
   }
   // a ray parallel to the baseline cannot be triangulated
-  ProjectorModel same = proj;
+  calibration::ProjectorModel same = proj;
   same.world_T_projector = wTc;
   EXPECT_FALSE(triangulate_depth(Eigen::Vector2d(0, 0), 10, 10, same, wTc).has_value());
 }
 
 TEST(CameraIntrinsics, NormaliseInvertsTheDistortion) {
-  const CameraIntrinsics k{800, 810, 320, 240, {-0.2, 0.05, 0.001, -0.002, 0.01}};
+  const calibration::CameraIntrinsics k{800, 810, 320, 240, {-0.2, 0.05, 0.001, -0.002, 0.01}};
   for (const Eigen::Vector2d& x : {Eigen::Vector2d(0.1, -0.2), Eigen::Vector2d(-0.35, 0.25), Eigen::Vector2d(0, 0)}) {
     const double r2 = x.squaredNorm();
     const auto& d = k.distortion;
@@ -290,7 +290,7 @@ TEST(CameraIntrinsics, NormaliseInvertsTheDistortion) {
     const Eigen::Vector2d xd(x.x() * radial + 2 * d[2] * x.x() * x.y() + d[3] * (r2 + 2 * x.x() * x.x()),
                              x.y() * radial + d[2] * (r2 + 2 * x.y() * x.y()) + 2 * d[3] * x.x() * x.y());
     const Eigen::Vector2d uv(k.fx * xd.x() + k.cx, k.fy * xd.y() + k.cy);
-    EXPECT_LT((normalise(k, uv) - x).norm(), 1e-10);
+    EXPECT_LT((calibration::normalise(k, uv) - x).norm(), 1e-10);
   }
 }
 
@@ -303,7 +303,7 @@ TEST(InteractionModel, ParsesItsNames) {
 TEST(ConditionedSubset, PicksWellSpreadPoints) {
   const auto pts = scene_points(200, 9);
   const auto m = matched(pts, pts);
-  ControlLawParams p;
+  ControlLawOptions p;
   const auto subset = best_conditioned_subset(m, 8, p);
   ASSERT_EQ(subset.size(), 8u);
   const auto cond = [&](const std::vector<MatchedPoint>& s) {

@@ -9,6 +9,7 @@
 
 #include "servo/pattern/pattern_file.hpp"
 #include "servo/vision/spot_decoder.hpp"
+#include "sim/cell/build_cell.hpp"
 #include "sim/render/renderer.hpp"
 #include "support/previous_renderer.hpp"
 

@@ -10,7 +10,8 @@
 
 #include "servo/vision/epipolar.hpp"
 #include "servo/vision/spot_decoder.hpp"
-#include "sim/loop/experiment.hpp"
+#include "sim/cell/build_cell.hpp"
+#include "sim/experiment/experiment.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace {
@@ -18,8 +19,8 @@ namespace {
 std::string scenario(const char* name) { return std::string(CELL_SOURCE_DIR) + "/sim/scenarios/" + name + ".yaml"; }
 
 // what `cellsim calibration` writes, exact, and the scenario's camera
-control::ProjectorModel calibration_of(const sim::Cell& cell) { return cellsim::projector_model_of(cell); }
-control::CameraIntrinsics intrinsics_of(const sim::Cell& cell) { return cellsim::camera_intrinsics_of(cell); }
+calibration::ProjectorModel calibration_of(const sim::Cell& cell) { return experiment::projector_model_of(cell); }
+calibration::CameraIntrinsics intrinsics_of(const sim::Cell& cell) { return experiment::camera_intrinsics_of(cell); }
 
 struct Frame {
   std::unique_ptr<sim::Cell> cell;
@@ -70,15 +71,15 @@ TEST(EpipolarGeometry, TheTrueIdLiesOnItsLineAndItsNeighboursAcrossTheLinesDoNot
 // The camera at the origin looking along +Z; the projector 0.3 m to its side, looking the same way.
 struct SideBySide {
   SideBySide() { p.world_T_projector.translation() = o; }
-  control::ProjectorModel p;
+  calibration::ProjectorModel p;
   Eigen::Vector3d o{0.3, 0, 0};
-  control::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
+  calibration::CameraIntrinsics cam{800, 800, 319.5, 239.5, {0, 0, 0, 0, 0}};
   vision::EpipolarGeometry geometry() const { return {cam, p, Eigen::Isometry3d::Identity(), 3.0}; }
 };
 
 TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
   const SideBySide rig;
-  const control::ProjectorModel& p = rig.p;
+  const calibration::ProjectorModel& p = rig.p;
   const vision::EpipolarGeometry g = rig.geometry();
   const Eigen::Vector3d o = rig.o, b = p.spot_ray(7, 12);
   const auto image_of = [](const Eigen::Vector3d& x) { return Eigen::Vector2d(x.x() / x.z(), x.y() / x.z()); };
@@ -101,7 +102,7 @@ TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
 // at most the tolerance; with fewer than 9 of them, the tolerance.
 TEST(EpipolarGeometry, TheGrownLimitFollowsTheFramesWindowReadResiduals) {
   const SideBySide rig;
-  const control::ProjectorModel& p = rig.p;
+  const calibration::ProjectorModel& p = rig.p;
   const vision::EpipolarGeometry g = rig.geometry();
   const Eigen::Vector3d o = rig.o;
   // spot k: id (5, k) on its line, moved off it across the line by `off_px` camera pixels

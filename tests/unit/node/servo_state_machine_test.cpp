@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "sim/cell/build_cell.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace servo {

@@ -12,7 +12,7 @@ namespace pattern {
 namespace {
 
 TEST(GenerateMArray, PaperPatternHasTheWindowProperty) {
-  GenerationParams p;  // 20 x 20, k = 3, 3 x 3
+  GenerationOptions p;  // 20 x 20, k = 3, 3 x 3
   const GenerationResult r = generate_marray(p);
   ASSERT_TRUE(r.array) << r.failure;
   EXPECT_EQ(r.array->rows, 20);
@@ -26,7 +26,7 @@ TEST(GenerateMArray, PaperPatternHasTheWindowProperty) {
 }
 
 TEST(GenerateMArray, SameSeedSamePatternOtherSeedOtherPattern) {
-  GenerationParams p;
+  GenerationOptions p;
   p.seed = 7;
   const auto a = generate_marray(p);
   const auto b = generate_marray(p);
@@ -38,7 +38,7 @@ TEST(GenerateMArray, SameSeedSamePatternOtherSeedOtherPattern) {
 }
 
 TEST(GenerateMArray, UsesEveryColourRoughlyEvenly) {
-  GenerationParams p;
+  GenerationOptions p;
   const auto r = generate_marray(p);
   ASSERT_TRUE(r.array);
   std::map<int, int> count;
@@ -48,7 +48,7 @@ TEST(GenerateMArray, UsesEveryColourRoughlyEvenly) {
 }
 
 TEST(GenerateMArray, HonoursMinimumHammingDistance) {
-  GenerationParams p;
+  GenerationOptions p;
   p.min_hamming = 2;
   const auto r2 = generate_marray(p);
   ASSERT_TRUE(r2.array) << r2.failure;
@@ -61,7 +61,7 @@ TEST(GenerateMArray, HonoursMinimumHammingDistance) {
 }
 
 TEST(GenerateMArray, Reaches64x64WithThreeColours) {
-  GenerationParams p;
+  GenerationOptions p;
   p.rows = p.cols = 64;
   const auto r = generate_marray(p);
   ASSERT_TRUE(r.array) << r.failure;
@@ -69,7 +69,7 @@ TEST(GenerateMArray, Reaches64x64WithThreeColours) {
 }
 
 TEST(GenerateMArray, ImpossibleRequestFailsAtOnceWithAReason) {
-  GenerationParams p;
+  GenerationOptions p;
   p.rows = p.cols = 200;  // 198^2 = 39204 windows > 3^9 = 19683 codes
   const auto r = generate_marray(p);
   EXPECT_FALSE(r.array);
@@ -77,7 +77,7 @@ TEST(GenerateMArray, ImpossibleRequestFailsAtOnceWithAReason) {
 }
 
 TEST(GenerateMArray, HammingBoundRejectsTooManyWindows) {
-  GenerationParams p;
+  GenerationOptions p;
   p.rows = p.cols = 40;
   p.min_hamming = 5;  // balls of radius 2 hold 163 codes: 38^2 * 163 > 19683
   const auto r = generate_marray(p);
@@ -86,7 +86,7 @@ TEST(GenerateMArray, HammingBoundRejectsTooManyWindows) {
 }
 
 TEST(GenerateMArray, HardRequestStopsWithinItsTimeBudget) {
-  GenerationParams p;
+  GenerationOptions p;
   p.rows = p.cols = 20;
   p.min_hamming = 4;  // passes the sphere-packing bound but is far beyond brute force
   p.time_budget_s = 0.5;
@@ -96,7 +96,7 @@ TEST(GenerateMArray, HardRequestStopsWithinItsTimeBudget) {
 }
 
 TEST(GenerateMArray, MalformedParametersThrowNamingTheValue) {
-  GenerationParams p;
+  GenerationOptions p;
   p.colours = 11;
   EXPECT_THROW(generate_marray(p), std::invalid_argument);
   p = {};
@@ -138,7 +138,7 @@ TEST_P(CommittedPattern, RegeneratesBitForBit) {
   const std::string dir = std::string(CELL_SOURCE_DIR) + "/servo/pattern/data/";
   std::ifstream params(dir + GetParam() + ".params");
   ASSERT_TRUE(params) << "missing parameter file";
-  GenerationParams p;
+  GenerationOptions p;
   std::string key;
   while (params >> key) {
     if (key == "rows:") params >> p.rows;
@@ -195,7 +195,7 @@ TEST(TraceMArray, TwentyByTwentyIsAtDistanceThree) {
   EXPECT_EQ(check_window_property(a, {3, 3}).min_hamming, 3);
   EXPECT_EQ(check_window_property(a, {3, 3}).pairs_at_min, 2145u);
   // too large for the construction: refused with its reason, not a weaker array
-  GenerationParams big;
+  GenerationOptions big;
   big.rows = big.cols = 30;
   big.min_hamming = 3;
   const auto r = generate_marray(big);
@@ -228,7 +228,7 @@ int brute_force_min_hamming(const MArray& a, WindowShape w) {
 // minimum distance the pairwise comparison gave.
 TEST(WindowProperty, MaskedHashingGivesThePairwiseMinimumDistance) {
   for (int h : {1, 2, 3}) {
-    GenerationParams p;
+    GenerationOptions p;
     p.rows = 9;
     p.cols = 11;
     p.colours = 4;
@@ -246,7 +246,7 @@ TEST(WindowProperty, MaskedHashingGivesThePairwiseMinimumDistance) {
 }
 
 TEST(WindowProperty, LargePatternIsCheckedWithoutComparingEveryPair) {
-  GenerationParams p;
+  GenerationOptions p;
   p.rows = 400;
   p.cols = 400;
   p.colours = 4;

@@ -8,7 +8,7 @@ namespace pattern {
 namespace {
 
 TEST(WindowTable, EveryWindowMapsToItsCentre) {
-  const MArray a = *generate_marray(GenerationParams{}).array;
+  const MArray a = *generate_marray(GenerationOptions{}).array;
   const WindowTable table(a, {3, 3});
   EXPECT_EQ(table.size(), 18u * 18u);
   std::uint8_t w[9];
@@ -22,7 +22,7 @@ TEST(WindowTable, EveryWindowMapsToItsCentre) {
 }
 
 TEST(WindowTable, AbsentWindowAndBadSymbolGiveNothing) {
-  const MArray a = *generate_marray(GenerationParams{}).array;
+  const MArray a = *generate_marray(GenerationOptions{}).array;
   const WindowTable table(a, {3, 3});
   int absent = 0;
   for (std::uint64_t code = 0; code < 19683; ++code) absent += !table.find_code(code);

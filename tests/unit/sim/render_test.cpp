@@ -1,3 +1,4 @@
+#include "sim/cell/build_cell.hpp"
 #include "sim/render/renderer.hpp"
 
 #include <gtest/gtest.h>
@@ -62,7 +63,7 @@ Eigen::Vector2d centroid(const cv::Mat& rgb, const Eigen::Vector2d& guess, int r
 }
 
 TEST(Render, PlaneAtDesiredPoseShowsAlmostTheWholeGrid) {
-  const auto cell = build_cell(plane(true));
+  const auto cell = build_cell(sim::resolve(plane(true)));
   const auto truth = compute_truth(*cell, cell->scenario.world_T_desired);
   int visible = 0;
   for (const auto& t : truth) visible += t.visible;
@@ -71,7 +72,7 @@ TEST(Render, PlaneAtDesiredPoseShowsAlmostTheWholeGrid) {
 }
 
 TEST(Render, TruthPositionsAgreeWithAnIndependentProjection) {
-  const auto cell = build_cell(plane(true));
+  const auto cell = build_cell(sim::resolve(plane(true)));
   for (const char* pose : {"desired", "initial", "3 -2 5 4 -6 10"}) {
     const Eigen::Isometry3d wTc = resolve_pose(cell->scenario, pose);
     int checked = 0;
@@ -87,7 +88,7 @@ TEST(Render, TruthPositionsAgreeWithAnIndependentProjection) {
 }
 
 TEST(Render, RenderedCentroidsLieOnTheTruthWithoutNoise) {
-  const auto cell = build_cell(plane(false));
+  const auto cell = build_cell(sim::resolve(plane(false)));
   const Eigen::Isometry3d wTc = cell->scenario.world_T_desired;
   const cv::Mat img = render_image(*cell, wTc, 1);
   double worst = 0;
@@ -105,7 +106,7 @@ TEST(Render, RenderedCentroidsLieOnTheTruthWithoutNoise) {
 }
 
 TEST(Render, SameSeedSameBytesOtherSeedOtherNoise) {
-  const auto cell = build_cell(plane(true));
+  const auto cell = build_cell(sim::resolve(plane(true)));
   const Eigen::Isometry3d wTc = cell->scenario.world_T_initial();
   const cv::Mat a = render_image(*cell, wTc, frame_seed(1, 7));
   const cv::Mat b = render_image(*cell, wTc, frame_seed(1, 7));
@@ -123,9 +124,9 @@ TEST(Render, SpotBehindAnOccluderIsInvisibleAndAbsent) {
   occluder.mesh = std::string(CELL_SOURCE_DIR) + "/meshes/elliptic_cylinder.obj";
   occluder.world_T_object = pose_from_xyz_rxyz(0.85, -0.02, 0.4, 0, 0, 0);
   occluder.albedo = Eigen::Vector3d::Constant(0.5);
-  const auto open_cell = build_cell(s);
+  const auto open_cell = build_cell(sim::resolve(s));
   s.objects.push_back(occluder);
-  const auto blocked_cell = build_cell(s);
+  const auto blocked_cell = build_cell(sim::resolve(s));
   const Eigen::Isometry3d wTc = s.world_T_desired;
   const auto open = compute_truth(*open_cell, wTc);
   const auto blocked = compute_truth(*blocked_cell, wTc);
@@ -378,7 +379,7 @@ TEST(Render, AColouredSurfaceReturnsEachChannelsShareOfTheLight) {
   grey.objects[0].albedo = Eigen::Vector3d::Constant(0.8);
   Scenario coloured = grey;
   coloured.objects[0].albedo = {0.8, 0.4, 0.2};
-  const auto a = build_cell(grey), b = build_cell(coloured);
+  const auto a = build_cell(sim::resolve(grey)), b = build_cell(sim::resolve(coloured));
   const cv::Mat g = render_image(*a, grey.world_T_desired, 1), c = render_image(*b, coloured.world_T_desired, 1);
   std::vector<cv::Mat> gc, cc;
   cv::split(g, gc);
@@ -408,7 +409,7 @@ TEST(Render, APrintedSurfaceReturnsItsTexelTimesTheLight) {
   Scenario blank = printed;
   blank.objects[0].mesh = std::filesystem::path(CELL_SOURCE_DIR) / "meshes/heldout/box.obj";
   blank.objects[0].scale = Eigen::Vector3d(0.30 / 0.26, 0.22 / 0.20, 0.12 / 0.16);  // the printed box's size
-  const auto a = build_cell(printed), b = build_cell(blank);
+  const auto a = build_cell(sim::resolve(printed)), b = build_cell(sim::resolve(blank));
   const World::Object& box = a->world.objects()[0];
   ASSERT_TRUE(box.texture);
   const Eigen::Isometry3d wTc = printed.world_T_desired;

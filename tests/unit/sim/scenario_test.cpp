@@ -1,4 +1,4 @@
-#include "sim/arm/arm_scenario.hpp"
+#include "sim/cell/build_cell.hpp"
 #include "sim/arm/robot_model.hpp"
 #include "sim/scenario/scenario.hpp"
 

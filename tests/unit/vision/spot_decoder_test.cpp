@@ -595,7 +595,7 @@ TEST(Segmentation, ADimSpotIsKeptAFaintWashIsNotAndANoisyImageIsAveraged) {
   ASSERT_EQ(quiet.spots.size(), 1u);
   EXPECT_NEAR(quiet.spots[0].u, 20, 0.05);
   EXPECT_GE(quiet.spots[0].area_px, 9);  // the pixels down to the floor
-  SegmentationParams high = {};
+  SegmentationOptions high = {};
   high.min_threshold = 14;
   EXPECT_LT(segment_spots(rgb, high).spots[0].area_px, quiet.spots[0].area_px);
 
@@ -615,7 +615,7 @@ TEST(Segmentation, ADimSpotIsKeptAFaintWashIsNotAndANoisyImageIsAveraged) {
   noisy.convertTo(sum, CV_16SC3);
   sum += noise;
   sum.convertTo(noisy, CV_8UC3);
-  SegmentationParams raw = {};
+  SegmentationOptions raw = {};
   raw.smoothing = false;
   const Segmentation averaged = segment_spots(noisy), plain = segment_spots(noisy, raw);
   EXPECT_EQ(averaged.spots.size(), 6u);

@@ -1,0 +1,69 @@
+#include "servo/calibration/projector_calibration.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <stdexcept>
+#include <string>
+
+#include "common/strict_yaml.hpp"
+#include "servo/pattern/pattern_file.hpp"
+
+namespace calibration {
+
+calibration::ProjectorModel load_projector_calibration(const std::filesystem::path& file) {
+  using common::Reader;
+  try {
+    const Reader top(file, common::load_yaml_file(file, "projector calibration"));
+    top.only_keys({"fx", "fy", "cx", "cy", "spot_pitch_px", "rows", "cols", "position_m", "orientation_xyzw"});
+    calibration::ProjectorModel m;
+    m.fx = top.at("fx").in_range(1, 1e5);
+    m.fy = top.at("fy").in_range(1, 1e5);
+    m.cx = top.at("cx").in_range(-1e5, 1e5);
+    m.cy = top.at("cy").in_range(-1e5, 1e5);
+    m.spot_pitch_px = top.at("spot_pitch_px").in_range(1e-3, 1e4);
+    m.rows = top.at("rows").integer_in(3, pattern::kMaxPatternSide);
+    m.cols = top.at("cols").integer_in(3, pattern::kMaxPatternSide);
+    const auto p = top.at("position_m").numbers_in<3>(-100, 100);
+    const Reader qr = top.at("orientation_xyzw");
+    const auto q = qr.numbers_in<4>(-1.001, 1.001);
+    const Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
+    // a rotation is a unit quaternion: a zero or scaled one is a broken file, not a rotation
+    if (std::abs(quat.norm() - 1.0) > 1e-3) {
+      char norm[32];
+      std::snprintf(norm, sizeof norm, "%.6g", quat.norm());
+      qr.fail(std::string("must be a unit quaternion [x, y, z, w], its norm is ") + norm);
+    }
+    m.world_T_projector = Eigen::Isometry3d::Identity();
+    m.world_T_projector.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+    m.world_T_projector.linear() = quat.normalized().toRotationMatrix();
+    return m;
+  } catch (const common::ConfigError& e) {
+    throw std::runtime_error(e.what());
+  }
+}
+
+void write_projector_calibration(const calibration::ProjectorModel& m, const std::filesystem::path& file,
+                                 const std::string& comment) {
+  const Eigen::Quaterniond q(m.world_T_projector.rotation());
+  const Eigen::Vector3d t = m.world_T_projector.translation();
+  std::ofstream f(file);
+  if (!f) throw std::runtime_error(file.string() + ": cannot write");
+  f << std::setprecision(12) << "# " << comment << "\n"
+    << "fx: " << m.fx << "\nfy: " << m.fy << "\ncx: " << m.cx << "\ncy: " << m.cy
+    << "\nspot_pitch_px: " << m.spot_pitch_px << "\nrows: " << m.rows << "\ncols: " << m.cols << "\nposition_m: ["
+    << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z()
+    << ", " << q.w() << "]\n";
+  if (!f.flush()) throw std::runtime_error(file.string() + ": cannot write");
+}
+
+void check_projector_against_pattern(const calibration::ProjectorModel& m, const pattern::MArray& marray,
+                                     const std::filesystem::path& pattern_file) {
+  if (m.rows != marray.rows || m.cols != marray.cols)
+    throw std::runtime_error("projector calibration: " + std::to_string(m.rows) + " x " + std::to_string(m.cols) +
+                             " spots, but the pattern " + pattern_file.string() + " is " + std::to_string(marray.rows) +
+                             " x " + std::to_string(marray.cols));
+}
+
+}  // namespace calibration

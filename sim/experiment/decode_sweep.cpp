@@ -1,0 +1,348 @@
+#include "sim/experiment/decode_sweep.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <thread>
+
+#include "servo/vision/overlay.hpp"
+#include "sim/experiment/experiment.hpp"
+
+namespace experiment {
+
+namespace {
+// a decoded blob this close to where some of the named spot's light lands is that light
+constexpr double kPartialPx = 4.0;
+
+struct WrongId {
+  int pose, row, col;
+  double u, v;
+  int nearest_row, nearest_col;
+  double nearest_px;
+  bool named_visible;
+  double named_px;  // from the decoded position to where the named spot's centre projects
+  int step;         // the decoder step that named it (vision::NamedBy)
+};
+
+// All poses drawn up front from one seeded stream: the sweep does not depend on threading.
+std::vector<SweepRow> draw_rows(const sim::Scenario& sc, const SweepOptions& o) {
+  std::array<double, 6> range{};
+  for (int i = 0; i < 3; ++i) {
+    range[i] = o.max_translation_cm.value_or(std::max(2.0, std::abs(sc.initial_translation_cm[i])));
+    range[3 + i] = o.max_rotation_deg.value_or(std::max(2.0, std::abs(sc.initial_rotation_deg[i])));
+  }
+  std::mt19937_64 rng(o.seed);
+  std::vector<SweepRow> rows(static_cast<std::size_t>(o.poses));
+  for (int k = 0; k < o.poses; ++k) {
+    rows[k].pose = k;
+    rows[k].noise_sigma = o.noise_sigmas[static_cast<std::size_t>(k) % o.noise_sigmas.size()];
+    for (int i = 0; i < 6; ++i) rows[k].offset[i] = std::uniform_real_distribution<double>(-range[i], range[i])(rng);
+  }
+  return rows;
+}
+
+// The truth of one frame in pattern terms.
+struct FrameTruth {
+  const std::vector<sim::SpotTruth>& spots;
+  int rows, cols;
+  const sim::SpotTruth& at(int r, int c) const { return spots[static_cast<std::size_t>(r) * cols + c]; }
+  // the spots covered by a 3 x 3 window all of whose spots pass `seen`
+  // (with `one_object`, all nine on the object of the first)
+  template <typename Seen>
+  std::vector<char> in_full_window(Seen seen, bool one_object = false) const {
+    std::vector<char> covered(spots.size(), 0);
+    for (int r0 = 0; r0 + 3 <= rows; ++r0)
+      for (int c0 = 0; c0 + 3 <= cols; ++c0) {
+        bool all = true;
+        for (int i = 0; i < 9 && all; ++i)
+          all = seen(at(r0 + i / 3, c0 + i % 3)) && (!one_object || at(r0 + i / 3, c0 + i % 3).object == at(r0, c0).object);
+        if (!all) continue;
+        for (int i = 0; i < 9; ++i) covered[static_cast<std::size_t>(r0 + i / 3) * cols + c0 + i % 3] = 1;
+      }
+    return covered;
+  }
+};
+
+// Each visible spot whose disc in the image no other visible spot's overlaps: their centres
+// at least the two discs' radii apart (a disc's radius: its farthest rim hit on its object).
+std::vector<char> apart_in_image(const std::vector<sim::SpotTruth>& spots) {
+  std::vector<double> radius(spots.size(), 0);
+  for (std::size_t i = 0; i < spots.size(); ++i)
+    for (const auto& p : spots[i].footprint_px) radius[i] = std::max(radius[i], (p - spots[i].uv).norm());
+  std::vector<std::size_t> visible;
+  for (std::size_t i = 0; i < spots.size(); ++i)
+    if (spots[i].visible) visible.push_back(i);
+  std::vector<char> apart(spots.size(), 0);
+  for (const std::size_t i : visible) {
+    apart[i] = 1;
+    for (std::size_t k = 0; k < visible.size() && apart[i]; ++k) {
+      const std::size_t j = visible[k];
+      if (j != i && (spots[j].uv - spots[i].uv).norm() < radius[i] + radius[j]) apart[i] = 0;
+    }
+  }
+  return apart;
+}
+
+// Inside (or within kPartialPx of) the outline of the named spot's light: a blob cut by an
+// edge has its centroid inside the footprint, far from the centre and the rim.
+bool on_named_light(const sim::SpotTruth& named, double u, double v) {
+  if (named.light_px.empty()) return false;
+  std::vector<cv::Point2f> pts, hull;
+  for (const auto& p : named.light_px) pts.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+  cv::convexHull(pts, hull);
+  return cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(u), static_cast<float>(v)), true) >= -kPartialPx;
+}
+
+// Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong.
+// Returns which spots were named right; the wrong ones are appended to `wrong`.
+std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, double tolerance_px,
+                            std::vector<WrongId>& wrong) {
+  std::vector<char> right(truth.spots.size(), 0);
+  for (const auto& d : r.decoded) {
+    const sim::SpotTruth* nearest = nullptr;
+    double best = 1e18;
+    for (const auto& t : truth.spots) {
+      if (!t.visible) continue;
+      const double dist = std::hypot(t.uv.x() - d.u, t.uv.y() - d.v);
+      if (dist < best) best = dist, nearest = &t;
+    }
+    const sim::SpotTruth& named = truth.at(d.row, d.col);
+    const bool nearest_is_named = nearest && nearest->row == d.row && nearest->col == d.col;
+    if (!nearest_is_named && on_named_light(named, d.u, d.v)) {
+      ++row.partial;
+    } else if (!nearest_is_named) {
+      ++row.wrong;
+      wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
+                       nearest ? best : -1, named.visible, std::hypot(named.uv.x() - d.u, named.uv.y() - d.v), static_cast<int>(d.by)});
+    } else if (best > tolerance_px) {
+      ++row.mislocated;
+    } else {
+      ++row.correct;
+      right[static_cast<std::size_t>(d.row) * truth.cols + d.col] = 1;
+    }
+  }
+  return right;
+}
+
+// Where the readable spots are lost: segmented as a blob of their colour, all four links
+// right, the whole window right after the graph check.
+void loss_funnel(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, const pattern::MArray& pattern,
+                 const std::vector<char>& readable, double tolerance_px) {
+  const int cols = truth.cols, rows_n = truth.rows;
+  // each detected blob's true id (the visible spot within the tolerance)
+  std::vector<int> blob_of(truth.spots.size(), -1);
+  for (std::size_t b = 0; b < r.detected.size(); ++b) {
+    double best = tolerance_px;
+    int id = -1;
+    for (std::size_t i = 0; i < truth.spots.size(); ++i) {
+      if (!truth.spots[i].visible) continue;
+      const double dist = std::hypot(truth.spots[i].uv.x() - r.detected[b].u, truth.spots[i].uv.y() - r.detected[b].v);
+      if (dist < best) best = dist, id = static_cast<int>(i);
+    }
+    if (id >= 0 && pattern.at(id / cols, id % cols) == r.detected[b].colour) blob_of[id] = static_cast<int>(b);
+  }
+  const auto truth_blob = [&](int rr, int cc) {
+    return rr < 0 || cc < 0 || rr >= rows_n || cc >= cols ? -2 : blob_of[static_cast<std::size_t>(rr) * cols + cc];
+  };
+  for (std::size_t i = 0; i < truth.spots.size(); ++i) {
+    if (!readable[i] || blob_of[i] < 0) continue;
+    ++row.readable_segmented;
+    const int pr = static_cast<int>(i) / cols, pc = static_cast<int>(i) % cols;
+    // image directions against pattern directions: east = +col, south = +row
+    const int dr[4] = {0, 1, 0, -1}, dc[4] = {1, 0, -1, 0};
+    bool linked = true;
+    for (int k = 0; k < 4 && linked; ++k) {
+      const int want = truth_blob(pr + dr[k], pc + dc[k]);
+      if (want != -2) linked = r.graph.next[blob_of[i]][k] == want && want >= 0;
+    }
+    row.readable_linked += linked;
+    bool windowed = true;
+    for (int w = 0; w < 9 && windowed; ++w) {
+      const int want = truth_blob(pr + w / 3 - 1, pc + w % 3 - 1);
+      if (want != -2) windowed = r.hoods.window[blob_of[i]][w] == want && want >= 0;
+    }
+    row.readable_windowed += windowed;
+  }
+}
+
+// The rows' totals and mean rates, and the decode time's median and 99th percentile.
+SweepSummary summarize(const std::vector<SweepRow>& rows) {
+  SweepSummary s;
+  s.rows = rows;
+  std::vector<double> ms;
+  double rate_sum = 0, decodable_rate_sum = 0, readable_rate_sum = 0, one_object_rate_sum = 0, apart_rate_sum = 0;
+  int rated = 0, rated_decodable = 0, rated_readable = 0, rated_one_object = 0, rated_apart = 0;
+  for (const auto& r : rows) {
+    s.total_decodable += r.decodable;
+    s.total_correct += r.correct;
+    s.total_correct_decodable += r.correct_decodable;
+    s.total_resolved += r.resolved;
+    s.total_readable += r.readable;
+    s.total_correct_readable += r.correct_readable;
+    s.total_readable_segmented += r.readable_segmented;
+    s.total_readable_linked += r.readable_linked;
+    s.total_readable_windowed += r.readable_windowed;
+    if (r.readable > 0) {
+      readable_rate_sum += static_cast<double>(r.correct_readable) / r.readable;
+      ++rated_readable;
+    }
+    s.total_readable_apart += r.readable_apart;
+    s.total_correct_readable_apart += r.correct_readable_apart;
+    if (r.readable_apart > 0) {
+      apart_rate_sum += static_cast<double>(r.correct_readable_apart) / r.readable_apart;
+      ++rated_apart;
+    }
+    s.total_readable_one_object += r.readable_one_object;
+    s.total_correct_readable_one_object += r.correct_readable_one_object;
+    if (r.readable_one_object > 0) {
+      one_object_rate_sum += static_cast<double>(r.correct_readable_one_object) / r.readable_one_object;
+      ++rated_one_object;
+    }
+    if (r.decodable > 0) {
+      decodable_rate_sum += static_cast<double>(r.correct_decodable) / r.decodable;
+      ++rated_decodable;
+    }
+    s.total_decoded += r.decoded;
+    s.total_wrong += r.wrong;
+    s.total_mislocated += r.mislocated;
+    s.total_partial += r.partial;
+    s.total_visible += r.visible;
+    ms.push_back(r.decode_ms);
+    if (r.visible > 0) {
+      const double rate = static_cast<double>(r.correct) / r.visible;
+      rate_sum += rate;
+      s.min_rate = std::min(s.min_rate, rate);
+      ++rated;
+    }
+  }
+  s.mean_rate = rated ? rate_sum / rated : 0;
+  s.mean_decodable_rate = rated_decodable ? decodable_rate_sum / rated_decodable : 0;
+  s.mean_readable_rate = rated_readable ? readable_rate_sum / rated_readable : 0;
+  s.mean_readable_one_object_rate = rated_one_object ? one_object_rate_sum / rated_one_object : 0;
+  s.mean_readable_apart_rate = rated_apart ? apart_rate_sum / rated_apart : 0;
+  std::sort(ms.begin(), ms.end());
+  if (!ms.empty()) {
+    s.median_ms = ms[ms.size() / 2];
+    s.p99_ms = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
+  }
+  return s;
+}
+
+// every wrong id, to look at: what was named, what is there
+void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
+  std::sort(wrong.begin(), wrong.end(), [](const WrongId& a, const WrongId& b) { return a.pose < b.pose; });
+  std::ofstream w(file);
+  w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step\n";
+  for (const WrongId& x : wrong)
+    w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
+      << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << ',' << x.step << '\n';
+}
+
+void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {
+  std::ofstream csv(file);
+  csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
+         "partial,"
+         "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
+         "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart\n";
+  for (const auto& r : rows) {
+    csv << r.pose << ',' << r.noise_sigma;
+    for (double x : r.offset) csv << ',' << x;
+    csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
+        << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
+        << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
+        << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
+        << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart << '\n';
+  }
+}
+
+// the first frames with a wrong id, drawn and as rendered (to decode again)
+void write_failure_images(const cv::Mat& img, const vision::DecodeResult& r, int pose, const std::filesystem::path& dir) {
+  cv::Mat bgr;
+  cv::cvtColor(vision::draw_overlay(img, r), bgr, cv::COLOR_RGB2BGR);
+  cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + ".png")).string(), bgr);
+  cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);
+  cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + "_frame.png")).string(), bgr);
+}
+
+}  // namespace
+
+SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
+  const sim::Scenario& sc = cell.scenario;
+  std::vector<SweepRow> rows = draw_rows(sc, o);
+  const calibration::CameraIntrinsics camera = camera_intrinsics_of(cell);
+  const pattern::MArray& pattern = cell.projector->pattern();
+  std::atomic<int> next{0};
+  std::mutex io;
+  std::vector<WrongId> wrong_ids;
+  int failure_images = 0;
+  const auto work = [&] {
+    sim::RenderScratch scratch;
+    scratch.threads = 1;  // the sweep's own threads share the cores
+    // a decoder per thread (decoding is const and thread-safe, but cheap to own)
+    const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), o.decoder);
+    std::vector<WrongId> wrong;
+    for (int k; (k = next++) < o.poses;) {
+      SweepRow& row = rows[k];
+      const Eigen::Isometry3d wTc = sim::offset_pose(sc.world_T_desired, {row.offset[0], row.offset[1], row.offset[2]},
+                                                     {row.offset[3], row.offset[4], row.offset[5]},
+                                                     sc.offset_frame_rotation_deg);
+      sim::CameraSpec sensor = sc.camera;
+      sensor.noise_sigma = row.noise_sigma;
+      cv::Mat img = sim::render_image(cell, wTc, sim::frame_seed(o.seed, static_cast<std::uint64_t>(k)), &scratch,
+                                      &sensor);
+      const auto spots = sim::compute_truth(cell, wTc);
+      const auto t0 = std::chrono::steady_clock::now();
+      std::optional<vision::EpipolarGeometry> geometry;
+      if (o.projector) geometry.emplace(camera, *o.projector, wTc, o.decoder.epipolar.tolerance_px);
+      const vision::DecodeResult r = decoder.decode(img, geometry ? &*geometry : nullptr);
+      row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+
+      const FrameTruth truth{spots, pattern.rows, pattern.cols};
+      for (const auto& t : spots) row.visible += t.visible;
+      for (const auto& t : spots) row.resolved += t.resolved;
+      // decodable: covered by a fully visible 3 x 3 window; readable: by a fully resolved one
+      const std::vector<char> decodable = truth.in_full_window([](const sim::SpotTruth& t) { return t.visible; });
+      const std::vector<char> readable = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
+      const std::vector<char> one_object = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; }, true);
+      const std::vector<char> apart = apart_in_image(spots);
+      row.detected = static_cast<int>(r.detected.size());
+      row.decoded = static_cast<int>(r.decoded.size());
+      wrong.clear();
+      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, wrong);
+      loss_funnel(row, r, truth, pattern, readable, o.match_tolerance_px);
+      for (std::size_t i = 0; i < spots.size(); ++i) {
+        row.decodable += decodable[i];
+        row.correct_decodable += decodable[i] && right[i];
+        row.readable += readable[i];
+        row.correct_readable += readable[i] && right[i];
+        row.readable_one_object += one_object[i];
+        row.correct_readable_one_object += one_object[i] && right[i];
+        row.readable_apart += readable[i] && apart[i];
+        row.correct_readable_apart += readable[i] && apart[i] && right[i];
+      }
+      if (row.wrong == 0) continue;
+      std::lock_guard<std::mutex> lock(io);
+      wrong_ids.insert(wrong_ids.end(), wrong.begin(), wrong.end());
+      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(img, r, k, o.out_dir);
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
+  work();
+  for (auto& t : threads) t.join();
+
+  SweepSummary s = summarize(rows);
+  if (!o.out_dir.empty()) {
+    write_wrong_ids(wrong_ids, o.out_dir / "wrong_ids.csv");
+    write_sweep_csv(rows, o.out_dir / "sweep.csv");
+  }
+  return s;
+}
+
+}  // namespace experiment

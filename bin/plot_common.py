@@ -16,9 +16,10 @@ def dir_and_title():
     return ap.parse_args()
 
 
-def save(fig, path, dpi=110, top=1.0):
+def save(fig, path, dpi=110, top=1.0, bottom=0.0):
     """Lays the figure out (leaving `top` of its height to the panels: a suptitle above them
-    is not cut) and writes it."""
-    fig.tight_layout(rect=(0, 0, 1, top))
+    is not cut; and the panels above `bottom`: a figure legend below them is not covered) and
+    writes it."""
+    fig.tight_layout(rect=(0, bottom, 1, top))
     fig.savefig(path, dpi=dpi)
     plt.close(fig)

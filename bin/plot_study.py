@@ -56,15 +56,21 @@ def one_axis(rows, axis, models, title, out):
     x_key = "depth_spread_m" if axis.startswith("object_") else axis
     x_label = "depth spread at the desired pose (m)" if x_key == "depth_spread_m" else label(axis)
     fig, axes = plt.subplots(1, 4, figsize=(17, 3.8), sharex=True)
-    for m in models:
+    # models that give the same value draw on one another: each its own marker, a smaller one
+    # drawn over a larger, hollow one, and its own line style, so every model stays visible
+    looks = [dict(marker=mk, markersize=ms, linestyle=ls, fillstyle=fs)
+             for mk, ms, ls, fs in (("o", 11, "-", "none"), ("s", 8, "--", "none"), ("^", 6, "-.", "full"),
+                                    ("D", 4, ":", "full"))]
+    for i, m in enumerate(models):
         rs = sorted((r for r in rows if r["model"] == m), key=lambda r: number(r[x_key]))
         x = [number(r[x_key]) for r in rs]
-        axes[0].plot(x, [number(r["converged_pct"]) for r in rs], "o-", label=m)
-        axes[1].plot(x, [number(r["median_iterations"]) for r in rs], "o-", label=m)
-        axes[2].plot(x, [number(r["median_translation_mm"]) for r in rs], "o-", label=m)
-        axes[3].plot(x, [number(r["median_error_rise"]) for r in rs], "o-", label=m)
-    for ax, y in zip(axes, ("converged (%)", "median iterations (converged runs)",
-                            "median final pose error (mm, converged runs)", "median rise of |e| / |e0|")):
+        look = looks[i % len(looks)]
+        axes[0].plot(x, [number(r["converged_pct"]) for r in rs], label=m, **look)
+        axes[1].plot(x, [number(r["median_iterations"]) for r in rs], label=m, **look)
+        axes[2].plot(x, [number(r["median_translation_mm"]) for r in rs], label=m, **look)
+        axes[3].plot(x, [number(r["median_error_rise"]) for r in rs], label=m, **look)
+    for ax, y in zip(axes, ("converged (%)", "iterations (median, converged)",
+                            "final error (mm, median, converged)", "rise of |e| / |e0| (median)")):
         ax.set_xlabel(x_label)
         ax.set_ylabel(y)
         ax.grid(True, alpha=0.3)
@@ -74,10 +80,12 @@ def one_axis(rows, axis, models, title, out):
             ax.text(0.5, 0.5, "no run converged", transform=ax.transAxes, ha="center", va="center", color="0.4")
             ax.set_yticks([])
     axes[0].set_ylim(-5, 105)
-    axes[0].legend(fontsize=8)
+    # the models' legend below the panels: inside one it covered the lines
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9, frameon=False)
     if title:
         fig.suptitle(title, fontsize=11)
-    save(fig, out, top=0.9 if title else 1.0)
+    save(fig, out, top=0.9 if title else 1.0, bottom=0.1)
 
 
 def two_axes(rows, axes_names, models, title, out):

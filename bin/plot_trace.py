@@ -1,6 +1,8 @@
 #!/usr/bin/python3
 """Plots an experiment's trace.csv like the paper's Fig. 4c-d / 5d-i:
 velocities.png (camera velocities vs time) and error_norm.png (norm of the task function);
+with decoded features, fig4.png: the initial and desired images with their decoded ids beside
+the velocities and |e|, the paper's Fig. 4 in one picture;
 with an arm, occlusion.png from occlusion.csv (spots the arm hides or catches, per frame);
 with the robust law, weights.png from features.jsonl (genuine and swapped matches).
 Usage: plot_trace.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
@@ -80,6 +82,43 @@ def plot_weights(directory, title):
     save(fig, os.path.join(directory, "weights.png"))
 
 
+def plot_fig4(directory, title, t):
+    """The paper's Fig. 4 in one picture: a) the initial image, b) the desired one, each with the
+    ids decoded in it (initial.png, desired.png, written by the experiment), c) the camera's
+    velocities, translation and rotation on axes of their own, d) |e|."""
+    images = [os.path.join(directory, n) for n in ("initial.png", "desired.png")]
+    if not all(os.path.exists(p) for p in images):
+        return
+    fig = plt.figure(figsize=(12, 9.5))
+    grid = fig.add_gridspec(3, 2, height_ratios=(1.5, 0.75, 0.75))
+    for k, (path, what) in enumerate(zip(images, ("a) initial image", "b) desired image"))):
+        ax = fig.add_subplot(grid[0, k])
+        ax.imshow(plt.imread(path))
+        ax.set_title(f"{what}, decoded ids", fontsize=10)
+        ax.set_axis_off()
+    for row, keys, unit in ((1, ("vx", "vy", "vz"), "m/s"), (2, ("wx", "wy", "wz"), "rad/s")):
+        ax = fig.add_subplot(grid[row, 0])
+        for key, colour in zip(keys, ("tab:red", "tab:green", "tab:blue")):
+            ax.plot(t["t"], t[key], color=colour, label=key)
+        ax.set_ylabel(f"{'translation' if unit == 'm/s' else 'rotation'} ({unit})")
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=3, fontsize=8, loc="upper right")
+        if row == 1:
+            ax.set_title("c) camera velocities", fontsize=10)
+        else:
+            ax.set_xlabel("time (s)")
+    ax = fig.add_subplot(grid[1:, 1])
+    ax.plot(t["t"], t["error_norm"], color="k")
+    ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("|e| (normalised image coordinates)")
+    ax.set_title("d) norm of the task function", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    save(fig, os.path.join(directory, "fig4.png"), top=0.95 if title else 1.0)
+
+
 def main():
     args = dir_and_title()
     trace = os.path.join(args.dir, "trace.csv")
@@ -107,6 +146,7 @@ def main():
     ax.set_title(f"{args.title}: norm of the task function" if args.title else "norm of the task function")
     ax.grid(True, which="both", alpha=0.3)
     save(fig, os.path.join(args.dir, "error_norm.png"))
+    plot_fig4(args.dir, args.title, t)
     plot_occlusion(args.dir, args.title, t)
     plot_weights(args.dir, args.title)
 

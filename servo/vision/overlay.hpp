@@ -2,13 +2,15 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <optional>
 
 #include "servo/vision/spot_decoder.hpp"
 
 namespace vision {
 
-// Returns an RGB8 copy of `rgb` with detected spots ringed in grey and decoded spots ringed
-// in white and labelled "row,col".
+// Returns an RGB8 copy of `rgb`, twice its size, with detected spots ringed in grey and decoded
+// spots ringed in white and labelled "row,col" where a label has room (a ring without a label:
+// the id is in `servo decode --json`).
 cv::Mat draw_overlay(const cv::Mat& rgb, const DecodeResult& result);
 
 }  // namespace vision

@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sim/app/experiment_recording.hpp"
+#include "sim/app/live_bridge.hpp"
 #include "dds/cli_flags.hpp"
 #include "common/cli_numbers.hpp"
 #include "servo/calibration/projector_calibration.hpp"
@@ -85,6 +86,29 @@ struct ScenarioArg {
   }
 };
 
+// An observer's view is a picture of the cell for a person, not a frame for the servo: lit by the
+// ambient light alone (a twentieth of the projector's), the arm and the walls came out nearly
+// black. It is rendered again with the camera's exposure raised (at most 16 times) so that its
+// brightest 1 % reaches 230 of 255: the same scene and noise draw, a readable picture.
+cv::Mat exposed_for_observer(const sim::Cell& cell, const Eigen::Isometry3d& view, std::uint64_t seed,
+                             const sim::LinkPoses& links, const cv::Mat& first) {
+  std::vector<std::uint8_t> values;
+  values.reserve(first.total());
+  for (int r = 0; r < first.rows; ++r)
+    for (int c = 0; c < first.cols; ++c) {
+      const cv::Vec3b& p = first.at<cv::Vec3b>(r, c);
+      values.push_back(std::max({p[0], p[1], p[2]}));
+    }
+  auto at = values.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(values.size()));
+  std::nth_element(values.begin(), at, values.end());
+  const double gain = std::clamp(230.0 / std::max<double>(*at, 1.0), 1.0, 16.0);
+  if (gain <= 1.0) return first;
+  sim::CameraSpec sensor = cell.scenario.camera;
+  sensor.exposure *= gain;
+  std::printf("observer view: exposure x%.1f (its brightest 1 %% at 230 of 255)\n", gain);
+  return sim::render_image(cell, view, seed, nullptr, &sensor, &links);
+}
+
 int run_render(const ScenarioArg& scenario_arg, const std::string& pose_spec, const std::string& out_png,
                const std::string& truth_file, std::uint64_t frame, const std::vector<double>& observer) {
   const sim::ResolvedScenario scenario = scenario_arg.load();
@@ -104,7 +128,8 @@ int run_render(const ScenarioArg& scenario_arg, const std::string& pose_spec, co
     if ((target - eye).norm() < 1e-6) throw std::invalid_argument("--observer: the eye and the target coincide");
     view = sim::look_at(eye, target, Eigen::Vector3d::UnitZ());
   }
-  const cv::Mat image = sim::render_image(*cell, view, sim::frame_seed(scenario.seed, frame), nullptr, nullptr, &links);
+  cv::Mat image = sim::render_image(*cell, view, sim::frame_seed(scenario.seed, frame), nullptr, nullptr, &links);
+  if (observer.size() == 6) image = exposed_for_observer(*cell, view, sim::frame_seed(scenario.seed, frame), links, image);
   write_png_rgb(out_png, image);
   const auto truth = sim::compute_truth(*cell, wTc, &links);
   int visible = 0;
@@ -374,6 +399,8 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
     const bool plotted = plot && experiment::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
     std::printf("  trace: %s/trace.csv, features: %s/features.jsonl", out_dir.c_str(), out_dir.c_str());
     if (plotted) std::printf(", plots: %s/velocities.png %s/error_norm.png", out_dir.c_str(), out_dir.c_str());
+    if (plotted && std::filesystem::exists(std::filesystem::path(out_dir) / "fig4.png"))
+      std::printf(" %s/fig4.png", out_dir.c_str());
     std::printf("\n");
   }
   if (recording) std::printf("  recorded %s\n", recording->close().c_str());
@@ -700,6 +727,25 @@ struct ServeCommand {
   }
 };
 
+// `cellsim bridge`: the cell's topics live in Foxglove (docs/topics.md, Live view)
+struct BridgeCommand {
+  cellsim::BridgeOptions o;
+  cell_dds::DdsFlags dds;
+  CLI::App* add(CLI::App& app) {
+    auto* c = app.add_subcommand("bridge", "serve the cell's topics live to Foxglove (its WebSocket protocol, loopback)");
+    dds.add_to(*c);
+    c->add_option("--port", o.port, "TCP port on 127.0.0.1 (0: a free one, printed)")->capture_default_str();
+    c->add_option("--seconds", o.seconds, "stop after this long (default: until Ctrl-C)");
+    return c;
+  }
+  int run() {
+    common::require_within("--port", o.port, 0, 65535);
+    common::require_within("--seconds", o.seconds, 0, 1e7);
+    dds.apply_to(o);
+    return cellsim::run_bridge(o);
+  }
+};
+
 struct CalibrationCommand {
   ScenarioArg scenario;
   std::string out;
@@ -746,6 +792,7 @@ int main(int argc, char** argv) {
   CampaignCommand campaign;
   StudyCommand study;
   ServeCommand serve;
+  BridgeCommand bridge;
   CalibrationCommand calibration;
   const common::Subcommands commands = {
       {render.add(app), [&] { return render.run(); }},
@@ -755,6 +802,7 @@ int main(int argc, char** argv) {
       {campaign.add(app), [&] { return campaign.run(); }},
       {study.add(app), [&] { return study.run(); }},
       {serve.add(app), [&] { return serve.run(); }},
+      {bridge.add(app), [&] { return bridge.run(); }},
       {calibration.add(app), [&] { return calibration.run(); }},
   };
   common::require_finite_numbers(app);

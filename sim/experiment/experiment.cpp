@@ -20,7 +20,11 @@
 #include <random>
 #include <stdexcept>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "protocol/sim_command.hpp"
+#include "servo/vision/overlay.hpp"
 #include "sim/session/cell_state_machine.hpp"
 #include "sim/session/trace.hpp"
 #include "sim/robot/robot.hpp"
@@ -283,6 +287,7 @@ class Experiment {
     loop_.command({static_cast<int>(cell_dds::SimCommand::kStart), "", 0, std::nullopt});
     started_ = true;
     if (o_.out_dir.empty()) return true;
+    write_overlay(x, "desired.png");
     write_scene(cell_, scenario().world_T_desired, initial_, o_.out_dir / "scene.json");
     if (o_.write_features) {
       features_.open(o_.out_dir / "features.jsonl");
@@ -294,9 +299,23 @@ class Experiment {
     return true;
   }
 
+  // The frame's image with the ids the servo decoded in it (the paper's Fig. 4a-b; plot_trace.py
+  // puts them beside the velocities and |e| in fig4.png). Only for decoded features: ideal ones
+  // are the simulator's truth, not read from an image.
+  void write_overlay(const loop::LoopExchange& x, const char* name) const {
+    if (o_.out_dir.empty() || x.image.empty() || o_.source != loop::FeatureSource::kDecoded || !x.reply.spots) return;
+    vision::DecodeResult r;
+    for (const servo::ImageSpot& s : *x.reply.spots) r.decoded.push_back({s.row, s.col, s.u, s.v, 0});
+    cv::Mat bgr;
+    cv::cvtColor(vision::draw_overlay(x.image, r), bgr, cv::COLOR_RGB2BGR);
+    const std::filesystem::path file = o_.out_dir / name;
+    if (!cv::imwrite(file.string(), bgr)) throw std::runtime_error(file.string() + ": cannot write");
+  }
+
   // An applied frame: what the law did, for the trace, features.jsonl and occlusion.csv.
   void stepped(const loop::LoopExchange& x) {
     if (k_ == 0) res_.decoded_initial = static_cast<int>(x.reply.decoded);
+    if (k_ == 0) write_overlay(x, "initial.png");
     step_extras_.emplace_back(x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped);
     if (occlusion_.is_open()) {
       // the truth of the arm's occlusion: spots it hides from the camera, spots it catches

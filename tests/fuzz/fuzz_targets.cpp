@@ -15,6 +15,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "foxglove/websocket.hpp"
 #include "mcap/mcap_reader.hpp"
 #include "cell_msgsPubSubTypes.h"
 #include "geometry_msgsPubSubTypes.h"
@@ -489,6 +490,38 @@ struct CdrTarget : Target {
 
 // A recording (issue 21): framing, chunks, CRCs, schemas and channels, and each message
 // decoded as its topic's type, as servo replay decodes it.
+// What a live viewer sends `cellsim bridge`: its opening request and its frames (foxglove/
+// websocket.hpp), mutated, fed in random pieces; a frame reader never holds more than a frame.
+struct WebsocketTarget : Target {
+  std::string request = "GET / HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                        "Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n\r\n";
+  std::string frames = [] {
+    std::string f;
+    for (const std::string& p : {std::string("{\"op\":\"subscribe\",\"subscriptions\":[{\"id\":1,\"channelId\":1}]}"),
+                                 std::string(300, 'x'), std::string("ping")}) {
+      f.push_back(static_cast<char>(0x81));
+      f.push_back(static_cast<char>(0x80 | (p.size() < 126 ? p.size() : 126)));
+      if (p.size() >= 126) f.append({static_cast<char>(p.size() >> 8), static_cast<char>(p.size() & 0xFF)});
+      f.append("\x01\x02\x03\x04", 4);
+      for (std::size_t i = 0; i < p.size(); ++i) f.push_back(static_cast<char>(p[i] ^ (1 + i % 4)));
+    }
+    return f;
+  }();
+  void one(std::mt19937_64& rng) override {
+    const foxglove::Handshake h = foxglove::parse_handshake(mutated(request, rng));
+    if (h.error.empty()) foxglove::handshake_reply(h.key);
+    const std::string bytes = mutated(frames, rng);
+    foxglove::FrameReader reader;
+    std::vector<foxglove::Frame> out;
+    for (std::size_t at = 0; at < bytes.size();) {
+      const std::size_t n = std::min<std::size_t>(bytes.size() - at, 1 + rng() % 64);
+      if (!reader.feed(bytes.data() + at, n, out)) break;
+      at += n;
+    }
+  }
+};
+
 struct McapTarget : Target {
   std::string seed;
   McapTarget() {
@@ -662,8 +695,9 @@ int main(int argc, char** argv) {
   else if (target == "campaign") t = std::make_unique<CampaignTarget>();
   else if (target == "mcap") t = std::make_unique<McapTarget>();
   else if (target == "replay") t = std::make_unique<ReplayTarget>();
+  else if (target == "websocket") t = std::make_unique<WebsocketTarget>();
   else {
-    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign|mcap|replay\n");
+    std::fprintf(stderr, "fuzz_targets: --target decoder|pattern|scenario|mesh|urdf|cell|servo|cdr|campaign|mcap|replay|websocket\n");
     return 2;
   }
   std::mt19937_64 rng(seed);

@@ -1,0 +1,35 @@
+// The cell's topics, read over DDS as any client reads them, served live to Foxglove
+// (`cellsim bridge`): the camera's images, camera_info, /tf, /joint_states, the
+// /robot_description, the servo's status (|e|, its state), twist and decoded spots, the
+// simulator's status, pose, spot truth and clock. Each sample is served as its CDR bytes with
+// its ros2msg schema, as an MCAP recording holds it: a layout made for a recording works live.
+#pragma once
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "foxglove/live_server.hpp"
+
+namespace foxglove {
+
+class Bridge {
+ public:
+  // Subscribes to the cell's topics under ROS 2 namespace `ns` on `participant` and serves them
+  // on a LiveServer made with `options`. Throws std::runtime_error naming the address when the
+  // port cannot be listened on.
+  Bridge(eprosima::fastdds::dds::DomainParticipant& participant, const std::string& ns, ServerOptions options);
+  ~Bridge();
+  int port() const { return server_->port(); }
+  std::size_t channels() const { return channels_; }
+  ServerStats stats() const { return server_->stats(); }
+
+ private:
+  std::unique_ptr<LiveServer> server_;
+  std::vector<std::shared_ptr<void>> readers_;  // the DDS readers, each of its own type
+  std::size_t channels_ = 0;
+};
+
+}  // namespace foxglove

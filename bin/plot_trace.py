@@ -32,7 +32,7 @@ def plot_occlusion(directory, title, trace=None):
     if not rows:
         return
     t = [float(r["t"]) for r in rows]
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
     ax.plot(t, [int(r["visible"]) for r in rows], color="k", label="visible to the camera")
     ax.plot(t, [int(r["on_arm"]) for r in rows], color="tab:red", label="caught by the arm (its shadow on the object)")
     ax.plot(t, [int(r["hidden_by_arm"]) for r in rows], color="tab:orange", label="hidden from the camera by the arm")
@@ -42,7 +42,8 @@ def plot_occlusion(directory, title, trace=None):
     ax.set_ylabel("spots")
     ax.set_title(f"{title}: the arm and the pattern" if title else "the arm and the pattern")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    # below the axes: inside, it covered the first seconds of the curves
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
     save(fig, os.path.join(directory, "occlusion.png"))
 
 

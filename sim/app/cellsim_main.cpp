@@ -708,6 +708,8 @@ struct ServeCommand {
                   "servo replay; never over a file that exists: written as FILE.partial, renamed when the run ends)")
         ->check(non_empty_file);
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording (long runs)");
+    c->add_option("--foxglove", svc.foxglove_port,
+                  "serve the run live in Foxglove on ws://127.0.0.1:PORT (its WebSocket protocol; 0: a free port, printed)");
     add_render_threads(c, render_threads);
     return c;
   }
@@ -718,6 +720,7 @@ struct ServeCommand {
     common::require_within("--watchdog-ms", svc.watchdog_ms, 1, 60000);
     common::require_within("--republish-ms", svc.republish_ms, 1, 600000);
     common::require_within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
+    common::require_within("--foxglove", svc.foxglove_port, -1, 65535);
     svc.mode = mode == "lockstep" ? sim::TimingMode::kLockstep : sim::TimingMode::kRealtime;
     dds.apply_to(svc);
     svc.trace_dir = trace;

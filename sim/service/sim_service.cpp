@@ -24,6 +24,7 @@
 #include "dds/ros_graph.hpp"
 #include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
+#include "foxglove/bridge.hpp"
 #include "record/recorder.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
@@ -161,6 +162,13 @@ class SimService {
     open_recording(o);
     try {
       make_endpoints(o);
+      if (o.foxglove_port >= 0) {
+        foxglove::ServerOptions live;
+        live.port = o.foxglove_port;
+        live_ = std::make_unique<foxglove::Bridge>(*participant_, o.ns, live);
+        std::printf("cellsim: the run live in Foxglove: ws://127.0.0.1:%d (foxglove.websocket.v1)\n", live_->port());
+        std::fflush(stdout);
+      }
       publish_camera_info();
       publish_description();
       open_trace(o);
@@ -571,6 +579,8 @@ class SimService {
   // before the participant: destroyed after every endpoint that records into it
   std::unique_ptr<cell_record::Recorder> recorder_;
   cell_dds::ParticipantPtr participant_;
+  // the live view's readers of this cell's own topics (--foxglove), gone before the participant
+  std::unique_ptr<foxglove::Bridge> live_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>> image_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>> info_;
   std::unique_ptr<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose_;

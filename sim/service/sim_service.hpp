@@ -31,6 +31,9 @@ struct ServiceOptions {
   // --record FILE.mcap: every message on the wire, as a ROS 2 bag (record/recorder.hpp)
   std::filesystem::path record;
   bool record_images = true;  // false: --record-no-images
+  // --foxglove PORT: the run live in Foxglove on ws://127.0.0.1:PORT (foxglove/bridge.hpp; 0: a
+  // free port, printed); -1: off
+  int foxglove_port = -1;
 };
 
 // Runs until SIGINT/SIGTERM, max_frames or convergence (with exit_on_converged). Returns the

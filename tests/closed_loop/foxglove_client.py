@@ -9,6 +9,7 @@ each refused with its reason while the first goes on receiving.
 import base64
 import hashlib
 import json
+import re
 import os
 import socket
 import struct
@@ -106,10 +107,14 @@ def main():
     if not image or image["encoding"] != "cdr" or image["schemaEncoding"] != "ros2msg" or \
             image["schemaName"] != "sensor_msgs/msg/Image" or "uint32 height" not in image["schema"]:
         fail(f"the image channel: {image and {k: v for k, v in image.items() if k != 'schema'}}")
+    drawn = channels.get("/servo/annotations")
+    if not drawn or drawn["schemaName"] != "foxglove_msgs/msg/ImageAnnotations" or "CircleAnnotation[] circles" not in \
+            drawn["schema"].replace("foxglove_msgs/", ""):
+        fail(f"the annotations channel: {drawn and drawn['schemaName']}")
     for topic in ("/servo/status", "/tf", "/robot_description", "/joint_states", "/camera/camera_info"):
         if topic not in channels:
             fail(f"no channel {topic} in {sorted(channels)}")
-    wanted = {7: "/camera/image_raw", 8: "/servo/status", 9: "/tf"}
+    wanted = {7: "/camera/image_raw", 8: "/servo/status", 9: "/tf", 11: "/servo/annotations"}
     send_json(s, {"op": "subscribe", "subscriptions": [{"id": i, "channelId": channels[t]["id"]} for i, t in wanted.items()]})
     send_json(s, {"op": "subscribe", "subscriptions": [{"id": 10, "channelId": 999}]})
     send_json(s, {"op": "frobnicate"})
@@ -131,12 +136,18 @@ def main():
             h, w = image_size(cdr)
             if (h, w) != (480, 640) or len(cdr) < 640 * 480 * 3:
                 fail(f"image {w} x {h}, {len(cdr)} bytes")
+        if sub == 11:
+            # ImageAnnotations: its circles first (a ring per decoded spot, and per desired point),
+            # and each decoded spot's id as a text "row,col"
+            (circles,) = struct.unpack_from("<I", cdr, 4)
+            if circles == 0 or not re.search(rb"\d+,\d+\x00", cdr):
+                fail(f"annotations with {circles} circles and no id label")
     if min(counts.values()) < 3:
         fail(f"messages received per subscription: {counts}")
     messages = " | ".join(st["message"] for st in statuses)
     if "no channel 999" not in messages or "'frobnicate' is not supported" not in messages:
         fail(f"statuses: {statuses}")
-    print(f"bridge: {len(channels)} channels; image 640 x 480, servo status, tf received {counts}; "
+    print(f"bridge: {len(channels)} channels; image 640 x 480, servo status, tf, annotations received {counts}; "
           f"statuses: {messages}")
 
     # clients that break the protocol: each told why and closed

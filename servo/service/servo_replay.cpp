@@ -61,6 +61,10 @@ typename PubSubType::type decode(const mcap::Channel& c, const mcap::MessageView
   return out;
 }
 
+// Replays a recording in the order it holds, or in the order its messages arrived (a bag
+// `ros2 bag record` made of the live cell): the servo answers an image once its frame's sim
+// status (and camera pose, when the recording has poses) are there, as it waits for them live.
+// An image whose status never comes is answered when the next image or a command is heard.
 class Replay {
  public:
   explicit Replay(const ReplayOptions& o) : o_(o) {
@@ -70,29 +74,39 @@ class Replay {
     ready_ = TwistAt{ready.stamp, ready.twist, static_cast<int>(ready.state), 0, 0};
   }
 
+  using Key = std::pair<std::int32_t, std::uint32_t>;
+  static Key key(const Stamp& s) { return {s.sec, s.nanosec}; }
+
   void on_message(const mcap::Channel& c, const mcap::MessageView& m) {
     if (!t0_) t0_ = m.log_time_ns;
     const double now = static_cast<double>(m.log_time_ns - std::min(*t0_, m.log_time_ns)) * 1e-9;
     if (auto lost = machine_->tick(now)) replayed(*lost);
     const std::string& file = o_.recording.string();
     if (is_topic(c.topic, cell_dds::kImageTopic)) {
-      const auto img = decode<sensor_msgs::msg::dds_::Image_PubSubType>(c, m, file);
+      flush();  // the image before waits no longer: its frame is over
+      auto img = decode<sensor_msgs::msg::dds_::Image_PubSubType>(c, m, file);
       ++images_;
       const Stamp at = to_stamp(img.header().stamp());
       if (!last_image_ || std::make_pair(at.sec, at.nanosec) > std::make_pair(last_image_->sec, last_image_->nanosec))
         last_image_ = at;
-      const ServoReply r = machine_->on_image(image_view(img), now);
-      if (!r.notice.empty()) std::fprintf(stderr, "servo replay: %s\n", r.notice.c_str());
-      if (r.answer) replayed(r);
+      pending_ = Pending{std::move(img), key(at), now};
+      if (complete(pending_->key)) flush();
     } else if (is_topic(c.topic, cell_dds::kCameraInfoTopic)) {
       const std::string why = machine_->on_camera_info(to_info(decode<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(c, m, file)));
       if (!why.empty()) std::fprintf(stderr, "servo replay: %s: %s: %s\n", file.c_str(), c.topic.c_str(), why.c_str());
     } else if (is_topic(c.topic, cell_dds::kSimStatusTopic)) {
-      if (const auto f = frame_status(decode<cell_msgs::msg::dds_::SimStatus_PubSubType>(c, m, file))) machine_->on_sim_status(*f);
+      const auto s = decode<cell_msgs::msg::dds_::SimStatus_PubSubType>(c, m, file);
+      if (const auto f = frame_status(s)) {
+        machine_->on_sim_status(*f);
+        seen(statuses_, key(to_stamp(s.header().stamp())));
+      }
     } else if (is_topic(c.topic, cell_dds::kCameraPoseTopic)) {
       const auto p = decode<geometry_msgs::msg::dds_::PoseStamped_PubSubType>(c, m, file);
       if (const auto T = camera_pose(p)) machine_->on_pose(to_stamp(p.header().stamp()), *T);
+      poses_in_file_ = true;
+      seen(poses_, key(to_stamp(p.header().stamp())));
     } else if (is_topic(c.topic, cell_dds::kControlTopic)) {
+      flush();  // a command heard after an image acts after it, as it did live
       machine_->on_command(decode<cell_msgs::msg::dds_::SimControl_PubSubType>(c, m, file).command());
     } else if (is_topic(c.topic, cell_dds::kTwistTopic)) {
       const auto t = decode<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(c, m, file);
@@ -110,6 +124,7 @@ class Replay {
   // comes and the image's megabyte after it: the twist can land in the last complete chunk,
   // the image in the lost one): such twists are counted apart, not as unanswered
   ReplayResult compare_and_write(bool truncated) {
+    flush();  // the last image, whatever came of its status
     ReplayResult res;
     res.images = images_;
     // replayed twists by stamp, in order (a republished frame is answered again)
@@ -170,8 +185,33 @@ class Replay {
   }
 
  private:
+  struct Pending {
+    sensor_msgs::msg::dds_::Image_ image;
+    Key key;
+    double now;
+  };
+
   void replayed(const ServoReply& r) {
     replayed_.push_back({r.stamp, r.twist, static_cast<int>(r.state), r.error_norm, r.decoded});
+  }
+  // the frame's status is there, and its pose when the recording has poses
+  bool complete(const Key& k) const {
+    return std::find(statuses_.begin(), statuses_.end(), k) != statuses_.end() &&
+           (!poses_in_file_ || std::find(poses_.begin(), poses_.end(), k) != poses_.end());
+  }
+  void seen(std::deque<Key>& keys, const Key& k) {
+    keys.push_back(k);
+    if (keys.size() > 64) keys.pop_front();
+    if (pending_ && complete(pending_->key)) flush();
+  }
+  // the waiting image to the servo
+  void flush() {
+    if (!pending_) return;
+    const Pending p = std::move(*pending_);
+    pending_.reset();
+    const ServoReply r = machine_->on_image(image_view(p.image), p.now);
+    if (!r.notice.empty()) std::fprintf(stderr, "servo replay: %s\n", r.notice.c_str());
+    if (r.answer) replayed(r);
   }
 
   const ReplayOptions& o_;
@@ -181,6 +221,9 @@ class Replay {
   std::optional<Stamp> last_image_;  // the latest image stamp fed
   TwistAt ready_;
   std::vector<TwistAt> recorded_, replayed_;
+  std::optional<Pending> pending_;         // an image waiting for its frame's status and pose
+  std::deque<Key> statuses_, poses_;       // the stamps of the latest 64 of each
+  bool poses_in_file_ = false;
 };
 
 }  // namespace

@@ -135,6 +135,9 @@ class IdlParser {
       type = t_[i_++];
       suffix = 144;
       if (t_[i_] == ",") {
+        // a bounded sequence keeps its bound in the description, as rosidl's (capacity 8 for
+        // sequence<string, 8>): without it SimStatus's hash was not ROS 2's
+        f.capacity = std::stoi(t_[i_ + 1]);
         i_ += 2;
         suffix = 96;
       }
@@ -201,8 +204,10 @@ void parse_msg_type(const std::string& package, const std::string& type, const s
       base_type = spelled.substr(0, bracket);
       const std::string dims = spelled.substr(bracket);
       if (dims == "[]") suffix = 144;
-      else if (dims.rfind("[<=", 0) == 0) suffix = 96;  // bounded: the bound is not in the hash
-      else {
+      else if (dims.rfind("[<=", 0) == 0) {
+        suffix = 96;  // bounded: its bound is the field's capacity, as rosidl hashes it
+        f.capacity = std::stoi(dims.substr(3));
+      } else {
         suffix = 48;
         f.capacity = std::stoi(dims.substr(1));
       }

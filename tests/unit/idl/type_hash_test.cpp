@@ -29,6 +29,24 @@ TEST(TypeHash, StandardTypesMatchRos2Jazzy) {
   for (const auto& [name, hash] : known) EXPECT_EQ(type_hash(name, t), hash) << name << "\n" << hashable_json(name, t);
 }
 
+// The project's own package as ROS 2 Jazzy's rosidl hashes it: `colcon build` of
+// idl/ros2/cell_msgs under a Jazzy built from source, read from
+// install/cell_msgs/share/cell_msgs/msg/<Type>.json. A bounded sequence keeps its bound in the
+// hash (SimStatus's `string[<=8] recent_refusals`).
+TEST(TypeHash, TheCellsOwnTypesMatchRosidl) {
+  const TypeDescriptions& t = project_type_descriptions();
+  const std::pair<const char*, const char*> rosidl[] = {
+      {"cell_msgs/msg/DecodedSpots", "RIHS01_af323c34ca12399b3505ea9caa9a3aac9ee44b660c8522cbf943ea026b909f0f"},
+      {"cell_msgs/msg/ServoStatus", "RIHS01_51ba623bb501b49cd27a7da68969ddffa29e4ef5898922bac45b43cff19e1a62"},
+      {"cell_msgs/msg/SimControl", "RIHS01_a5e44507be1c0d7aaee0cfb8bde948949f7603e99277720b9f036985cf1533fd"},
+      {"cell_msgs/msg/SimStatus", "RIHS01_75728caaef8f6c00053aaac5cb590f5bfd8ad501d079d80c2076d4e1addf7386"},
+      {"cell_msgs/msg/Spot", "RIHS01_c685c4a864d5b88fd7f46443a4ed711ae0e83c1f7ceabc410e74cdb45904a141"},
+      {"cell_msgs/msg/SpotTruth", "RIHS01_994289730dda0f786b037c8918cb7b5a170239e233e0bf8d21c9f99547c1d132"},
+      {"cell_msgs/msg/SpotTruthArray", "RIHS01_f2c038187ed2079a7ee5d97914d0aff17ac84ba41101ad5142170210778a1f42"},
+  };
+  for (const auto& [type, hash] : rosidl) EXPECT_EQ(type_hash(type, t), hash) << type;
+}
+
 TEST(TypeHash, TypesAbsentFromOurIdlAgreeToo) {
   // std_msgs/String, JointState and TransformStamped are not on our topics: described here in
   // IDL the way rosidl turns their .msg files into IDL, they must hash as Jazzy says

@@ -64,6 +64,19 @@ def draw_frame(ax, T, colour, size=0.08, label=None):
             color=colour, lw=0.6, ls="--")
 
 
+def fit_cube(ax, pts, margin):
+    """Equal axes (metres) around the points, `margin` beyond them, labelled."""
+    lo = [min(q[i] for q in pts) for i in range(3)]
+    hi = [max(q[i] for q in pts) for i in range(3)]
+    half = max(h - l for l, h in zip(lo, hi)) / 2 + margin
+    for i, setter in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
+        mid = (lo[i] + hi[i]) / 2
+        setter(mid - half, mid + half)
+    ax.set_xlabel("x (m)", fontsize=7)
+    ax.set_ylabel("y (m)", fontsize=7)
+    ax.set_zlabel("z (m)", fontsize=7)
+
+
 def draw_scene(ax, scene, camera_key, title):
     draw_frame(ax, scene["projector"], "tab:red", 0.12, "projector")
     draw_frame(ax, scene[camera_key], "tab:blue", 0.08, "camera")
@@ -73,15 +86,7 @@ def draw_scene(ax, scene, camera_key, title):
         ax.scatter([x], [y], [z], color="k", s=12)
         ax.plot([p[0][3], x], [p[1][3], y], [p[2][3], z], color="tab:red", lw=0.3, alpha=0.5)
     pts = [[scene[k][i][3] for i in range(3)] for k in ("projector", camera_key)] + [s["point_w"] for s in scene["spots"]]
-    lo = [min(q[i] for q in pts) for i in range(3)]
-    hi = [max(q[i] for q in pts) for i in range(3)]
-    half = max(h - l for l, h in zip(lo, hi)) / 2 + 0.05
-    for i, setter in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
-        mid = (lo[i] + hi[i]) / 2
-        setter(mid - half, mid + half)
-    ax.set_xlabel("x (m)", fontsize=7)
-    ax.set_ylabel("y (m)", fontsize=7)
-    ax.set_zlabel("z (m)", fontsize=7)
+    fit_cube(ax, pts, 0.05)
     ax.tick_params(labelsize=6)
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=6, loc="upper left")
@@ -104,16 +109,8 @@ def draw_move(ax, scene):
         for s in scene["spots"]:
             x, y, z = s["point_w"]
             ax.plot([c[0], x], [c[1], y], [c[2], z], color=colour, lw=0.4, alpha=0.6)
-    lo = [min(q[i] for q in cams) for i in range(3)]
-    hi = [max(q[i] for q in cams) for i in range(3)]
-    half = max(h - l for l, h in zip(lo, hi)) / 2 + 0.06
-    for i, setter in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
-        mid = (lo[i] + hi[i]) / 2
-        setter(mid - half, mid + half)
+    fit_cube(ax, cams, 0.06)
     t, r = moved(scene["camera_desired"], scene["camera_initial"])
-    ax.set_xlabel("x (m)", fontsize=7)
-    ax.set_ylabel("y (m)", fontsize=7)
-    ax.set_zlabel("z (m)", fontsize=7)
     ax.tick_params(labelsize=6)
     ax.set_title(f"b) initial camera, close up: {t:.0f} mm and {r:.1f}° from the desired", fontsize=9)
     ax.legend(fontsize=6, loc="upper left")

@@ -24,7 +24,9 @@
 #include "dds/ros_graph.hpp"
 #include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
+#include "foxglove/annotations.hpp"
 #include "foxglove/bridge.hpp"
+#include "foxglove_msgsPubSubTypes.h"
 #include "record/recorder.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
@@ -343,10 +345,18 @@ class SimService {
           inbox_.push(inbox_.statuses, std::move(s), Inbox::kMaxStatuses);
         },
         recorder_.get());
-    // the servo's decoded spots: read only to be recorded
+    // the servo's decoded spots: read only to be recorded, with the annotations they make (the
+    // live view's /servo/annotations: a recording shows the same in Foxglove)
+    if (recorder_) {
+      annotations_ = std::make_unique<foxglove::Annotations>([this](const foxglove::Annotations::Drawn& a) {
+        recorder_->record<foxglove_msgs::msg::dds_::ImageAnnotations_PubSubType>(
+            topic(foxglove::kAnnotationsTopic), cell_dds::Stream::kFrame, a, cell_record::wall_ns());
+      });
+    }
     if (recorder_)
       spots_in_ = recorded_reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(
-          p, topic(cell_dds::kSpotsTopic), Stream::kFrame, [](cell_msgs::msg::dds_::DecodedSpots_&&) {}, recorder_.get());
+          p, topic(cell_dds::kSpotsTopic), Stream::kFrame,
+          [this](cell_msgs::msg::dds_::DecodedSpots_&& x) { annotations_->on_spots(x); }, recorder_.get());
     record_writes();
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
@@ -511,6 +521,7 @@ class SimService {
                                           &scratch_, nullptr, &f.scene_world_T_links);
     auto st = wire::frame_status(f, *machine_, stamp, recent_refusals_);
     sim_status_->write(st);
+    if (annotations_) annotations_->on_status(st);
     auto pose = wire::camera_pose(f, stamp);
     pose_->write(pose);
     auto tf = wire::transforms(cell_->scenario, f, stamp);
@@ -578,6 +589,8 @@ class SimService {
   std::ofstream trace_;
   // before the participant: destroyed after every endpoint that records into it
   std::unique_ptr<cell_record::Recorder> recorder_;
+  // the annotations recorded beside the spots (with --record), fed by the spots' reader
+  std::unique_ptr<foxglove::Annotations> annotations_;
   cell_dds::ParticipantPtr participant_;
   // the live view's readers of this cell's own topics (--foxglove), gone before the participant
   std::unique_ptr<foxglove::Bridge> live_;

@@ -6,32 +6,19 @@
 // zeroed. `servo replay --expect-identical` must reproduce that recording too.
 //
 //   node ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap
-import { createRequire } from "node:module";
-import { readFileSync, writeFileSync } from "node:fs";
-import path from "node:path";
+import { readRecords, writeRecords } from "./mcap_records.mjs";
 
 const [modulesDir, input, output] = process.argv.slice(2);
 if (!modulesDir || !input || !output) {
   console.error("usage: ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap");
   process.exit(2);
 }
-const require = createRequire(path.resolve(modulesDir, "package.json"));
-const { McapStreamReader, McapWriter } = require("@mcap/core");
 function fail(what) {
   console.error(`ready_after_first_frame: ${input}: ${what}`);
   process.exit(1);
 }
-
-const stream = new McapStreamReader({ validateCrcs: true });
-stream.append(new Uint8Array(readFileSync(input)));
-let header;
-const schemas = [], channels = [], messages = [];
-for (let r; (r = stream.nextRecord()); ) {
-  if (r.type === "Header") header = r;
-  else if (r.type === "Schema") schemas.push(r);
-  else if (r.type === "Channel") channels.push(r);
-  else if (r.type === "Message") messages.push(r);
-}
+const records = readRecords(modulesDir, input);
+const { header, schemas, channels, messages } = records;
 if (!header) fail("no header");
 const topicOf = new Map(channels.map((c) => [c.id, c.topic]));
 const isTwist = (m) => topicOf.get(m.channelId).endsWith("/servo/cmd_twist");
@@ -61,21 +48,5 @@ const at = messages.findIndex(isImage) + 1;
 ready = { ...ready, logTime: messages[at - 1].logTime + 1n, publishTime: messages[at - 1].logTime + 1n };
 messages.splice(at, 0, ready);
 
-const parts = [];
-let size = 0n;
-const writable = {
-  write: async (b) => { parts.push(new Uint8Array(b)); size += BigInt(b.length); },
-  position: () => size,
-};
-const writer = new McapWriter({ writable, useChunks: true });
-await writer.start({ profile: header.profile, library: "ready_after_first_frame.mjs" });
-const schemaIds = new Map(), channelIds = new Map();
-for (const s of schemas) schemaIds.set(s.id, await writer.registerSchema({ name: s.name, encoding: s.encoding, data: s.data }));
-for (const c of channels)
-  channelIds.set(c.id, await writer.registerChannel({
-    topic: c.topic, messageEncoding: c.messageEncoding, schemaId: schemaIds.get(c.schemaId) ?? 0, metadata: c.metadata,
-  }));
-for (const m of messages) await writer.addMessage({ ...m, channelId: channelIds.get(m.channelId) });
-await writer.end();
-writeFileSync(output, Buffer.concat(parts));
+await writeRecords(modulesDir, output, records, messages, "ready_after_first_frame.mjs");
 console.log(`ready twist ${synthesised ? "added" : "moved"} after the first frame (message ${at} of ${messages.length})`);

@@ -1,0 +1,44 @@
+// Reading a recording's records and writing them back, for the scripts that rewrite a recorded
+// run into an order the live cell can produce (ready_after_first_frame.mjs, arrival_order.mjs).
+import { createRequire } from "node:module";
+import { readFileSync, writeFileSync } from "node:fs";
+import path from "node:path";
+
+// The header, schemas, channels and messages of an MCAP file, read as a stream (CRCs checked).
+export function readRecords(modulesDir, file) {
+  const require = createRequire(path.resolve(modulesDir, "package.json"));
+  const { McapStreamReader } = require("@mcap/core");
+  const stream = new McapStreamReader({ validateCrcs: true });
+  stream.append(new Uint8Array(readFileSync(file)));
+  const out = { header: undefined, schemas: [], channels: [], messages: [] };
+  for (let r; (r = stream.nextRecord()); ) {
+    if (r.type === "Header") out.header = r;
+    else if (r.type === "Schema") out.schemas.push(r);
+    else if (r.type === "Channel") out.channels.push(r);
+    else if (r.type === "Message") out.messages.push(r);
+  }
+  return out;
+}
+
+// A new chunked MCAP file of those records, `messages` in the order given.
+export async function writeRecords(modulesDir, file, { header, schemas, channels }, messages, library) {
+  const require = createRequire(path.resolve(modulesDir, "package.json"));
+  const { McapWriter } = require("@mcap/core");
+  const parts = [];
+  let size = 0n;
+  const writable = {
+    write: async (b) => { parts.push(new Uint8Array(b)); size += BigInt(b.length); },
+    position: () => size,
+  };
+  const writer = new McapWriter({ writable, useChunks: true });
+  await writer.start({ profile: header.profile, library });
+  const schemaIds = new Map(), channelIds = new Map();
+  for (const s of schemas) schemaIds.set(s.id, await writer.registerSchema({ name: s.name, encoding: s.encoding, data: s.data }));
+  for (const c of channels)
+    channelIds.set(c.id, await writer.registerChannel({
+      topic: c.topic, messageEncoding: c.messageEncoding, schemaId: schemaIds.get(c.schemaId) ?? 0, metadata: c.metadata,
+    }));
+  for (const m of messages) await writer.addMessage({ ...m, channelId: channelIds.get(m.channelId) });
+  await writer.end();
+  writeFileSync(file, Buffer.concat(parts));
+}

@@ -244,6 +244,20 @@ ServoReply ServoStateMachine::teach(const Stamp& stamp, const std::vector<ImageS
 }
 
 std::string ServoStateMachine::follow_refused_jump(const SimFrameStatus& sim, const Stamp& stamp) {
+  // The simulator is the authority on whether the run goes: a frame it runs (START in force,
+  // the twist applied) while this servo, taught, sits idle means a START the simulator heard
+  // and this servo did not (/sim/control has two readers, and a client that publishes once
+  // reaches the first that matched). The servo follows it, once the frame cannot be one from
+  // before a RESET it heard (jump_pending_, below); a servo that stopped itself or was paused
+  // stays stopped (its state is kStopped, not kIdle).
+  if (!jump_pending_ && !started_ && state_ == ServoState::kIdle && sim.running && sim.applies_twist &&
+      pipeline_->taught()) {
+    started_ = true;
+    divergence_.reset();
+    safe_stop_.reset();
+    state_ = ServoState::kServoing;
+    return "the simulator runs (a START this servo did not hear): servoing";
+  }
   if (!jump_pending_) return {};
   if (!sim.running || !sim.applies_twist) {
     jump_pending_ = false;  // the simulator obeyed: START is needed again

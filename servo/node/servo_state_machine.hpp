@@ -130,8 +130,9 @@ class ServoStateMachine {
   // what follows the decoding: teaching, or one step of the control law
   ServoReply answer(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected,
                     const std::optional<Eigen::Isometry3d>& pose);
-  // the stages of answer(): the teach frame; a RESET or LOAD_SCENARIO the simulator refused
-  // (a notice when the servo follows it on); what a frame waits for; one law iteration
+  // the stages of answer(): the teach frame; the simulator's word on whether the run goes (a
+  // START only it heard, a RESET or LOAD_SCENARIO it refused: a notice when the servo follows
+  // it); what a frame waits for; one law iteration
   ServoReply teach(const Stamp& stamp, const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& pose);
   std::string follow_refused_jump(const SimFrameStatus& sim, const Stamp& stamp);
   std::optional<ServoReply> waiting(const Stamp& stamp, const SimFrameStatus* sim) const;

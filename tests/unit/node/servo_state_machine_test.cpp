@@ -170,17 +170,42 @@ TEST_F(Frames, ARefusedResetOrLoadDoesNotStopTheRun) {
     EXPECT_EQ(m->state(), ServoState::kServoing) << static_cast<int>(jump);
     EXPECT_FALSE(r.twist.isZero()) << "the run did not go on after a refused command";
 
-    // obeyed: the next frame is not running, and the servo waits for START
+    // obeyed: the next frame is not running, and the servo waits for START; when the
+    // simulator runs again (a START it heard), the servo follows it
     m->on_command(static_cast<int>(jump));
     m->on_sim_status({at(10), false, false, false});
-    m->on_image(view(initial, at(10)), 1.0);
-    for (int k = 11; k < 15; ++k) {
-      m->on_sim_status({at(k), true, false, true});
-      r = m->on_image(view(initial, at(k)), 0.04 * k);
-    }
+    r = m->on_image(view(initial, at(10)), 1.0);
     EXPECT_EQ(m->state(), ServoState::kIdle);
     EXPECT_TRUE(r.twist.isZero());
+    m->on_sim_status({at(11), true, false, true});
+    r = m->on_image(view(initial, at(11)), 1.04);
+    EXPECT_EQ(m->state(), ServoState::kServoing);
+    EXPECT_FALSE(r.twist.isZero());
   }
+}
+
+// issue 43: /sim/control has two readers; a command published once (`ros2 topic pub --once
+// -w 1`) reaches the first that matched. The simulator is the authority: a START only it heard
+// still starts the run, the servo following its RUNNING frames; a servo that stopped (paused
+// or stopped itself) is not started by them.
+TEST_F(Frames, AStartOnlyTheSimulatorHeardStartsTheServo) {
+  auto m = make();
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));  // no RESET, no START here
+  m->on_sim_status({at(0), false, true});
+  ASSERT_TRUE(m->on_image(view(desired, at(0)), 0).taught);
+  EXPECT_EQ(m->state(), ServoState::kIdle);
+  m->on_sim_status({at(1), false, false, false});  // the simulator has not started yet
+  EXPECT_TRUE(m->on_image(view(initial, at(1)), 0.04).twist.isZero());
+  EXPECT_EQ(m->state(), ServoState::kIdle);
+  m->on_sim_status({at(2), true, false, true});  // it runs: its START
+  const ServoReply r = m->on_image(view(initial, at(2)), 0.08);
+  EXPECT_EQ(r.state, ServoState::kServoing);
+  EXPECT_FALSE(r.twist.isZero());
+  EXPECT_NE(r.notice.find("did not hear"), std::string::npos) << r.notice;
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kPause));  // only the servo heard it
+  m->on_sim_status({at(3), true, false, true});
+  EXPECT_TRUE(m->on_image(view(initial, at(3)), 0.12).twist.isZero());
+  EXPECT_EQ(m->state(), ServoState::kStopped);
 }
 
 TEST_F(Frames, PauseStopsAndResetNeedsANewStart) {

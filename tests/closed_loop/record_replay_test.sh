@@ -59,7 +59,11 @@ out=$(node "$src/tests/interop/mcap/arrival_order.mjs" "$build/mcap-check" "$mca
 moved=$out
 out=$("$bin/servo" replay "$tmp/arrival.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical) ||
   fail "a recording in arrival order does not replay bit for bit ($moved): $out"
-grep -q "0 recorded twists not answered, 0 replayed twists not recorded" <<<"$out" || fail "arrival order: $out"
+# the same counts as the file's own order (a twist sent after the recording closed is in
+# neither: the last frame's answer, when cellsim ended on CONVERGED first)
+in_order=$("$bin/servo" replay "$mcap" --pattern "$pattern" --z-hat 0.9 --no-plot)
+[ "${out#*.mcap: }" = "${in_order#*.mcap: }" ] && grep -q "0 recorded twists not answered" <<<"$out" ||
+  fail "arrival order: $out; in the file's order: $in_order"
 echo "replay: in arrival order ($moved): $out"
 
 # another configuration commands otherwise, on the same frames

@@ -20,6 +20,17 @@ namespace foxglove {
 
 namespace {
 
+// A sample's CDR bytes, as the wire carries them, to the subscribers of channel `index` (none:
+// the sample is not serialised).
+template <class PubSubType>
+void forward(LiveServer& server, std::size_t index, const typename PubSubType::type& sample) {
+  if (!server.subscribed(index)) return;
+  PubSubType type;
+  auto& m = const_cast<typename PubSubType::type&>(sample);  // Fast DDS 2's serialize takes void*
+  eprosima::fastrtps::rtps::SerializedPayload_t payload(type.getSerializedSizeProvider(&m)());
+  if (type.serialize(&m, &payload)) server.publish(index, cell_record::wall_ns(), payload.data, payload.length);
+}
+
 // The topics, their channels, and how to start each one's reader once the server is up.
 class Topics {
  public:
@@ -57,17 +68,6 @@ class Topics {
   std::vector<Channel> channels;
 
  private:
-  // the sample's CDR bytes, as the wire carries them, to the channel's subscribers (none: the
-  // sample is not serialised)
-  template <class PubSubType>
-  static void forward(LiveServer& server, std::size_t index, typename PubSubType::type& m) {
-    if (!server.subscribed(index)) return;
-    PubSubType type;
-    eprosima::fastrtps::rtps::SerializedPayload_t payload(type.getSerializedSizeProvider(&m)());
-    if (!type.serialize(&m, &payload)) return;
-    server.publish(index, cell_record::wall_ns(), payload.data, payload.length);
-  }
-
   eprosima::fastdds::dds::DomainParticipant& p_;
   std::string ns_;
   std::vector<std::function<std::shared_ptr<void>(LiveServer&)>> starts_;
@@ -99,11 +99,8 @@ Bridge::Bridge(eprosima::fastdds::dds::DomainParticipant& participant, const std
   server_ = std::make_unique<LiveServer>(options, "cellsim bridge", t.channels);
   LiveServer& server = *server_;
   annotations_ = std::make_unique<Annotations>(
-      [&server, drawn](const foxglove_msgs::msg::dds_::ImageAnnotations_& a) {
-        foxglove_msgs::msg::dds_::ImageAnnotations_PubSubType type;
-        auto& m = const_cast<foxglove_msgs::msg::dds_::ImageAnnotations_&>(a);  // Fast DDS 2's serialize takes void*
-        eprosima::fastrtps::rtps::SerializedPayload_t payload(type.getSerializedSizeProvider(&m)());
-        if (type.serialize(&m, &payload)) server.publish(drawn, cell_record::wall_ns(), payload.data, payload.length);
+      [&server, drawn](const Annotations::Drawn& a) {
+        forward<foxglove_msgs::msg::dds_::ImageAnnotations_PubSubType>(server, drawn, a);
       },
       [&server, drawn] { return server.subscribed(drawn); });
   readers_ = t.start(*server_);

@@ -221,14 +221,15 @@ void write_decode_json(const std::string& json_file, const std::string& image, c
   nlohmann::json j;
   j["image"] = image;
   j["spots"] = nlohmann::json::array();
-  for (const auto& d : r.decoded) j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}});
+  for (const auto& d : r.decoded)
+    j["spots"].push_back({{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}, {"by", static_cast<int>(d.by)}});
   j["detected"] = r.detected.size();
   j["blobs"] = nlohmann::json::array();
   for (std::size_t b = 0; b < r.detected.size(); ++b) {
     const vision::Spot& s = r.detected[b];
     const auto& next = b < r.graph.next.size() ? r.graph.next[b] : std::array<int, 4>{-1, -1, -1, -1};
     j["blobs"].push_back({{"u", s.u}, {"v", s.v}, {"colour", s.colour}, {"area_px", s.area_px},
-                          {"strength", s.strength}, {"truncated", s.truncated},
+                          {"strength", s.strength}, {"truncated", s.truncated}, {"sliver", s.sliver},
                           {"links", {next[0], next[1], next[2], next[3]}}});
   }
   j["decoded"] = r.decoded.size();

@@ -110,9 +110,10 @@ class Lattice {
     // also carry (its colour, on the same epipolar line, a row's neighbour mostly) would need
     // every one of them off by a whole step
     const bool pinned = p.sources >= kGrowPinnedSources && p.direct >= 2 && p.off <= kGrowTightSlack;
+    const auto taken = [&](int rr, int cc) { return ids_.taken(rr, cc); };
     return !ids_.taken(p.id.row, p.id.col) &&
-           (pinned || only_fitting_id(spots_, static_cast<int>(j), p.id, check_, pattern_,
-                                      [&](int rr, int cc) { return ids_.taken(rr, cc); }));
+           (pinned || only_fitting_id(spots_, static_cast<int>(j), p.id, check_, pattern_, taken)) &&
+           nearest_free_line(spots_, static_cast<int>(j), p.id, check_, pattern_, taken);
   }
 
  private:

@@ -19,6 +19,9 @@ inline constexpr const char* kSpotTruthTopic = "rt/sim/spot_truth";
 inline constexpr const char* kSpotsTopic = "rt/servo/spots";
 inline constexpr const char* kStatusTopic = "rt/servo/status";
 inline constexpr const char* kControlTopic = "rt/sim/control";
+// the commands the simulator obeyed, in the order they took effect: the servo's commands (the
+// simulator is the one reader of rt/sim/control, so a command published once reaches the run)
+inline constexpr const char* kAcceptedTopic = "rt/sim/accepted";
 inline constexpr const char* kClockTopic = "rt/clock";
 inline constexpr const char* kSimStatusTopic = "rt/sim/status";
 inline constexpr const char* kJointStatesTopic = "rt/joint_states";

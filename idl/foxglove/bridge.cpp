@@ -92,7 +92,9 @@ Bridge::Bridge(eprosima::fastdds::dds::DomainParticipant& participant, const std
   t.add<geometry_msgs::msg::dds_::PoseStamped_PubSubType>(cell_dds::kCameraPoseTopic, Stream::kFrame);
   t.add<cell_msgs::msg::dds_::SpotTruthArray_PubSubType>(cell_dds::kSpotTruthTopic, Stream::kFrame);
   t.add<rosgraph_msgs::msg::dds_::Clock_PubSubType>(cell_dds::kClockTopic, Stream::kClock);
-  t.add<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kControlTopic, Stream::kCommand);
+  // what the simulator obeyed, not rt/sim/control: a viewer must not be a second reader of the
+  // commands (a client publishing once on its first match would reach the viewer, not the cell)
+  t.add<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kAcceptedTopic, Stream::kCommand);
   const std::size_t drawn =
       t.channel<foxglove_msgs::msg::dds_::ImageAnnotations_PubSubType>(cell_dds::namespaced(ns, kAnnotationsTopic));
   channels_ = t.channels.size();

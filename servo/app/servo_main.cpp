@@ -429,6 +429,16 @@ struct ServoConfigFlags {
   }
 };
 
+// --commands of `servo run` and `servo replay` (servo::CommandSource)
+void add_commands_flag(CLI::App* c, servo::CommandSource& source) {
+  c->add_option("--commands", source,
+                "simulator: the commands cellsim obeyed (rt/sim/accepted); clients: rt/sim/control itself (a servo "
+                "beside another simulator or a robot's driver; a recording made before rt/sim/accepted existed)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, servo::CommandSource>{
+          {"simulator", servo::CommandSource::kSimulator}, {"clients", servo::CommandSource::kClients}}))
+      ->default_str("simulator");
+}
+
 struct RunCommand {
   servo::ServiceOptions svc;
   std::string pattern_file, reference;
@@ -442,6 +452,7 @@ struct RunCommand {
     c->add_option("--lost-ms", svc.lost_ms, "no image for this long: zero twist, state LOST")->capture_default_str();
     c->add_option("--reference", reference, "s* file: loaded when it exists, written after teaching");
     c->add_flag("--autostart", svc.autostart, "servo as soon as a reference exists");
+    add_commands_flag(c, svc.commands);
     return c;
   }
   int run() {
@@ -470,6 +481,7 @@ struct ReplayCommand {
                   "the recording's teach frame");
     c->add_option("--lost-ms", replay.lost_ms, "as servo run --lost-ms")->capture_default_str();
     c->add_flag("--autostart", replay.autostart, "as servo run --autostart");
+    add_commands_flag(c, replay.commands);
     c->add_option("-o,--output", replay.output, "folder for replay.csv and replay.png");
     c->add_flag("--no-plot", no_plot, "do not draw replay.png");
     c->add_flag("--expect-identical", expect_identical,

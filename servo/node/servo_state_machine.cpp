@@ -246,8 +246,8 @@ ServoReply ServoStateMachine::teach(const Stamp& stamp, const std::vector<ImageS
 std::string ServoStateMachine::follow_refused_jump(const SimFrameStatus& sim, const Stamp& stamp) {
   // The simulator is the authority on whether the run goes: a frame it runs (START in force,
   // the twist applied) while this servo, taught, sits idle means a START the simulator heard
-  // and this servo did not (/sim/control has two readers, and a client that publishes once
-  // reaches the first that matched). The servo follows it, once the frame cannot be one from
+  // and this servo did not (a servo started after the command, or one missing it on
+  // rt/sim/accepted, which is not kept for late joiners). The servo follows it, once the frame cannot be one from
   // before a RESET it heard (jump_pending_, below); a servo that stopped itself or was paused
   // stays stopped (its state is kStopped, not kIdle).
   if (!jump_pending_ && !started_ && state_ == ServoState::kIdle && sim.running && sim.applies_twist &&

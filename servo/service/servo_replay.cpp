@@ -105,7 +105,7 @@ class Replay {
       if (const auto T = camera_pose(p)) machine_->on_pose(to_stamp(p.header().stamp()), *T);
       poses_in_file_ = true;
       seen(poses_, key(to_stamp(p.header().stamp())));
-    } else if (is_topic(c.topic, cell_dds::kControlTopic)) {
+    } else if (is_topic(c.topic, o_.commands == CommandSource::kSimulator ? cell_dds::kAcceptedTopic : cell_dds::kControlTopic)) {
       flush();  // a command heard after an image acts after it, as it did live
       machine_->on_command(decode<cell_msgs::msg::dds_::SimControl_PubSubType>(c, m, file).command());
     } else if (is_topic(c.topic, cell_dds::kTwistTopic)) {

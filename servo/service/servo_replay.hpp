@@ -14,6 +14,12 @@
 
 namespace servo {
 
+// Where the servo's commands come from. The simulator's rt/sim/accepted by default: the
+// commands it obeyed, when they took effect. A command published once on rt/sim/control then
+// reaches the run whichever reader a client matched first, as there is one (cellsim).
+// rt/sim/control itself for a servo beside another simulator or a real robot's driver.
+enum class CommandSource { kSimulator, kClients };
+
 struct ReplayOptions {
   std::filesystem::path recording;
   std::filesystem::path pattern;
@@ -21,6 +27,8 @@ struct ReplayOptions {
   std::filesystem::path reference;  // s* to start from (the run's --reference); empty: taught from the recording
   double lost_ms = 500;
   bool autostart = false;
+  CommandSource commands = CommandSource::kSimulator;  // the recorded run's (a recording made
+                                                      // before rt/sim/accepted existed: kClients)
   std::filesystem::path output;  // replay.csv (and replay.png); empty: nothing written
   bool plot = true;
 };

@@ -129,7 +129,8 @@ class ServoService {
         p, topic(cell_dds::kSimStatusTopic), cell_dds::reader_qos(Stream::kFrame),
         [this](SimStatus_&& s) { in_.push(in_.sim_statuses, std::move(s), Inbox::kMaxFrameInfo); });
     control_in_ = std::make_unique<cell_dds::Reader<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-        p, topic(cell_dds::kControlTopic), cell_dds::reader_qos(Stream::kCommand),
+        p, topic(o.commands == CommandSource::kSimulator ? cell_dds::kAcceptedTopic : cell_dds::kControlTopic),
+        cell_dds::reader_qos(Stream::kCommand),
         [this](SimControl_&& c) { in_.push(in_.commands, std::move(c), Inbox::kMaxCommands); });
     node_ = std::make_unique<cell_dds::NodeAnnouncement>(
         p, "servo",

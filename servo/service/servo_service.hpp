@@ -11,6 +11,7 @@
 #include "servo/pattern/marray.hpp"
 #include "servo/calibration/projector_calibration.hpp"
 #include "servo/pipeline/servo_pipeline.hpp"
+#include "servo/service/servo_replay.hpp"
 
 namespace servo {
 
@@ -24,6 +25,7 @@ struct ServiceOptions {
   double lost_ms = 500;            // no image for this long: zero twist and state LOST
   std::filesystem::path reference; // s*: loaded at start when it exists, saved after teaching
   bool autostart = false;          // servo as soon as a reference exists (no START needed)
+  CommandSource commands = CommandSource::kSimulator;
 };
 
 int run_servo_service(const ServiceOptions& options);

@@ -45,6 +45,10 @@ void ExperimentRecording::on_command(const sim::CommandMsg& c, double now_s) {
   put<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kControlTopic, Stream::kCommand, sim::wire::control(c), now_s);
 }
 
+void ExperimentRecording::on_accepted(const sim::CommandMsg& c, double now_s) {
+  put<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kAcceptedTopic, Stream::kCommand, sim::wire::control(c), now_s);
+}
+
 void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb,
                                    double now_s) {
   const auto stamp = cell_dds::stamp_of(f.index, cell.dt());

@@ -16,6 +16,7 @@ class ExperimentRecording : public loop::LoopTap {
   ExperimentRecording(const sim::Cell& cell, cell_record::RecordOptions options, const mcap::KeyValues& metadata);
   void on_start(const servo::CameraInfoMsg& info, const sim::CellStateMachine& cell) override;
   void on_command(const sim::CommandMsg& c, double now_s) override;
+  void on_accepted(const sim::CommandMsg& c, double now_s) override;
   void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb, double now_s) override;
   void on_reply(const servo::ServoReply& r, double now_s) override;
   // closes the file; "PATH (N MB, M messages on T topics)" and the count per topic

@@ -63,8 +63,16 @@ void InMemoryLoop::set_tap(LoopTap* tap) {
 
 bool InMemoryLoop::command(const sim::CommandMsg& c) {
   if (tap_) tap_->on_command(c, now_s_);
-  servo_.on_command(c.command);
   return cell_.on_command(c, now_s_);
+}
+
+// the commands the cell obeyed, to the servo before the frames they brought about (what the
+// service says on rt/sim/accepted)
+void InMemoryLoop::accepted(const sim::CellOutput& out) {
+  for (const sim::CommandMsg& c : out.accepted) {
+    if (tap_) tap_->on_accepted(c, now_s_);
+    servo_.on_command(c.command);
+  }
 }
 
 LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
@@ -130,6 +138,7 @@ void InMemoryLoop::answer(const LoopExchange& x, const control::Vector6d& twist)
 sim::CellOutput InMemoryLoop::observe(std::vector<LoopExchange>& exchanges) {
   now_s_ += cell_.dt();
   sim::CellOutput out = cell_.poll(now_s_);
+  accepted(out);
   // the frames are moved on into the exchanges (their link poses and joints are the large
   // part of an order); out.frames keeps their count, not their content
   for (auto& f : out.frames) exchanges.push_back(exchange(std::move(f)));
@@ -139,6 +148,7 @@ sim::CellOutput InMemoryLoop::observe(std::vector<LoopExchange>& exchanges) {
 sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
   now_s_ += cell_.dt();
   sim::CellOutput out = cell_.poll(now_s_);
+  accepted(out);
   for (auto& f : out.frames) {
     exchanges.push_back(exchange(std::move(f)));
     answer(exchanges.back(), exchanges.back().reply.twist);  // each frame answered before the next is seen

@@ -54,6 +54,8 @@ class LoopTap {
   // the camera_info the servo was given (latched, before anything else)
   virtual void on_start(const servo::CameraInfoMsg& info, const sim::CellStateMachine& cell) = 0;
   virtual void on_command(const sim::CommandMsg& c, double now_s) = 0;
+  // a command the cell obeyed, as the service says it on rt/sim/accepted
+  virtual void on_accepted(const sim::CommandMsg& c, double now_s) = 0;
   // a frame as cellsim publishes it: status, pose, robot, image (null for the ideal source), clock
   virtual void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb,
                         double now_s) = 0;
@@ -68,7 +70,9 @@ class InMemoryLoop {
   // Every message from now on goes to `tap` too (none when null); it is told the camera_info.
   void set_tap(LoopTap* tap);
 
-  // A command on rt/sim/control: both state machines hear it. False when the cell refused it.
+  // A command on rt/sim/control: the cell hears it; the servo learns it when the cell obeys it
+  // (at the next round or observe, before the frames, as over rt/sim/accepted). False when the
+  // cell refused it.
   bool command(const sim::CommandMsg& c);
   // One round: the cell advances; every frame it orders is rendered, answered by the servo,
   // and the answer delivered back (status, then twist). The exchanges are appended, the
@@ -85,6 +89,7 @@ class InMemoryLoop {
   const servo::ServoStateMachine& servo() const { return servo_; }
 
  private:
+  void accepted(const sim::CellOutput& out);
   LoopExchange exchange(sim::FrameOrder order);  // rendered and answered by the servo
 
   const sim::Cell& world_;

@@ -190,8 +190,8 @@ class SimService {
     bool autorun_done = !o_.autorun;
     while (!g_stop) {
       const double now = seconds_since(t0);
-      // autorun: its commands go out on rt/sim/control, so the servo hears them too, and come
-      // back through our own reader like any client's
+      // autorun: its commands go out on rt/sim/control and come back through our own reader
+      // like any client's (the servo learns them on rt/sim/accepted)
       if (!autorun_done) {
         bool seen, taught;
         {
@@ -357,6 +357,8 @@ class SimService {
       spots_in_ = recorded_reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(
           p, topic(cell_dds::kSpotsTopic), Stream::kFrame,
           [this](cell_msgs::msg::dds_::DecodedSpots_&& x) { annotations_->on_spots(x); }, recorder_.get());
+    accepted_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
+        p, topic(cell_dds::kAcceptedTopic), cell_dds::writer_qos(Stream::kCommand));
     record_writes();
     if (o.autorun)
       control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
@@ -365,7 +367,8 @@ class SimService {
     // showed it as _NODE_NAME_UNKNOWN_)
     std::vector<eprosima::fastrtps::rtps::GUID_t> writers{image_->guid(),   info_->guid(),   pose_->guid(),
                                                           sim_status_->guid(), truth_->guid(), clock_->guid(),
-                                                          joints_->guid(),  tf_->guid(),     description_->guid()};
+                                                          joints_->guid(),  tf_->guid(),     description_->guid(),
+                                                          accepted_->guid()};
     if (control_out_) writers.push_back(control_out_->guid());
     std::vector<eprosima::fastrtps::rtps::GUID_t> readers{twist_in_->guid(), control_in_->guid(), status_in_->guid()};
     if (spots_in_) readers.push_back(spots_in_->guid());
@@ -401,6 +404,7 @@ class SimService {
     cell_record::record_writes(r, *joints_, Stream::kFrame);
     cell_record::record_writes(r, *tf_, Stream::kFrame);
     cell_record::record_writes(r, *description_, Stream::kLatched);
+    cell_record::record_writes(r, *accepted_, Stream::kCommand);
   }
 
   void open_trace(const ServiceOptions& o) {
@@ -427,6 +431,11 @@ class SimService {
       while (recent_refusals_.size() > kRecentRefusals) recent_refusals_.pop_front();
       auto notice = status_between_frames(cell_msgs::msg::dds_::SimStatus_Constants::NOTICE);
       sim_status_->write(notice);
+    }
+    // what the servo learns a command from: before the frames it brought about
+    for (const auto& c : out.accepted) {
+      SimControl_ m = wire::control(c);
+      accepted_->write(m);
     }
     if (out.load) start_load(*out.load);
     for (const auto& f : out.frames) publish_frame(f);
@@ -604,6 +613,7 @@ class SimService {
   std::unique_ptr<cell_dds::Writer<tf2_msgs::msg::dds_::TFMessage_PubSubType>> tf_;
   std::unique_ptr<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>> description_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>> control_out_;
+  std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>> accepted_;  // rt/sim/accepted
   static constexpr std::size_t kMaxReasonBytes = 256;  // of a received status's reason: what the summary shows
   // the latest refusals, as rt/sim/status says them (the IDL's bound)
   static constexpr std::size_t kRecentRefusals = 8;

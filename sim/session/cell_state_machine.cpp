@@ -106,7 +106,13 @@ bool CellStateMachine::on_command(const CommandMsg& c, double now_s) {
   return counters_.commands_refused == refused;
 }
 
-void CellStateMachine::apply_command(const CommandMsg& c, double /*now_s*/) {
+void CellStateMachine::apply_command(const CommandMsg& c, double now_s) {
+  const long refused_before = counters_.commands_refused;
+  obey(c, now_s);
+  if (counters_.commands_refused == refused_before) out_.accepted.push_back(c);
+}
+
+void CellStateMachine::obey(const CommandMsg& c, double /*now_s*/) {
   const auto refuse = [&](const std::string& why) {
     refused(std::string(command_name(c.command)) + " refused: " + why);
   };

@@ -163,6 +163,10 @@ struct CellOutput {
   // the commands refused, one line each ("RESET refused: ..."): also in `log`, and said on
   // rt/sim/status (NOTICE) so that a client learns it from the data, not from our stderr
   std::vector<std::string> refusals;
+  // the commands obeyed since the last output, in the order they took effect: the service says
+  // them on rt/sim/accepted, where the servo learns them (the simulator is the one reader of
+  // rt/sim/control, so a command published once reaches the run)
+  std::vector<CommandMsg> accepted;
   std::optional<std::filesystem::path> load;  // load this scenario, then loaded() or load_failed()
   bool done = false;              // max_frames reached or an accepted convergence
 };
@@ -209,7 +213,10 @@ class CellStateMachine {
   static constexpr std::uint64_t kMaxSteps = 1'000'000;
 
  private:
+  // a command applied (deferred ones once their turn comes): obeyed, or refused with its
+  // reason; an obeyed one is said in CellOutput::accepted
   void apply_command(const CommandMsg& c, double now_s);
+  void obey(const CommandMsg& c, double now_s);
   std::optional<std::uint64_t> frame_of(std::int64_t sec, std::uint32_t nanosec, std::string& why) const;
   bool move(const Vector6d& twist, double duration_s);
   // the robot's report of a motion: limits kept, events logged; false when it stopped

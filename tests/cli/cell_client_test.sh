@@ -17,6 +17,6 @@ one_line_error "timeout nan" "--timeout 'nan'" "$client" --timeout nan
 claim_domain
 out=$(timeout 60 "$client" --domain "$cell_domain" --timeout 8 2>&1); rc=$?
 [ $rc -eq 1 ] || fail "with no cell: exit $rc ($out)"
-grep -q "waiting for cellsim and servo on domain $cell_domain" <<<"$out" || fail "it does not say what it waits for: $out"
-grep -q "no cellsim and servo on domain $cell_domain yet" <<<"$out" || fail "no early word that nobody is there: $out"
+grep -q "waiting for cellsim (rt/sim/control) and a servo (rt/servo/status) on domain $cell_domain" <<<"$out" || fail "it does not say what it waits for: $out"
+grep -q "after 5 s, no reader on rt/sim/control, no servo on rt/servo/status" <<<"$out" || fail "no early word that nobody is there: $out"
 echo "cell_client: --help, one-line errors, an early word when no cell is there"

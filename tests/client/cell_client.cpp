@@ -64,10 +64,12 @@ class StatusListener : public DataReaderListener {
 };
 
 constexpr const char* kUsage =
-    "usage: cell_client [--domain N] [--timeout S]\n"
-    "  Joins DDS domain N (default: ROS_DOMAIN_ID, else 0) over loopback, waits for a cellsim and a\n"
-    "  servo (the two readers of rt/sim/control), sends TEACH, RESET initial and START, and waits\n"
-    "  for CONVERGED on rt/servo/status: exit 0, or 1 after S seconds (default 120).\n";
+    "usage: cell_client [--domain N] [--timeout S] [--first-match]\n"
+    "  Joins DDS domain N (default: ROS_DOMAIN_ID, else 0) over loopback, waits for a cellsim (the\n"
+    "  reader of rt/sim/control) and a servo (its status), sends TEACH, RESET initial and START, and\n"
+    "  waits for CONVERGED on rt/servo/status: exit 0, or 1 after S seconds (default 120).\n"
+    "  --first-match: send the moment the first reader of rt/sim/control matches, servo or not (as\n"
+    "  `ros2 topic pub --once -w 1`).\n";
 
 // A whole decimal integer in [lo, hi], or nullopt.
 bool parse_int(const char* text, long lo, long hi, long& out) {
@@ -92,6 +94,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   double timeout_s = 120;
+  bool first_match = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help") {
@@ -102,7 +105,9 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "cell_client: %s needs a value (see --help)\n", a.c_str());
       return 2;
     }
-    if (a == "--domain") {
+    if (a == "--first-match") {
+      first_match = true;
+    } else if (a == "--domain") {
       if (!parse_int(argv[++i], 0, kMaxDomainId, domain)) {
         std::fprintf(stderr, "cell_client: --domain '%.40s' is not a domain id (0 to %ld)\n", argv[i], kMaxDomainId);
         return 2;
@@ -167,30 +172,35 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  // both the simulator and the servo listen to the control topic
+  // the simulator is the one reader of the control topic (the servo learns the commands it
+  // obeyed on rt/sim/accepted); the servo says it is there on its latched status
   const auto start = std::chrono::steady_clock::now();
   const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
-  std::printf("cell_client: waiting for cellsim and servo on domain %ld (the two readers of rt/sim/control)\n", domain);
+  std::printf("cell_client: waiting for %s on domain %ld\n",
+              first_match ? "the first reader of rt/sim/control" : "cellsim (rt/sim/control) and a servo (rt/servo/status)",
+              domain);
   std::fflush(stdout);
   PublicationMatchedStatus pm;
+  const auto ready = [&] { return pm.current_count >= 1 && (first_match || listener.seen > 0); };
   double next_note_s = 5;
   do {
     control->get_publication_matched_status(pm);
-    if (pm.current_count < 2 && elapsed() >= next_note_s) {
-      std::printf("cell_client: no cellsim and servo on domain %ld yet: %d of the 2 readers of rt/sim/control after "
-                  "%.0f s (are they running, with the same ROS_DOMAIN_ID?)\n",
-                  domain, pm.current_count, elapsed());
+    if (!ready() && elapsed() >= next_note_s) {
+      std::printf("cell_client: after %.0f s, %s on rt/sim/control, %s on rt/servo/status (are they running, with the same "
+                  "ROS_DOMAIN_ID?)\n",
+                  elapsed(), pm.current_count ? "a reader" : "no reader", listener.seen > 0 ? "a servo" : "no servo");
       std::fflush(stdout);
       next_note_s += 10;
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  } while (pm.current_count < 2 && elapsed() < timeout_s);
-  if (pm.current_count < 2) {
+    if (!ready()) std::this_thread::sleep_for(std::chrono::milliseconds(first_match ? 1 : 50));
+  } while (!ready() && elapsed() < timeout_s);
+  if (!ready()) {
     std::fprintf(stderr, "cell_client: the simulator and the servo are not both on domain %ld after %.0f s\n", domain,
                  timeout_s);
     return 1;
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // --first-match: at once, as `ros2 topic pub --once -w 1` does
+  if (!first_match) std::this_thread::sleep_for(std::chrono::milliseconds(200));
   for (auto [cmd, arg] : {std::pair<uint8_t, const char*>{SC::TEACH, ""}, {SC::RESET, "initial"}, {SC::START, ""}}) {
     cell_msgs::msg::dds_::SimControl_ c;
     c.command(cmd);

@@ -56,16 +56,20 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  /* wait for both services on the control topic (the simulator and the servo) */
+  /* wait for both services: the simulator, the one reader of the control topic (the servo
+   * learns the commands it obeyed on rt/sim/accepted), and the servo, the writer of the twists */
   const double start = now_s();
   dds_publication_matched_status_t pm = {0};
+  dds_subscription_matched_status_t sm = {0};
   while (now_s() - start < timeout) {
     dds_get_publication_matched_status(control, &pm);
-    if (pm.current_count >= 2) break;
+    dds_get_subscription_matched_status(twists, &sm);
+    if (pm.current_count >= 1 && sm.current_count >= 1) break;
     dds_sleepfor(DDS_MSECS(50));
   }
-  if (pm.current_count < 2) {
-    fprintf(stderr, "cyclone_client: matched %d of the 2 services on rt/sim/control\n", (int)pm.current_count);
+  if (pm.current_count < 1 || sm.current_count < 1) {
+    fprintf(stderr, "cyclone_client: %s on rt/sim/control, %s on rt/servo/cmd_twist\n",
+            pm.current_count ? "the simulator" : "no simulator", sm.current_count ? "the servo" : "no servo");
     return 1;
   }
   dds_sleepfor(DDS_MSECS(300));

@@ -184,8 +184,8 @@ TEST_F(Frames, ARefusedResetOrLoadDoesNotStopTheRun) {
   }
 }
 
-// issue 43: /sim/control has two readers; a command published once (`ros2 topic pub --once
-// -w 1`) reaches the first that matched. The simulator is the authority: a START only it heard
+// issue 43: the simulator is the authority on the run (a servo started after the START, or
+// one that missed it on rt/sim/accepted, which keeps nothing for late joiners): a START only it heard
 // still starts the run, the servo following its RUNNING frames; a servo that stopped (paused
 // or stopped itself) is not started by them.
 TEST_F(Frames, AStartOnlyTheSimulatorHeardStartsTheServo) {

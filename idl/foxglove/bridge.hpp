@@ -27,6 +27,7 @@ class Bridge {
   Bridge(eprosima::fastdds::dds::DomainParticipant& participant, const std::string& ns, ServerOptions options);
   ~Bridge();
   int port() const { return server_->port(); }
+  std::string url() const { return server_->url(); }
   std::size_t channels() const { return channels_; }
   ServerStats stats() const { return server_->stats(); }
 

@@ -56,15 +56,19 @@ void put_le(std::string& s, std::uint64_t v, int bytes) {
 
 LiveServer::LiveServer(ServerOptions options, std::string name, std::vector<Channel> channels)
     : options_(options), name_(std::move(name)), channels_(std::move(channels)), subscribers_(channels_.size(), 0) {
-  const std::string where = "127.0.0.1:" + std::to_string(options_.port);
+  const std::string where = options_.address + ":" + std::to_string(options_.port);
   if (options_.port < 0 || options_.port > 65535) throw std::runtime_error(where + ": not a port");
+  in_addr ip{};
+  if (options_.address.size() > 15 || ::inet_pton(AF_INET, options_.address.c_str(), &ip) != 1)
+    throw std::runtime_error("'" + options_.address.substr(0, 40) +
+                             "' is not an IPv4 address written in digits (names are not looked up)");
   listen_fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
   if (listen_fd_ < 0) throw std::runtime_error(where + ": " + std::strerror(errno));
   const int yes = 1;
   ::setsockopt(listen_fd_, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   sockaddr_in a{};
   a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_addr = ip;
   a.sin_port = htons(static_cast<std::uint16_t>(options_.port));
   socklen_t len = sizeof a;
   if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listen_fd_, 16) != 0 ||

@@ -28,6 +28,9 @@ struct Channel {
 };
 
 struct ServerOptions {
+  // an IPv4 address of this machine, as digits (a name is never looked up): loopback by
+  // default, the cell's traffic staying on the machine; another address is the user's choice
+  std::string address = "127.0.0.1";
   int port = 8765;  // 0: a free port, port() says which
   std::size_t max_clients = 8;
   std::size_t max_queued_bytes = 64u << 20;  // per client: past it, its messages are dropped
@@ -43,7 +46,7 @@ struct ServerStats {
 
 class LiveServer {
  public:
-  // Listens on 127.0.0.1:options.port; throws std::runtime_error (one line naming the
+  // Listens on options.address:options.port; throws std::runtime_error (one line naming the
   // address) when it cannot. The channels' ids are their index + 1.
   LiveServer(ServerOptions options, std::string name, std::vector<Channel> channels);
   ~LiveServer();
@@ -51,6 +54,8 @@ class LiveServer {
   LiveServer& operator=(const LiveServer&) = delete;
 
   int port() const { return port_; }
+  // "ws://127.0.0.1:8765": what a viewer opens
+  std::string url() const { return "ws://" + options_.address + ":" + std::to_string(port_); }
   // whether any client subscribes to channel `index` (to skip serialising what nobody reads)
   bool subscribed(std::size_t index) const;
   // One message of channel `index`, logged at `log_ns`, to every client subscribed to it.

@@ -710,6 +710,10 @@ struct ServeCommand {
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording (long runs)");
     c->add_option("--foxglove", svc.foxglove_port,
                   "serve the run live in Foxglove on ws://127.0.0.1:PORT (its WebSocket protocol; 0: a free port, printed)");
+    c->add_option("--foxglove-address", svc.foxglove_address,
+                  "with --foxglove: the IPv4 address to listen on, in digits (default loopback: the run stays on this "
+                  "machine; 0.0.0.0 opens it to the network, unauthenticated)")
+        ->capture_default_str();
     add_render_threads(c, render_threads);
     return c;
   }
@@ -721,6 +725,8 @@ struct ServeCommand {
     common::require_within("--republish-ms", svc.republish_ms, 1, 600000);
     common::require_within("--max-frames", static_cast<double>(svc.max_frames), 0, 1e12);
     common::require_within("--foxglove", svc.foxglove_port, -1, 65535);
+    if (svc.foxglove_address != "127.0.0.1" && svc.foxglove_port < 0)
+      throw std::invalid_argument("--foxglove-address needs --foxglove PORT");
     svc.mode = mode == "lockstep" ? sim::TimingMode::kLockstep : sim::TimingMode::kRealtime;
     dds.apply_to(svc);
     svc.trace_dir = trace;
@@ -737,7 +743,11 @@ struct BridgeCommand {
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("bridge", "serve the cell's topics live to Foxglove (its WebSocket protocol, loopback)");
     dds.add_to(*c);
-    c->add_option("--port", o.port, "TCP port on 127.0.0.1 (0: a free one, printed)")->capture_default_str();
+    c->add_option("--port", o.port, "TCP port (0: a free one, printed)")->capture_default_str();
+    c->add_option("--address", o.address,
+                  "the IPv4 address to listen on, in digits (default loopback: the cell stays on this machine; 0.0.0.0 "
+                  "opens it to the network, unauthenticated)")
+        ->capture_default_str();
     c->add_option("--seconds", o.seconds, "stop after this long (default: until Ctrl-C)");
     return c;
   }

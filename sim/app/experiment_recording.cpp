@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "cell_msgsPubSubTypes.h"
+#include "foxglove_msgsPubSubTypes.h"
 #include "geometry_msgsPubSubTypes.h"
 #include "rosgraph_msgsPubSubTypes.h"
 #include "sensor_msgsPubSubTypes.h"
@@ -18,7 +19,13 @@ using cell_dds::Stream;
 
 ExperimentRecording::ExperimentRecording(const sim::Cell& cell, cell_record::RecordOptions options,
                                          const mcap::KeyValues& metadata)
-    : cell_(cell), recorder_(std::move(options), metadata) {}
+    : cell_(cell),
+      recorder_(options, metadata),
+      annotations_([this](const foxglove::Annotations::Drawn& a) {
+        put<foxglove_msgs::msg::dds_::ImageAnnotations_PubSubType>(foxglove::kAnnotationsTopic, Stream::kFrame, a,
+                                                                   drawing_s_);
+      }),
+      images_(options.images) {}
 
 template <typename PubSubType>
 void ExperimentRecording::put(const char* topic, Stream stream, const typename PubSubType::type& m, double now_s) {
@@ -53,8 +60,9 @@ void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStat
                                    double now_s) {
   const auto stamp = cell_dds::stamp_of(f.index, cell.dt());
   const sim::Scenario& s = cell.scenario();
-  put<cell_msgs::msg::dds_::SimStatus_PubSubType>(cell_dds::kSimStatusTopic, Stream::kFrame,
-                                                  sim::wire::frame_status(f, cell, stamp, {}), now_s);
+  const auto status = sim::wire::frame_status(f, cell, stamp, {});
+  put<cell_msgs::msg::dds_::SimStatus_PubSubType>(cell_dds::kSimStatusTopic, Stream::kFrame, status, now_s);
+  annotations_.on_status(status);
   put<geometry_msgs::msg::dds_::PoseStamped_PubSubType>(cell_dds::kCameraPoseTopic, Stream::kFrame,
                                                         sim::wire::camera_pose(f, stamp), now_s);
   put<tf2_msgs::msg::dds_::TFMessage_PubSubType>(cell_dds::kTfTopic, Stream::kFrame, sim::wire::transforms(s, f, stamp), now_s);
@@ -70,9 +78,12 @@ void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStat
 }
 
 void ExperimentRecording::on_reply(const servo::ServoReply& r, double now_s) {
-  if (r.spots)
-    put<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(cell_dds::kSpotsTopic, Stream::kFrame, servo::spots_message(r),
-                                                       now_s);
+  if (r.spots) {
+    const auto spots = servo::spots_message(r);
+    put<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(cell_dds::kSpotsTopic, Stream::kFrame, spots, now_s);
+    drawing_s_ = now_s;
+    if (images_) annotations_.on_spots(spots);
+  }
   put<cell_msgs::msg::dds_::ServoStatus_PubSubType>(cell_dds::kStatusTopic, Stream::kLatched, servo::status_message(r),
                                                     now_s);
   put<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(cell_dds::kTwistTopic, Stream::kFrame, servo::twist_message(r),

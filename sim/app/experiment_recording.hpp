@@ -6,6 +6,7 @@
 
 #include <memory>
 
+#include "foxglove/annotations.hpp"
 #include "record/recorder.hpp"
 #include "sim/loop/in_memory_loop.hpp"
 
@@ -28,6 +29,11 @@ class ExperimentRecording : public loop::LoopTap {
 
   const sim::Cell& cell_;
   cell_record::Recorder recorder_;
+  // /servo/annotations, drawn from the statuses and decoded spots as cellsim serve --record
+  // draws them: the recording shows the decoded ids and desired points in Foxglove
+  foxglove::Annotations annotations_;
+  double drawing_s_ = 0;  // the time of the spots being drawn
+  bool images_;           // images recorded (and so their annotations)
   double last_s_ = 0;
   std::uint64_t tick_ = 0;  // keeps log times apart within one instant, in publication order
 };

@@ -20,10 +20,11 @@ int run_bridge(const BridgeOptions& o) {
   auto participant = cell_dds::make_participant(cell_dds::participant_options(o, "cellsim_bridge", "cellsim_bridge"));
   foxglove::ServerOptions server;
   server.port = o.port;
+  server.address = o.address;
   foxglove::Bridge bridge(*participant, o.ns, server);
   for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_signal);
   // the address a viewer opens: Foxglove, "Open connection", Foxglove WebSocket
-  std::printf("cellsim bridge: ws://127.0.0.1:%d (foxglove.websocket.v1), %zu topics%s%s\n", bridge.port(),
+  std::printf("cellsim bridge: %s (foxglove.websocket.v1), %zu topics%s%s\n", bridge.url().c_str(),
               bridge.channels(), o.ns.empty() ? "" : " under /", o.ns.c_str());
   std::fflush(stdout);
   const auto start = std::chrono::steady_clock::now();

@@ -14,6 +14,7 @@ struct BridgeOptions {
   cell_dds::Security security;
   std::string ns;       // the cell's ROS 2 namespace (--namespace)
   int port = 8765;      // 0: a free port
+  std::string address = "127.0.0.1";  // foxglove::ServerOptions::address
   double seconds = 0;   // stop after this long (0: until a signal)
 };
 

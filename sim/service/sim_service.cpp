@@ -167,8 +167,9 @@ class SimService {
       if (o.foxglove_port >= 0) {
         foxglove::ServerOptions live;
         live.port = o.foxglove_port;
+        live.address = o.foxglove_address;
         live_ = std::make_unique<foxglove::Bridge>(*participant_, o.ns, live);
-        std::printf("cellsim: the run live in Foxglove: ws://127.0.0.1:%d (foxglove.websocket.v1)\n", live_->port());
+        std::printf("cellsim: the run live in Foxglove: %s (foxglove.websocket.v1)\n", live_->url().c_str());
         std::fflush(stdout);
       }
       publish_camera_info();
@@ -346,8 +347,9 @@ class SimService {
         },
         recorder_.get());
     // the servo's decoded spots: read only to be recorded, with the annotations they make (the
-    // live view's /servo/annotations: a recording shows the same in Foxglove)
-    if (recorder_) {
+    // live view's /servo/annotations: a recording shows the same in Foxglove; they annotate the
+    // images, and are left out with them)
+    if (recorder_ && o.record_images) {
       annotations_ = std::make_unique<foxglove::Annotations>([this](const foxglove::Annotations::Drawn& a) {
         recorder_->record<foxglove_msgs::msg::dds_::ImageAnnotations_PubSubType>(
             topic(foxglove::kAnnotationsTopic), cell_dds::Stream::kFrame, a, cell_record::wall_ns());
@@ -356,7 +358,10 @@ class SimService {
     if (recorder_)
       spots_in_ = recorded_reader<cell_msgs::msg::dds_::DecodedSpots_PubSubType>(
           p, topic(cell_dds::kSpotsTopic), Stream::kFrame,
-          [this](cell_msgs::msg::dds_::DecodedSpots_&& x) { annotations_->on_spots(x); }, recorder_.get());
+          [this](cell_msgs::msg::dds_::DecodedSpots_&& x) {
+            if (annotations_) annotations_->on_spots(x);
+          },
+          recorder_.get());
     accepted_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
         p, topic(cell_dds::kAcceptedTopic), cell_dds::writer_qos(Stream::kCommand));
     record_writes();

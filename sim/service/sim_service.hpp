@@ -34,6 +34,7 @@ struct ServiceOptions {
   // --foxglove PORT: the run live in Foxglove on ws://127.0.0.1:PORT (foxglove/bridge.hpp; 0: a
   // free port, printed); -1: off
   int foxglove_port = -1;
+  std::string foxglove_address = "127.0.0.1";  // foxglove::ServerOptions::address
 };
 
 // Runs until SIGINT/SIGTERM, max_frames or convergence (with exit_on_converged). Returns the

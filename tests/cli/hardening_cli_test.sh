@@ -53,4 +53,8 @@ one_line_error "pattern generate --seed 1e3" "--seed" "$bin/pattern" generate --
 one_line_error "experiment --gain 0x10" "--gain" "$bin/cellsim" experiment "$src/sim/scenarios/plane.yaml" --gain 0x10
 one_line_error "study axis gain=0x10" "0x10' is not a number" \
   "$bin/cellsim" study "$src/sim/scenarios/plane.yaml" --axis gain=0x10 --runs 1
-echo "hardening: domain range, enclave names, decimal seeds and numbers"
+# the live view listens on an address in digits: a name is never looked up
+one_line_error "bridge --address localhost" "names are not looked up" "$bin/cellsim" bridge --address localhost --seconds 1
+one_line_error "serve --foxglove-address alone" "needs --foxglove" \
+  "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --foxglove-address 127.0.0.2
+echo "hardening: domain range, enclave names, decimal seeds and numbers, the live view's address"

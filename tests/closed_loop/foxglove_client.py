@@ -89,6 +89,43 @@ def image_size(cdr):
     return struct.unpack_from("<II", body, at)
 
 
+LAYOUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "foxglove", "cell_layout.json")
+
+
+def check_layout(channels):
+    """The shipped Foxglove layout (docs/foxglove/cell_layout.json) against what the server
+    advertises: every panel of its tree configured, every topic it names advertised, every field
+    of a message path in that topic's schema."""
+    layout = json.load(open(LAYOUT, encoding="utf-8"))
+    panels = layout["configById"]
+
+    def leaves(node):
+        if isinstance(node, str):
+            return [node]
+        return leaves(node["first"]) + leaves(node["second"])
+    shown = leaves(layout["layout"])
+    if sorted(shown) != sorted(panels):
+        fail(f"layout: panels in the tree {sorted(shown)}, configured {sorted(panels)}")
+    paths, topics = [], []
+    for name, config in panels.items():
+        image = config.get("imageMode", {})
+        topics += [image[k] for k in ("imageTopic", "calibrationTopic") if k in image] + list(image.get("annotations", {}))
+        topics += [layer["topic"] for layer in config.get("layers", {}).values() if "topic" in layer]
+        topics += list(config.get("topics", {}))
+        paths += [p["value"] for p in config.get("paths", [])] + ([config["topicPath"]] if "topicPath" in config else [])
+    for path in paths:
+        topic, *fields = path.split(".")
+        topics.append(topic)
+        schema = channels.get(topic, {}).get("schema", "")
+        for field in fields:
+            if not re.search(rf"^\s*[\w/\[\]<=]+\s+{re.escape(field)}\b", schema, re.M):
+                fail(f"layout: {path}: no field '{field}' in the schema of {topic}")
+    missing = sorted(set(t for t in topics if t not in channels))
+    if missing:
+        fail(f"layout: topics not advertised: {missing}")
+    print(f"layout: {len(panels)} panels, {len(set(topics))} topics and {len(paths)} message paths, all advertised")
+
+
 def main():
     s, key, head = connect()
     if not head.startswith("HTTP/1.1 101"):
@@ -114,6 +151,7 @@ def main():
     for topic in ("/servo/status", "/tf", "/robot_description", "/joint_states", "/camera/camera_info"):
         if topic not in channels:
             fail(f"no channel {topic} in {sorted(channels)}")
+    check_layout(channels)
     wanted = {7: "/camera/image_raw", 8: "/servo/status", 9: "/tf", 11: "/servo/annotations"}
     send_json(s, {"op": "subscribe", "subscriptions": [{"id": i, "channelId": channels[t]["id"]} for i, t in wanted.items()]})
     send_json(s, {"op": "subscribe", "subscriptions": [{"id": 10, "channelId": 999}]})

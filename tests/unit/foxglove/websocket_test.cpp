@@ -1,10 +1,15 @@
 // The live view's WebSocket layer on bytes alone: the handshake, the frames it sends, and the
 // client frames it refuses (foxglove/websocket.hpp).
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <string>
 #include <vector>
 
+#include "foxglove/live_server.hpp"
 #include "foxglove/websocket.hpp"
 
 namespace foxglove {
@@ -106,6 +111,36 @@ TEST(WebSocket, AFrameThatBreaksTheRulesIsAnErrorNamingIt) {
   std::string huge = client_frame(2, std::string(70000, 'x')).substr(0, 10);
   huge[2] = static_cast<char>(0x7F);
   EXPECT_NE(error_of(huge).find("65536"), std::string::npos);
+}
+
+// The listening address: digits only, never a name looked up; loopback by default, another of
+// this machine's addresses when asked (127.0.0.2 is loopback too: the test stays on the machine).
+TEST(LiveServer, ListensWhereAskedAndRefusesANameInOneLine) {
+  ServerOptions o;
+  o.port = 0;
+  {
+    LiveServer server(o, "test", {});
+    EXPECT_EQ(server.url(), "ws://127.0.0.1:" + std::to_string(server.port()));
+  }
+  o.address = "127.0.0.2";
+  LiveServer other(o, "test", {});
+  EXPECT_EQ(other.url().rfind("ws://127.0.0.2:", 0), 0U) << other.url();
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(other.port()));
+  ::inet_pton(AF_INET, "127.0.0.2", &a.sin_addr);
+  EXPECT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << "nothing listens on 127.0.0.2";
+  ::close(fd);
+  for (const std::string bad : {"localhost", "example.com", "::1", "127.0.0.256", "", "127.0.0.1 "}) {
+    o.address = bad;
+    try {
+      LiveServer s(o, "test", {});
+      ADD_FAILURE() << "'" << bad << "' was accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("not an IPv4 address written in digits"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/cli_help.hpp"
 #include "common/cli_numbers.hpp"
 #include "servo/pattern/marray.hpp"
 #include "servo/pattern/palette.hpp"
@@ -83,6 +84,7 @@ int run_render(const std::string& file, const std::string& out, int pitch) {
 
 int main(int argc, char** argv) {
   CLI::App app{"M-array patterns of coloured spots (Morano et al. perfect submaps)"};
+  common::plain_help(app);
   app.require_subcommand(1);
 
   pattern::GenerationOptions gp;

@@ -18,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/cli_help.hpp"
 #include "dds/cli_flags.hpp"
 #include "common/cli_numbers.hpp"
 #include "common/plot_script.hpp"
@@ -537,6 +538,7 @@ struct ViewCommand {
 
 int main(int argc, char** argv) {
   CLI::App app{"servo: structured-light visual-servoing controller"};
+  common::plain_help(app);
   app.set_version_flag("--version", std::string("servo ") + CELL_VERSION);
   app.require_subcommand(1);
   DecodeCommand decode;

@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/cli_help.hpp"
 #include "sim/app/experiment_recording.hpp"
 #include "sim/app/live_bridge.hpp"
 #include "dds/cli_flags.hpp"
@@ -796,6 +797,7 @@ int main(int argc, char** argv) {
   // a full disk; the signal's default would kill the run
   std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"cellsim: simulator of a camera-projector robot cell"};
+  common::plain_help(app);
   app.set_version_flag("--version", std::string("cellsim ") + CELL_VERSION);
   app.require_subcommand(1);
   RenderCommand render;

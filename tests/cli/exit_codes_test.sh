@@ -28,7 +28,7 @@ for sub in "cellsim experiment" "cellsim render" "cellsim campaign" "servo run";
   help=$("$bin/"$sub --help) || fail "$sub --help"
   ! grep -q "1e+09" <<<"$help" || fail "$sub --help shows the common bound: $(grep -m1 1e+09 <<<"$help")"
 done
-grep -q "finite in \[0, 100\]" <<<"$("$bin/cellsim" experiment --help)" || fail "--z-hat's own range is gone from --help"
+grep -q -- "--z-hat FLOAT in \[0, 100\]" <<<"$("$bin/cellsim" experiment --help)" || fail "--z-hat's own range is gone from --help"
 for tool in cellsim servo; do
   expect 0 "$tool --version" "$bin/$tool" --version
   grep -qx "$tool [0-9]*\.[0-9]*\.[0-9]*" "$tmp/out" || fail "$tool --version said: $(cat "$tmp/out")"

@@ -5,6 +5,8 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+
+#include "common/progress.hpp"
 #include <memory>
 #include <regex>
 #include <string>
@@ -46,6 +48,17 @@ class PlainHelp : public CLI::Formatter {
 inline void plain_help(CLI::App& app) {
   app.formatter(std::make_shared<PlainHelp>());
   app.get_formatter()->column_width(34);
+}
+
+// -q/--quiet and -v/--verbose (common::verbosity), before or after the subcommand: set on the
+// app before its subcommands are added (they inherit the fallthrough)
+inline void verbosity_flags(CLI::App& app) {
+  auto* q = app.add_flag_callback("-q,--quiet", [] { verbosity() = Verbosity::kQuiet; },
+                                  "no progress lines: results, warnings and errors only");
+  auto* v = app.add_flag_callback("-v,--verbose", [] { verbosity() = Verbosity::kVerbose; },
+                                  "more: a line per run of a campaign or study");
+  q->excludes(v);
+  app.fallthrough();
 }
 
 }  // namespace common

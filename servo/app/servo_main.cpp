@@ -539,6 +539,7 @@ struct ViewCommand {
 int main(int argc, char** argv) {
   CLI::App app{"servo: structured-light visual-servoing controller"};
   common::plain_help(app);
+  common::verbosity_flags(app);
   app.set_version_flag("--version", std::string("servo ") + CELL_VERSION);
   app.require_subcommand(1);
   DecodeCommand decode;

@@ -381,6 +381,7 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
                         {"images", record.images ? "recorded" : "left out (--record-no-images)"}});
     o.tap = recording.get();
   }
+  o.progress = true;
   const auto r = experiment::run_experiment(*cell, o);
   std::printf("%s, model %s (z-hat %.3f m), %s features%s\n", cell->scenario.name.c_str(), law.model.c_str(),
               o.servo.law.z_hat_m, experiment::to_string(o.source).c_str(),
@@ -798,6 +799,7 @@ int main(int argc, char** argv) {
   std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"cellsim: simulator of a camera-projector robot cell"};
   common::plain_help(app);
+  common::verbosity_flags(app);
   app.set_version_flag("--version", std::string("cellsim ") + CELL_VERSION);
   app.require_subcommand(1);
   RenderCommand render;

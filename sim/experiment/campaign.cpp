@@ -3,6 +3,7 @@
 
 #include "sim/arm/robot_model.hpp"
 
+#include "common/progress.hpp"
 #include "common/regular_file.hpp"
 #include "common/strict_yaml.hpp"
 
@@ -447,18 +448,20 @@ void run_jobs(const sim::Cell& cell, const CampaignOptions& o, const InitialPose
               std::vector<CampaignJob>& jobs) {
   std::atomic<std::size_t> next{0}, done{0};
   std::mutex io;
-  const auto started = std::chrono::steady_clock::now();  // for the estimate of the time left only
+  common::Progress progress("campaign " + cell.scenario.name, jobs.size(), "runs");
   const auto work = [&] {
     for (std::size_t j; (j = next++) < jobs.size();) {
       CampaignJob& job = jobs[j];
       job.result = run_job(cell, o, job, poses.offsets[static_cast<std::size_t>(job.run)]);
-      const std::size_t n = ++done;
-      std::lock_guard<std::mutex> lock(io);
-      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-      const double left = elapsed / static_cast<double>(n) * static_cast<double>(jobs.size() - n);
-      std::fprintf(stderr, "\rcampaign %s: %zu/%zu runs, %.0f s, about %.0f s left   ", cell.scenario.name.c_str(), n,
-                   jobs.size(), elapsed, left);
-      if (n == jobs.size()) std::fprintf(stderr, "\n");
+      if (common::verbose()) {
+        std::lock_guard<std::mutex> lock(io);
+        const ExperimentResult& r = job.result;
+        std::fprintf(stderr, "campaign %s: run %d, %s: %s after %d iterations, %.3f mm, %.4f deg\n",
+                     cell.scenario.name.c_str(), job.run, control::to_string(o.models[job.model]).c_str(),
+                     r.converged ? "converged" : r.stop_reason.c_str(), r.iterations,
+                     1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
+      }
+      progress.at(++done);
     }
   };
   std::vector<std::thread> threads;

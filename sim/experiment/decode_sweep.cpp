@@ -1,3 +1,4 @@
+#include "common/progress.hpp"
 #include "sim/experiment/decode_sweep.hpp"
 
 #include <algorithm>
@@ -277,8 +278,9 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   std::vector<SweepRow> rows = draw_rows(sc, o);
   const calibration::CameraIntrinsics camera = camera_intrinsics_of(cell);
   const pattern::MArray& pattern = cell.projector->pattern();
-  std::atomic<int> next{0};
+  std::atomic<int> next{0}, done{0};
   std::mutex io;
+  common::Progress progress("decode-sweep " + sc.name, static_cast<std::size_t>(o.poses), "poses");
   std::vector<WrongId> wrong_ids;
   int failure_images = 0;
   const auto work = [&] {
@@ -326,6 +328,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
         row.readable_apart += readable[i] && apart[i];
         row.correct_readable_apart += readable[i] && apart[i] && right[i];
       }
+      progress.at(static_cast<std::size_t>(++done));
       if (row.wrong == 0) continue;
       std::lock_guard<std::mutex> lock(io);
       wrong_ids.insert(wrong_ids.end(), wrong.begin(), wrong.end());

@@ -1,3 +1,4 @@
+#include "common/progress.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/divergence_search.hpp"
 
@@ -135,7 +136,7 @@ DivergenceSearchResult search_divergence(const sim::Scenario& scenario, const Di
   }
 
   std::atomic<int> next{0}, done{0};
-  std::mutex io;
+  common::Progress progress("fig5-search", static_cast<std::size_t>(o.tries), "tries");
   const auto work = [&] {
     for (int i; (i = next++) < o.tries;) {
       DivergenceCandidate& c = res.candidates[static_cast<std::size_t>(i)];
@@ -164,11 +165,7 @@ DivergenceSearchResult search_divergence(const sim::Scenario& scenario, const Di
           judge(c);
         }
       }
-      const int n = ++done;
-      if (n % std::max(1, o.tries / 20) != 0 && n != o.tries) continue;
-      std::lock_guard<std::mutex> lock(io);
-      std::fprintf(stderr, "\rfig5-search: %d/%d tries   ", n, o.tries);
-      if (n == o.tries) std::fprintf(stderr, "\n");
+      progress.at(static_cast<std::size_t>(++done));
     }
   };
   std::vector<std::thread> threads;

@@ -1,3 +1,4 @@
+#include "common/progress.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/experiment.hpp"
 
@@ -204,6 +205,9 @@ class Experiment {
         initial_(o.initial.value_or(cell.scenario.world_T_initial())), loop_(cell, loop_setup(cell, o, seed_)) {}
 
   ExperimentResult run() {
+    if (o_.progress)
+      progress_ = std::make_unique<common::Progress>("experiment " + scenario().name,
+                                                     static_cast<std::size_t>(o_.max_iterations), "iterations");
     open_trace();
     loop_.set_tap(o_.tap);
     loop_.command({static_cast<int>(cell_dds::SimCommand::kTeach), "", 0, std::nullopt});
@@ -236,6 +240,7 @@ class Experiment {
       }
     }
     finish();
+    if (progress_) progress_->finish(static_cast<std::size_t>(k_));
     return res_;
   }
 
@@ -329,6 +334,7 @@ class Experiment {
     }
     if (features_.is_open() && x.reply.step) features_ << features_line(k_, o_, x).dump() << '\n';
     ++k_;
+    if (progress_) progress_->at(static_cast<std::size_t>(k_));
   }
 
   // the RESET to the initial pose waited behind the teach frame: its refusal comes later
@@ -373,6 +379,7 @@ class Experiment {
   std::ofstream trace_, features_, occlusion_;
   std::deque<std::pair<double, int>> step_extras_;  // (feature rms, swapped) per applied step, in order
   int k_ = 0;                                       // applied frames so far
+  std::unique_ptr<common::Progress> progress_;      // with ExperimentOptions::progress
   bool started_ = false;
   std::optional<RunEnding> ended_;  // set where the run stops before the cell ends the session
 };

@@ -37,6 +37,9 @@ struct ExperimentOptions {
   int render_threads = 0;
   // asked once a round: true stops the run there, stop reason "cancelled" (Python's Ctrl-C)
   std::function<bool()> cancelled;
+  // progress of the iterations on stderr (common/progress.hpp): `cellsim experiment` alone, not
+  // the runs of a campaign, which says its own
+  bool progress = false;
 };
 
 struct IterationRecord {

@@ -1,3 +1,4 @@
+#include "common/progress.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/study.hpp"
 
@@ -196,7 +197,8 @@ std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions&
     for (std::size_t i = 0; i < o.axes.size(); ++i) apply(o.axes[i].name, grid[g][i], s, c);
     const std::string name = label(o.axes, grid[g]);
     c.out_dir = o.out_dir / name;
-    std::fprintf(stderr, "study %s: point %zu/%zu, %s\n", scenario.name.c_str(), g + 1, grid.size(), name.c_str());
+    if (!common::quiet())
+      std::fprintf(stderr, "study %s: point %zu/%zu, %s\n", scenario.name.c_str(), g + 1, grid.size(), name.c_str());
     const std::unique_ptr<sim::Cell> own = reshapes ? sim::build_cell(sim::resolve(s)) : nullptr;
     const sim::Cell& cell = reshapes ? *own : *shared;
     run_campaign(cell, c);

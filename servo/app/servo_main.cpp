@@ -386,7 +386,7 @@ struct DecodeCommand {
 // The flags that set the servo's configuration, shared by `run` and `replay` (a replay with
 // other flags shows what that configuration would have commanded).
 struct ServoConfigFlags {
-  std::string config_file, model, projector_file, robust;
+  std::string config_file, model, projector_file, robust, features;
   double z_hat = 0, gain = 0, divergence_ratio = -1;
   int points = -1;
   bool no_epipolar = false;
@@ -410,6 +410,10 @@ struct ServoConfigFlags {
         ->check(CLI::Range(0, 4096));
     c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
+    c->add_option("--visual-features", features,
+                  "points (every decoded spot's x, y) | moments (the six image moments of the matched spots); config "
+                  "key visual_features")
+        ->check(CLI::IsMember({"points", "moments"}));
   }
   void apply_to(servo::ServoConfig& config) const {
     if (!config_file.empty()) servo::load_servo_config(config_file, config);
@@ -427,6 +431,7 @@ struct ServoConfigFlags {
     if (points >= 0) config.points = points;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
     if (!robust.empty()) config.law.robust = control::parse_robust_estimator(robust);
+    if (!features.empty()) config.law.features = control::parse_visual_features(features);
   }
 };
 

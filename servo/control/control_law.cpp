@@ -79,9 +79,7 @@ std::string to_string(ControlStatus s) {
   return "?";
 }
 
-namespace {
-
-void check_params(const ControlLawOptions& p) {
+void check_options(const ControlLawOptions& p) {
   const auto bad = [](const std::string& what) { throw std::invalid_argument("control law: " + what); };
   if (!(p.z_hat_m > 0) || !std::isfinite(p.z_hat_m)) bad("z_hat must be a positive depth, got " + std::to_string(p.z_hat_m));
   if (!(p.gain.lambda_zero > 0) || !(p.gain.lambda_inf > 0) || !(p.gain.slope_zero >= 0))
@@ -91,7 +89,11 @@ void check_params(const ControlLawOptions& p) {
   if (!(p.convergence_translation_m > 0) || !(p.convergence_rotation_rad > 0)) bad("convergence thresholds must be positive");
   if (p.robust_iterations < 1 || p.robust_iterations > 50) bad("robust iterations must be in 1..50");
   if (!(p.robust_min_scale > 0) || !std::isfinite(p.robust_min_scale)) bad("robust minimum scale must be positive");
+  if (p.features == VisualFeatures::kMoments && p.robust != RobustEstimator::kNone)
+    bad("robust weights are per point: they apply to the points, not to the moments");
 }
+
+namespace {
 
 // The depth each model uses for a point's current and desired rows; nullopt when the model
 // needs a depth the point lacks.
@@ -218,6 +220,32 @@ void stack_system(const UsablePoints& u, const ControlLawOptions& params, Eigen:
   }
 }
 
+// The moments' system (image_moments.hpp): their error and interaction matrix, each point's
+// rows with the depth the model gives it, as stack_system's points.
+void moment_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
+  const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
+  Eigen::VectorXd s(2 * k), s_star(2 * k), z(k), z_star(k);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const MatchedPoint& p = *u.points[i];
+    s.segment<2>(2 * i) << p.x, p.y;
+    s_star.segment<2>(2 * i) << p.x_star, p.y_star;
+    z[i] = u.depths[i].current.value_or(0);
+    z_star[i] = u.depths[i].desired.value_or(0);
+  }
+  // a_n's value at the goal: the desired depths' mean where the model has them, else Z-hat
+  const bool desired_depths = params.model != InteractionModel::kCurrent;
+  const MomentScale scale{moment_area(s_star), desired_depths ? z_star.mean() : params.z_hat_m};
+  error = moment_error(moment_features(s, scale), moment_features(s_star, scale));
+  switch (params.model) {
+    case InteractionModel::kDesiredConstantDepth:
+    case InteractionModel::kDesired: L = moment_interaction_matrix(s_star, z_star, scale); break;
+    case InteractionModel::kCurrent: L = moment_interaction_matrix(s, z, scale); break;
+    case InteractionModel::kMean:
+      L = 0.5 * (moment_interaction_matrix(s, z, scale) + moment_interaction_matrix(s_star, z_star, scale));
+      break;
+  }
+}
+
 // The robust task function by IRLS: weights from the residuals of the last estimate, e from
 // the weighted system. Returns the points' last weights.
 std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawOptions& params,
@@ -245,7 +273,7 @@ std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd&
 }  // namespace
 
 ControlOutput compute_control(const std::vector<MatchedPoint>& all, const ControlLawOptions& params) {
-  check_params(params);
+  check_options(params);
   ControlOutput out;
   out.z_model.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
   const UsablePoints u = usable_points(all, params);
@@ -262,7 +290,11 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
   stack_system(u, params, error, L, out.z_model);
   out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
   out.weights.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
-  if (params.robust == RobustEstimator::kNone) {
+  if (params.features == VisualFeatures::kMoments) {
+    moment_system(u, params, error, L);
+    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+    for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
+  } else if (params.robust == RobustEstimator::kNone) {
     out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
     for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else {

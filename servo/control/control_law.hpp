@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "servo/control/image_moments.hpp"
 #include "servo/control/interaction_matrix.hpp"
 
 namespace control {
@@ -77,6 +78,11 @@ struct ControlLawOptions {
   // estimated from the others leaves of its error, (s - s*) - L-hat e, so a point that moves
   // against the rigid motion of the rest is the outlier, wherever it lies in the image.
   RobustEstimator robust = RobustEstimator::kNone;
+  // What s is (issue 44): every point's (x, y), or the six image moments of the matched points
+  // (image_moments.hpp), their interaction matrix from the points' with the model's depths.
+  // The task function e = L-hat^+ (s - s*) is a pose error estimate either way, so the
+  // convergence test and the gain keep their meaning. Robust weights are per point: points only.
+  VisualFeatures features = VisualFeatures::kPoints;
   int robust_iterations = 4;
   double robust_min_scale = 2e-4;  // normalised image units: ~0.16 px at 800 px focal length
 };
@@ -99,6 +105,11 @@ struct ControlOutput {
   // per input point, its weight in the robust law (1 without one); NaN for points not used
   std::vector<double> weights;
 };
+
+// Throws std::invalid_argument (one line) when the options are malformed (non-positive gains,
+// limits or z_hat; robust weights with the moments): what compute_control checks first, for
+// a configuration to be refused when it is read.
+void check_options(const ControlLawOptions& params);
 
 // Throws std::invalid_argument when a matched point has non-finite coordinates or the
 // parameters are malformed (non-positive gains, limits or z_hat).

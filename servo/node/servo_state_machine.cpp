@@ -144,7 +144,10 @@ ServoReply ServoStateMachine::reply(const Stamp& stamp, std::string reason) cons
   return r;
 }
 
-ServoReply ServoStateMachine::ready() { return reply(Stamp{}, "ready"); }
+// what it servoes on, said from the start: a client learns it from the latched status
+ServoReply ServoStateMachine::ready() {
+  return reply(Stamp{}, "ready (visual features: " + control::to_string(pipeline_->config().law.features) + ")");
+}
 
 ServoReply ServoStateMachine::shutdown() {
   state_ = ServoState::kStopped;

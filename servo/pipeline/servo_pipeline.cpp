@@ -5,7 +5,9 @@
 namespace servo {
 
 ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
-    : decoder_(std::move(table), config.decoder), config_(std::move(config)) {}
+    : decoder_(std::move(table), config.decoder), config_(std::move(config)) {
+  control::check_options(config_.law);  // a malformed law is refused at start, not at the first frame
+}
 
 std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,
                                              int* detected) const {

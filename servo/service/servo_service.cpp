@@ -262,7 +262,7 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     const Reader top(file, common::load_yaml_file(file, "servo configuration"));
     top.only_keys({"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps", "min_points",
                    "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant", "epipolar_px",
-                   "segment_length", "propagate_sources", "points", "divergence_ratio", "robust"});
+                   "segment_length", "propagate_sources", "points", "divergence_ratio", "robust", "visual_features"});
     constexpr double kDeg = 3.14159265358979323846 / 180;
     if (top.has("model")) {
       const Reader m = top.at("model");
@@ -303,6 +303,14 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
         c.law.robust = control::parse_robust_estimator(r.text(16));
       } catch (const std::invalid_argument&) {
         r.fail("must be tukey, huber or none, got " + r.spelling());
+      }
+    }
+    if (top.has("visual_features")) {
+      const Reader r = top.at("visual_features");
+      try {
+        c.law.features = control::parse_visual_features(r.text(16));
+      } catch (const std::invalid_argument&) {
+        r.fail("must be points or moments, got " + r.spelling());
       }
     }
     if (top.has("propagate_sources")) c.decoder.epipolar.min_sources = top.at("propagate_sources").integer_in(1, 9);

@@ -219,8 +219,10 @@ struct LawFlags {
   bool epipolar = false;
   int points = 0;
   std::string robust = "none";
+  std::string features = "points";
 
   void add(CLI::App* c) {
+    add_visual_features(c);
     c->add_option("--points", points,
                   "servo on this many points, chosen at teaching for the best-conditioned interaction matrix "
                   "(0: all)")
@@ -255,6 +257,15 @@ struct LawFlags {
     cfg.decoder.epipolar.enabled = epipolar;
     cfg.points = points;
     cfg.law.robust = control::parse_robust_estimator(robust);
+    cfg.law.features = control::parse_visual_features(features);
+  }
+  // campaign and study add the law's flags one by one; this one they share with experiment
+  void add_visual_features(CLI::App* c) {
+    c->add_option("--visual-features", features,
+                  "what the law servoes on: points (every decoded spot's x, y: the paper) | moments (the six image "
+                  "moments of the matched spots, docs/results.md)")
+        ->check(CLI::IsMember({"points", "moments"}))
+        ->capture_default_str();
   }
 };
 
@@ -326,6 +337,7 @@ struct CampaignFlags {
         ->capture_default_str();
     c->add_flag("--epipolar", law.epipolar, "decode with the projector's calibration");
     c->add_option("--robust", law.robust, "tukey | huber | none: M-estimator weights on the points")->capture_default_str();
+    law.add_visual_features(c);
     c->add_flag("--no-plot", no_plot, "do not draw the plots");
     conditions.add(c);
   }

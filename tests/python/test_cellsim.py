@@ -63,6 +63,17 @@ def test_an_experiment_returns_the_trace_as_arrays(plane):
     assert r["error_norm"][-1] < r["error_norm"][0]
 
 
+def test_an_experiment_can_servo_on_the_image_moments(plane):
+    r = cellsim.experiment(plane, z_hat=0.9, max_iterations=400, visual_features="moments")
+    assert r["converged"] and r["final_translation_error_m"] < 1e-3
+    with pytest.raises(ValueError) as e:
+        cellsim.experiment(plane, visual_features="moments", robust="tukey")
+    one_line(e)
+    with pytest.raises(ValueError) as e:
+        cellsim.experiment(plane, visual_features="lines")
+    one_line(e)
+
+
 def test_the_envs_300_step_plane_run_with_a_proportional_controller_converges(plane):
     env = cellsim.ServoEnv(plane, max_steps=300)
     obs, info = env.reset(options={"initial_pose": "initial"})

@@ -411,9 +411,10 @@ struct ServoConfigFlags {
     c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
     c->add_option("--visual-features", features,
-                  "points (every decoded spot's x, y) | moments (the six image moments of the matched spots); config "
-                  "key visual_features")
-        ->check(CLI::IsMember({"points", "moments"}));
+                  "points (every decoded spot's x, y) | moments (the six image moments of the matched spots) | "
+                  "surface (the plane of the triangulated spots and three moments: needs --projector); config key "
+                  "visual_features")
+        ->check(CLI::IsMember({"points", "moments", "surface"}));
   }
   void apply_to(servo::ServoConfig& config) const {
     if (!config_file.empty()) servo::load_servo_config(config_file, config);

@@ -89,8 +89,8 @@ void check_options(const ControlLawOptions& p) {
   if (!(p.convergence_translation_m > 0) || !(p.convergence_rotation_rad > 0)) bad("convergence thresholds must be positive");
   if (p.robust_iterations < 1 || p.robust_iterations > 50) bad("robust iterations must be in 1..50");
   if (!(p.robust_min_scale > 0) || !std::isfinite(p.robust_min_scale)) bad("robust minimum scale must be positive");
-  if (p.features == VisualFeatures::kMoments && p.robust != RobustEstimator::kNone)
-    bad("robust weights are per point: they apply to the points, not to the moments");
+  if (p.features != VisualFeatures::kPoints && p.robust != RobustEstimator::kNone)
+    bad("robust weights are per point: they apply to the points, not to the " + to_string(p.features));
 }
 
 namespace {
@@ -179,8 +179,11 @@ UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLa
       throw std::invalid_argument("control law: point (" + std::to_string(p.row) + ", " + std::to_string(p.col) +
                                   ") has non-finite coordinates");
     const Depths d = model_depths(p, params);
+    // the surface is fitted to s's and s*'s triangulated points whatever the model
+    const bool surface = params.features == VisualFeatures::kSurface;
     const bool needs_current = params.model == InteractionModel::kCurrent || params.model == InteractionModel::kMean;
     const bool needs_desired = params.model != InteractionModel::kCurrent;
+    if (surface && !(p.z && *p.z > 0 && p.z_star && *p.z_star > 0)) continue;
     if ((needs_current && !(d.current && *d.current > 0)) || (needs_desired && !(d.desired && *d.desired > 0))) continue;
     u.points.push_back(&p);
     u.index.push_back(static_cast<std::size_t>(&p - all.data()));
@@ -246,6 +249,30 @@ void moment_system(const UsablePoints& u, const ControlLawOptions& params, Eigen
   }
 }
 
+// The surface's system (surface_features.hpp): the planes of s's and s*'s triangulated points
+// with three moments each; L where the model takes it.
+void surface_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
+  const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
+  Eigen::VectorXd s(2 * k), s_star(2 * k), z(k), z_star(k);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const MatchedPoint& p = *u.points[i];
+    s.segment<2>(2 * i) << p.x, p.y;
+    s_star.segment<2>(2 * i) << p.x_star, p.y_star;
+    z[i] = *p.z, z_star[i] = *p.z_star;
+  }
+  const MomentScale scale{moment_area(s_star), z_star.mean()};
+  error = surface_features(s, z, scale) - surface_features(s_star, z_star, scale);
+  error[5] = std::remainder(error[5], 3.14159265358979323846);  // alpha, an orientation: modulo pi
+  const auto at_goal = [&] { return surface_interaction_matrix(s_star, z_star, fit_plane(s_star, z_star), scale); };
+  const auto now = [&] { return surface_interaction_matrix(s, z, fit_plane(s, z), scale); };
+  switch (params.model) {
+    case InteractionModel::kDesiredConstantDepth:
+    case InteractionModel::kDesired: L = at_goal(); break;
+    case InteractionModel::kCurrent: L = now(); break;
+    case InteractionModel::kMean: L = 0.5 * (now() + at_goal()); break;
+  }
+}
+
 // The robust task function by IRLS: weights from the residuals of the last estimate, e from
 // the weighted system. Returns the points' last weights.
 std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawOptions& params,
@@ -290,8 +317,11 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
   stack_system(u, params, error, L, out.z_model);
   out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
   out.weights.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
-  if (params.features == VisualFeatures::kMoments) {
-    moment_system(u, params, error, L);
+  if (params.features != VisualFeatures::kPoints) {
+    if (params.features == VisualFeatures::kMoments)
+      moment_system(u, params, error, L);
+    else
+      surface_system(u, params, error, L);
     out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
     for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else if (params.robust == RobustEstimator::kNone) {

@@ -13,6 +13,7 @@
 
 #include "servo/control/image_moments.hpp"
 #include "servo/control/interaction_matrix.hpp"
+#include "servo/control/surface_features.hpp"
 
 namespace control {
 
@@ -78,8 +79,11 @@ struct ControlLawOptions {
   // estimated from the others leaves of its error, (s - s*) - L-hat e, so a point that moves
   // against the rigid motion of the rest is the outlier, wherever it lies in the image.
   RobustEstimator robust = RobustEstimator::kNone;
-  // What s is (issue 44): every point's (x, y), or the six image moments of the matched points
-  // (image_moments.hpp), their interaction matrix from the points' with the model's depths.
+  // What s is (issue 44): every point's (x, y), the six image moments of the matched points
+  // (image_moments.hpp), their interaction matrix from the points' with the model's depths, or
+  // the plane of the triangulated points with three moments (surface_features.hpp: it needs
+  // every point's current and desired depth, whatever the model; the model says where L is
+  // taken: at s* for the desired ones, at s for current, their mean for mean).
   // The task function e = L-hat^+ (s - s*) is a pose error estimate either way, so the
   // convergence test and the gain keep their meaning. Robust weights are per point: points only.
   VisualFeatures features = VisualFeatures::kPoints;

@@ -50,14 +50,22 @@ Eigen::Matrix<double, 6, 9> feature_jacobian(const Vector9d& q, const MomentScal
 
 }  // namespace
 
-std::string to_string(VisualFeatures f) { return f == VisualFeatures::kMoments ? "moments" : "points"; }
+std::string to_string(VisualFeatures f) {
+  switch (f) {
+    case VisualFeatures::kPoints: return "points";
+    case VisualFeatures::kMoments: return "moments";
+    case VisualFeatures::kSurface: return "surface";
+  }
+  return "?";
+}
 
 VisualFeatures parse_visual_features(const std::string& name) {
   if (name == "points") return VisualFeatures::kPoints;
   if (name == "moments") return VisualFeatures::kMoments;
+  if (name == "surface") return VisualFeatures::kSurface;
   std::string shown;
   for (char c : name.substr(0, 40)) shown += (c >= 0x20 && c < 0x7f) ? c : '?';
-  throw std::invalid_argument("visual features '" + shown + "': expected points or moments");
+  throw std::invalid_argument("visual features '" + shown + "': expected points, moments or surface");
 }
 
 double moment_area(const Eigen::VectorXd& xy) {

@@ -33,10 +33,11 @@ namespace control {
 
 using Matrix66 = Eigen::Matrix<double, 6, 6>;
 
-// What the law servoes on: every point's (x, y) (the paper), or the points' image moments.
-enum class VisualFeatures { kPoints, kMoments };
+// What the law servoes on: every point's (x, y) (the paper), the points' image moments, or the
+// surface they lie on with three of the moments (surface_features.hpp).
+enum class VisualFeatures { kPoints, kMoments, kSurface };
 std::string to_string(VisualFeatures f);
-VisualFeatures parse_visual_features(const std::string& name);  // "points" | "moments"; throws
+VisualFeatures parse_visual_features(const std::string& name);  // "points" | "moments" | "surface"; throws
 
 struct MomentScale {
   double a_star = 1;  // a of the desired points

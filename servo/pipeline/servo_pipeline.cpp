@@ -1,5 +1,7 @@
 #include "servo/pipeline/servo_pipeline.hpp"
 
+#include <stdexcept>
+
 #include <algorithm>
 
 namespace servo {
@@ -7,6 +9,9 @@ namespace servo {
 ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
     : decoder_(std::move(table), config.decoder), config_(std::move(config)) {
   control::check_options(config_.law);  // a malformed law is refused at start, not at the first frame
+  if (config_.law.features == control::VisualFeatures::kSurface && !config_.projector)
+    throw std::invalid_argument(
+        "visual features 'surface' need the spots' depths: give the projector's calibration (--projector)");
 }
 
 std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,

@@ -263,8 +263,9 @@ struct LawFlags {
   void add_visual_features(CLI::App* c) {
     c->add_option("--visual-features", features,
                   "what the law servoes on: points (every decoded spot's x, y: the paper) | moments (the six image "
-                  "moments of the matched spots, docs/results.md)")
-        ->check(CLI::IsMember({"points", "moments"}))
+                  "moments of the matched spots) | surface (the plane of the triangulated spots, its normal and "
+                  "distance, and three moments); docs/results.md")
+        ->check(CLI::IsMember({"points", "moments", "surface"}))
         ->capture_default_str();
   }
 };

@@ -49,9 +49,10 @@ cfg 'propagate_sources: 0\n' "propagate_sources: must be an integer in 1..9"
 cfg 'gain: 0.5\ngain: 0.6\n' "gain: key given twice"
 cfg 'gain: "\\x01\\xff"\n' "gain: must be a number"
 cfg 'gain: [\n' "YAML syntax error"
-cfg 'visual_features: surface\n' "visual_features: must be points or moments, got 'surface'"
+cfg 'visual_features: lines\n' "visual_features: must be points, moments or surface, got 'lines'"
 cfg 'visual_features: moments\nrobust: tukey\n' "robust weights are per point"
 one_line_error "--visual-features" "visual-features" "$servo" run --pattern "$pattern" --visual-features lines
+one_line_error "surface without depths" "need the spots' depths" "$servo" run --pattern "$pattern" --visual-features surface
 cal() { printf '%b' "$1" > "$tmp/p.yaml"; one_line_error "calibration: $1" "$2" "$servo" run --pattern "$pattern" --projector "$tmp/p.yaml"; }
 good='fx: 1500\nfy: 1500\ncx: 511.5\ncy: 383.5\nspot_pitch_px: 15\nposition_m: [0, 0, 0]\n'
 cal "${good}rows: 20\ncols: 20\norientation_xyzw: [0, 0, 0, 0]\n" "orientation_xyzw: must be a unit quaternion"

@@ -247,6 +247,20 @@ TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
       "cylinder", "1200");
 }
 
+// issue 44: the surface as a feature (the plane of the triangulated spots and three moments)
+// over DDS, the servo with the projector's calibration, as in-process
+TEST(DdsLoop, TheSurfaceFeaturesConvergeOnTheCylinder) {
+  const int domain = unique_domain(25);
+  const std::string dir = tmp_dir("cylinder_surface");
+  Process calib({kBin + "cellsim", "calibration", kSrc + "/sim/scenarios/cylinder.yaml", "-o", dir + "/projector.yaml"},
+                domain, dir + "/calib.log");
+  ASSERT_EQ(calib.wait_exit(30s), 0);
+  expect_lockstep_convergence(domain, dir,
+                              {kBin + "servo", "run", "--pattern", kCurvedPattern, "--model", "current", "--projector",
+                               dir + "/projector.yaml", "--visual-features", "surface"},
+                              "cylinder", "1200");
+}
+
 TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {
   const int domain = unique_domain(3);
   const std::string dir = tmp_dir("restart");

@@ -110,17 +110,18 @@ TEST(ControlLaw, ExactCurrentModelDecaysExponentiallyAtRateLambda) {
 // Issue 44: the law on image moments brings the camera back from a displacement of the
 // paper's size (a few cm, a few degrees) with each model, to the same pose the points give:
 // the six moments of a rigid point set fix the pose. Robust weights are per point: refused.
-TEST(ControlLaw, TheMomentsBringTheCameraBackWithEveryModel) {
+TEST(ControlLaw, TheMomentsAndTheSurfaceBringTheCameraBackWithEveryModel) {
   const auto goal = scene_points(60, 5);
   Vector6d offset;
   offset << 0.04, -0.03, 0.05, 0.06, -0.05, 0.2;
   for (auto model : {InteractionModel::kDesiredConstantDepth, InteractionModel::kDesired, InteractionModel::kCurrent,
-                     InteractionModel::kMean}) {
+                     InteractionModel::kMean})
+   for (auto features : {VisualFeatures::kMoments, VisualFeatures::kSurface}) {
     std::vector<Eigen::Vector3d> now = after_offset(goal, offset);
     ControlLawOptions p;
     p.model = model;
     p.z_hat_m = 0.8;
-    p.features = VisualFeatures::kMoments;
+    p.features = features;
     ControlOutput out;
     int k = 0;
     for (; k < 3000 && out.status != ControlStatus::kConverged; ++k) {
@@ -131,11 +132,11 @@ TEST(ControlLaw, TheMomentsBringTheCameraBackWithEveryModel) {
     // the pose error: every point back where it was, to a fraction of a millimetre
     double worst = 0;
     for (std::size_t i = 0; i < goal.size(); ++i) worst = std::max(worst, (now[i] - goal[i]).norm());
-    EXPECT_EQ(out.status, ControlStatus::kConverged) << to_string(model) << " after " << k << " iterations";
-    EXPECT_LT(worst, 2e-3) << to_string(model) << ": a point " << worst * 1e3 << " mm from its place";
+    EXPECT_EQ(out.status, ControlStatus::kConverged) << to_string(features) << ", " << to_string(model) << " after " << k << " iterations";
+    EXPECT_LT(worst, 2e-3) << to_string(features) << ", " << to_string(model) << ": a point " << worst * 1e3 << " mm from its place";
   }
   ControlLawOptions robust;
-  robust.features = VisualFeatures::kMoments;
+  robust.features = VisualFeatures::kSurface;
   robust.robust = RobustEstimator::kTukey;
   EXPECT_THROW(compute_control(matched(goal, goal), robust), std::invalid_argument);
 }

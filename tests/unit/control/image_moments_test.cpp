@@ -7,6 +7,7 @@
 #include <random>
 
 #include "servo/control/image_moments.hpp"
+#include "servo/control/surface_features.hpp"
 
 namespace control {
 namespace {
@@ -70,6 +71,41 @@ TEST(ImageMoments, TheInteractionMatrixIsTheProjectionsDerivativeAtRandomPoses) 
     }
   }
   std::printf("worst relative error of a feature's row over 200 poses: %.2g\n", worst);
+}
+
+// the surface's features: the plane's normal and distance, three moments
+TEST(SurfaceFeatures, TheInteractionMatrixIsTheProjectionsDerivativeAtRandomPoses) {
+  std::mt19937_64 rng(45);
+  double worst = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const auto p = scene(rng, 4 + trial % 17, false);
+    const auto depths = [](const std::vector<Eigen::Vector3d>& q) {
+      Eigen::VectorXd Z(static_cast<Eigen::Index>(q.size()));
+      for (std::size_t k = 0; k < q.size(); ++k) Z[static_cast<Eigen::Index>(k)] = q[k].z();
+      return Z;
+    };
+    const Eigen::VectorXd xy = project(p), Z = depths(p);
+    const MomentScale scale{moment_area(xy), 0.5 + 0.1 * (trial % 7)};
+    const Plane plane = fit_plane(xy, Z);
+    const Matrix66 L = surface_interaction_matrix(xy, Z, plane, scale);
+    Matrix66 fd;
+    const double h = 1e-6;
+    for (int c = 0; c < 6; ++c) {
+      const Vector6d v = Vector6d::Unit(c);
+      const auto ahead = moved(p, v, h), behind = moved(p, v, -h);
+      Vector6d diff = surface_features(project(ahead), depths(ahead), scale) -
+                      surface_features(project(behind), depths(behind), scale);
+      diff[5] = std::remainder(diff[5], 3.14159265358979323846);
+      fd.col(c) = diff / (2 * h);
+    }
+    for (int r = 0; r < 6; ++r) {
+      const double rel = (fd.row(r) - L.row(r)).norm() / L.row(r).norm();
+      worst = std::max(worst, rel);
+      ASSERT_LE(rel, 1e-4) << "trial " << trial << ", feature " << r << "\nL\n" << L << "\nfinite differences\n" << fd;
+    }
+  }
+  std::printf("worst relative error of a feature's row over 200 poses: %.2g\n", worst);
+  EXPECT_THROW(fit_plane(Eigen::VectorXd::Ones(6), Eigen::VectorXd::Ones(3)), std::invalid_argument);  // one point thrice
 }
 
 // x_n, y_n, a_n, alpha: a translation along the optical axis of a plane parallel to the image

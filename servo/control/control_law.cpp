@@ -43,7 +43,7 @@ Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel) {
   return svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose();
 }
 
-Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel) {
+Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel, double* condition) {
   // A is tall (2k x 6): the SVD of A is read off the eigen-decomposition of the 6 x 6 A^T A
   // (A = U S V^T, A^T A = V S^2 V^T), so A^+ b = V S^-2 V^T A^T b, with singular values below
   // rel x the largest dropped. O(k) instead of an SVD of the 2k x 6 matrix.
@@ -51,6 +51,10 @@ Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::Vect
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(AtA);
   const Eigen::VectorXd& ev = eig.eigenvalues();  // ascending
   const double top = ev.size() ? std::sqrt(std::max(ev[ev.size() - 1], 0.0)) : 0;
+  if (condition) {
+    const double bottom = ev.size() ? std::sqrt(std::max(ev[0], 0.0)) : 0;
+    *condition = bottom > 0 ? top / bottom : std::numeric_limits<double>::infinity();
+  }
   Eigen::VectorXd inv = Eigen::VectorXd::Zero(ev.size());
   for (Eigen::Index i = 0; i < ev.size(); ++i) {
     const double sv = std::sqrt(std::max(ev[i], 0.0));
@@ -276,7 +280,7 @@ void surface_system(const UsablePoints& u, const ControlLawOptions& params, Eige
 // The robust task function by IRLS: weights from the residuals of the last estimate, e from
 // the weighted system. Returns the points' last weights.
 std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawOptions& params,
-                                Vector6d& task) {
+                                Vector6d& task, double* condition) {
   const Eigen::Index k = L.rows() / 2;
   std::vector<double> w(static_cast<std::size_t>(k), 1.0), residual(static_cast<std::size_t>(k));
   Eigen::MatrixXd WL = L;
@@ -292,7 +296,7 @@ std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd&
       We[2 * i] = w[static_cast<std::size_t>(i)] * error[2 * i];
       We[2 * i + 1] = w[static_cast<std::size_t>(i)] * error[2 * i + 1];
     }
-    task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold);
+    task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold, condition);
   }
   return w;
 }
@@ -322,13 +326,13 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
       moment_system(u, params, error, L);
     else
       surface_system(u, params, error, L);
-    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold, &out.condition);
     for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else if (params.robust == RobustEstimator::kNone) {
-    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold);
+    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold, &out.condition);
     for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else {
-    const std::vector<double> w = robust_task(L, error, params, out.task);
+    const std::vector<double> w = robust_task(L, error, params, out.task, &out.condition);
     int kept = 0;
     for (Eigen::Index i = 0; i < k; ++i) {
       out.weights[u.index[i]] = w[static_cast<std::size_t>(i)];

@@ -101,6 +101,9 @@ struct ControlOutput {
   double gain = 0;
   int points = 0;
   bool saturated = false;
+  // the condition number of the interaction matrix the task came from (the weighted one with
+  // the robust law); 0 when none was made (a safe stop)
+  double condition = 0;
   ControlStatus status = ControlStatus::kServoing;
   std::string reason;                 // why it stopped, when it did
   // per input point, the depth the model used (kMean: the current one); NaN for points it
@@ -123,7 +126,10 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& points, const Con
 Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel);
 // A^+ b for a tall A (rows >= cols), the same thresholding, without forming A^+: what the
 // control law uses every iteration.
-Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel);
+// `condition` (optional): A's condition number, its largest singular value over its smallest
+// (infinity when A is singular), read off the same decomposition.
+Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel,
+                                     double* condition = nullptr);
 
 // Beyond the paper's experiments (§6, after [6]): choose `count` points greedily so that the
 // interaction matrix built from them is as well conditioned as possible.

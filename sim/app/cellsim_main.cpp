@@ -409,6 +409,10 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   else
     std::printf("  %s: no run\n", r.stop_reason.c_str());
   if (ran) std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
+  if (ran && r.straight_line_m > 0)
+    std::printf("  path: %.1f mm for %.1f mm away (%.2fx the straight line); condition of L: median %.3g, largest %.3g\n",
+                1e3 * r.path_length_m, 1e3 * r.straight_line_m, r.path_length_m / r.straight_line_m, r.condition_median,
+                r.condition_max);
   if (!out_dir.empty() && ran) {
     // the plots are named only when they were drawn (--no-plot, or no Python: none)
     const bool plotted = plot && experiment::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);

@@ -263,7 +263,9 @@ class Experiment {
   void record(const sim::TraceRow& r) {
     IterationRecord rec = record_of(r);
     if (!step_extras_.empty()) {
-      std::tie(rec.feature_rms, rec.swapped) = step_extras_.front();
+      rec.feature_rms = step_extras_.front().feature_rms;
+      rec.swapped = step_extras_.front().swapped;
+      rec.condition = step_extras_.front().condition;
       step_extras_.pop_front();
     }
     res_.trace.push_back(rec);
@@ -321,7 +323,12 @@ class Experiment {
   void stepped(const loop::LoopExchange& x) {
     if (k_ == 0) res_.decoded_initial = static_cast<int>(x.reply.decoded);
     if (k_ == 0) write_overlay(x, "initial.png");
-    step_extras_.emplace_back(x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped);
+    step_extras_.push_back({x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped,
+                            x.reply.step ? x.reply.step->control.condition : 0.0});
+    const Eigen::Vector3d at = x.frame.world_T_camera.translation();
+    if (k_ == 0) res_.straight_line_m = (at - scenario().world_T_desired.translation()).norm();
+    if (last_position_) res_.path_length_m += (at - *last_position_).norm();
+    last_position_ = at;
     if (occlusion_.is_open()) {
       // the truth of the arm's occlusion: spots it hides from the camera, spots it catches
       int visible = 0, hidden = 0, on_arm = 0;
@@ -363,6 +370,14 @@ class Experiment {
       for (const auto& r : res_.trace) top = std::max(top, r.error_norm);
       res_.max_error_ratio = top / res_.trace.front().error_norm;
     }
+    std::vector<double> conditions;
+    for (const auto& r : res_.trace)
+      if (r.condition > 0 && std::isfinite(r.condition)) conditions.push_back(r.condition);
+    if (!conditions.empty()) {
+      std::sort(conditions.begin(), conditions.end());
+      res_.condition_median = conditions[conditions.size() / 2];
+      res_.condition_max = conditions.back();
+    }
     // the trace says why the run ended, as the service's trace does
     if (trace_.is_open()) trace_ << "# session ended: " << res_.stop_reason << '\n';
     const Eigen::Isometry3d wTc = loop_.cell().world_T_camera();
@@ -377,7 +392,13 @@ class Experiment {
   loop::InMemoryLoop loop_;
   ExperimentResult res_;
   std::ofstream trace_, features_, occlusion_;
-  std::deque<std::pair<double, int>> step_extras_;  // (feature rms, swapped) per applied step, in order
+  struct StepExtras {
+    double feature_rms;
+    int swapped;
+    double condition;
+  };
+  std::deque<StepExtras> step_extras_;  // per applied step, in order
+  std::optional<Eigen::Vector3d> last_position_;  // the camera's, at the last applied frame
   int k_ = 0;                                       // applied frames so far
   std::unique_ptr<common::Progress> progress_;      // with ExperimentOptions::progress
   bool started_ = false;

@@ -50,6 +50,7 @@ struct IterationRecord {
   double translation_error_m = 0, rotation_error_deg = 0;
   std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (sim::RobotLimit bits)
   int swapped = 0;                 // spots given a wrong id by the outlier injection
+  double condition = 0;            // the condition number of the law's interaction matrix (0: no law step)
 };
 
 // How a run ended, in the words of the exit-code table (common/exit_codes.hpp)
@@ -66,6 +67,10 @@ struct ExperimentResult {
   int iterations = 0;
   int decoded_desired = 0, decoded_initial = 0;
   double final_translation_error_m = 0, final_rotation_error_deg = 0;
+  // the camera's path from the initial pose (its length, m) and the straight line to the goal
+  double path_length_m = 0, straight_line_m = 0;
+  // the law's interaction matrix over the run: its condition number's median and largest
+  double condition_median = 0, condition_max = 0;
   // how much |e| rose on its way, summed over the iterations where it rose, relative to its
   // first value: 0 for a monotonic decrease; an oscillating loop piles it up
   double error_rise = 0;

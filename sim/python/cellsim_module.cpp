@@ -227,6 +227,8 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
   d["decoded_initial"] = r.decoded_initial;
   d["final_translation_error_m"] = r.final_translation_error_m;
   d["final_rotation_error_deg"] = r.final_rotation_error_deg;
+  d["path_length_m"] = r.path_length_m;
+  d["straight_line_m"] = r.straight_line_m;
   d["t"] = column<double>(tr, [](const I& i) { return i.t_s; });
   d["twist"] = twist;
   d["error_norm"] = column<double>(tr, [](const I& i) { return i.error_norm; });
@@ -234,6 +236,7 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
   d["rotation_error_deg"] = column<double>(tr, [](const I& i) { return i.rotation_error_deg; });
   d["decoded"] = column<int>(tr, [](const I& i) { return i.decoded; });
   d["matched"] = column<int>(tr, [](const I& i) { return i.matched; });
+  d["condition"] = column<double>(tr, [](const I& i) { return i.condition; });
   return d;
 }
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <cmath>
 #include <random>
 
@@ -279,7 +280,10 @@ TEST(PseudoInverse, SolveAgreesWithTheExplicitPseudoInverse) {
   Eigen::VectorXd b(40);
   for (int i = 0; i < A.size(); ++i) A.data()[i] = n(rng);
   for (int i = 0; i < b.size(); ++i) b[i] = n(rng);
-  EXPECT_LT((pseudo_inverse_solve(A, b, 1e-9) - pseudo_inverse(A, 1e-9) * b).norm(), 1e-10);
+  double condition = 0;
+  EXPECT_LT((pseudo_inverse_solve(A, b, 1e-9, &condition) - pseudo_inverse(A, 1e-9) * b).norm(), 1e-10);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A);
+  EXPECT_NEAR(condition, svd.singularValues()[0] / svd.singularValues()[5], 1e-9 * condition);
   A.col(5) = A.col(4);  // rank 5: both drop the null direction
   EXPECT_LT((pseudo_inverse_solve(A, b, 1e-6) - pseudo_inverse(A, 1e-6) * b).norm(), 1e-8);
 }

@@ -227,54 +227,59 @@ void stack_system(const UsablePoints& u, const ControlLawOptions& params, Eigen:
   }
 }
 
-// The moments' system (image_moments.hpp): their error and interaction matrix, each point's
-// rows with the depth the model gives it, as stack_system's points.
-void moment_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
+// The matched points' coordinates, s and s*, with depths: the model's (the moments' rows take
+// the depth the model gives each point, as stack_system's) or the triangulated ones (the
+// surface is fitted to them whatever the model).
+struct PointSets {
+  Eigen::VectorXd s, s_star, z, z_star;
+};
+PointSets point_sets(const UsablePoints& u, bool triangulated) {
   const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
-  Eigen::VectorXd s(2 * k), s_star(2 * k), z(k), z_star(k);
+  PointSets p{Eigen::VectorXd(2 * k), Eigen::VectorXd(2 * k), Eigen::VectorXd(k), Eigen::VectorXd(k)};
   for (Eigen::Index i = 0; i < k; ++i) {
-    const MatchedPoint& p = *u.points[i];
-    s.segment<2>(2 * i) << p.x, p.y;
-    s_star.segment<2>(2 * i) << p.x_star, p.y_star;
-    z[i] = u.depths[i].current.value_or(0);
-    z_star[i] = u.depths[i].desired.value_or(0);
+    const MatchedPoint& m = *u.points[i];
+    p.s.segment<2>(2 * i) << m.x, m.y;
+    p.s_star.segment<2>(2 * i) << m.x_star, m.y_star;
+    p.z[i] = triangulated ? *m.z : u.depths[i].current.value_or(0);
+    p.z_star[i] = triangulated ? *m.z_star : u.depths[i].desired.value_or(0);
   }
+  return p;
+}
+
+// L where the model takes it: at s* for the desired models, at s for current, their mean
+template <typename Now, typename AtGoal>
+Eigen::MatrixXd by_model(InteractionModel model, Now&& now, AtGoal&& at_goal) {
+  switch (model) {
+    case InteractionModel::kDesiredConstantDepth:
+    case InteractionModel::kDesired: return at_goal();
+    case InteractionModel::kCurrent: return now();
+    case InteractionModel::kMean: return 0.5 * (now() + at_goal());
+  }
+  return at_goal();
+}
+
+// The moments' system (image_moments.hpp): their error and interaction matrix.
+void moment_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
+  const PointSets p = point_sets(u, false);
   // a_n's value at the goal: the desired depths' mean where the model has them, else Z-hat
   const bool desired_depths = params.model != InteractionModel::kCurrent;
-  const MomentScale scale{moment_area(s_star), desired_depths ? z_star.mean() : params.z_hat_m};
-  error = moment_error(moment_features(s, scale), moment_features(s_star, scale));
-  switch (params.model) {
-    case InteractionModel::kDesiredConstantDepth:
-    case InteractionModel::kDesired: L = moment_interaction_matrix(s_star, z_star, scale); break;
-    case InteractionModel::kCurrent: L = moment_interaction_matrix(s, z, scale); break;
-    case InteractionModel::kMean:
-      L = 0.5 * (moment_interaction_matrix(s, z, scale) + moment_interaction_matrix(s_star, z_star, scale));
-      break;
-  }
+  const MomentScale scale{moment_area(p.s_star), desired_depths ? p.z_star.mean() : params.z_hat_m};
+  error = moment_error(moment_features(p.s, scale), moment_features(p.s_star, scale));
+  L = by_model(
+      params.model, [&] { return moment_interaction_matrix(p.s, p.z, scale); },
+      [&] { return moment_interaction_matrix(p.s_star, p.z_star, scale); });
 }
 
 // The surface's system (surface_features.hpp): the planes of s's and s*'s triangulated points
-// with three moments each; L where the model takes it.
+// with three moments each.
 void surface_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
-  const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
-  Eigen::VectorXd s(2 * k), s_star(2 * k), z(k), z_star(k);
-  for (Eigen::Index i = 0; i < k; ++i) {
-    const MatchedPoint& p = *u.points[i];
-    s.segment<2>(2 * i) << p.x, p.y;
-    s_star.segment<2>(2 * i) << p.x_star, p.y_star;
-    z[i] = *p.z, z_star[i] = *p.z_star;
-  }
-  const MomentScale scale{moment_area(s_star), z_star.mean()};
-  error = surface_features(s, z, scale) - surface_features(s_star, z_star, scale);
+  const PointSets p = point_sets(u, true);
+  const MomentScale scale{moment_area(p.s_star), p.z_star.mean()};
+  error = surface_features(p.s, p.z, scale) - surface_features(p.s_star, p.z_star, scale);
   error[5] = std::remainder(error[5], 3.14159265358979323846);  // alpha, an orientation: modulo pi
-  const auto at_goal = [&] { return surface_interaction_matrix(s_star, z_star, fit_plane(s_star, z_star), scale); };
-  const auto now = [&] { return surface_interaction_matrix(s, z, fit_plane(s, z), scale); };
-  switch (params.model) {
-    case InteractionModel::kDesiredConstantDepth:
-    case InteractionModel::kDesired: L = at_goal(); break;
-    case InteractionModel::kCurrent: L = now(); break;
-    case InteractionModel::kMean: L = 0.5 * (now() + at_goal()); break;
-  }
+  L = by_model(
+      params.model, [&] { return surface_interaction_matrix(p.s, p.z, fit_plane(p.s, p.z), scale); },
+      [&] { return surface_interaction_matrix(p.s_star, p.z_star, fit_plane(p.s_star, p.z_star), scale); });
 }
 
 // The robust task function by IRLS: weights from the residuals of the last estimate, e from

@@ -39,11 +39,21 @@ AXIS_LABELS = {
     "joint_offset_deg": "joint offset error (deg)",
     "acquisition_frames": "acquisition delay (frames)", "processing_frames": "processing delay (frames)",
     "actuation_s": "actuation delay (s)",
+    "visual_features": "visual features",
 }
 
 
 def label(axis):
     return AXIS_LABELS.get(axis, axis)
+
+
+# an axis of names (study.csv holds their index): its ticks are the names
+NAMED_AXES = {"visual_features": ["points", "moments", "surface"]}
+
+
+def tick_names(axis, values):
+    names = NAMED_AXES.get(axis)
+    return [names[int(v)] if names and 0 <= int(v) < len(names) else f"{v:g}" for v in values]
 
 
 def cell_text_colour(im, v):
@@ -71,6 +81,9 @@ def one_axis(rows, axis, models, title, out):
         axes[3].plot(x, [number(r["median_error_rise"]) for r in rs], label=m, **look)
     for ax, y in zip(axes, ("converged (%)", "iterations (median, converged)",
                             "final error (mm, median, converged)", "rise of |e| / |e0| (median)")):
+        if axis in NAMED_AXES:
+            values = sorted({number(r[x_key]) for r in rows})
+            ax.set_xticks(values, tick_names(axis, values))
         ax.set_xlabel(x_label)
         ax.set_ylabel(y)
         ax.grid(True, alpha=0.3)
@@ -103,8 +116,8 @@ def two_axes(rows, axes_names, models, title, out):
             ax = axes[row][c]
             im = ax.imshow(grid, origin="lower", aspect="auto", cmap=cmap,
                            vmin=0 if row == 0 else None, vmax=100 if row == 0 else None)
-            ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs], fontsize=7)
-            ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys], fontsize=7)
+            ax.set_xticks(range(len(xs)), tick_names(a, xs), fontsize=7)
+            ax.set_yticks(range(len(ys)), tick_names(b, ys), fontsize=7)
             ax.set_xlabel(label(a), fontsize=8)
             ax.set_ylabel(label(b), fontsize=8)
             ax.set_title(f"{m}:\n{what}", fontsize=8)

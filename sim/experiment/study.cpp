@@ -60,6 +60,12 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
     // convergence domain (issue 19)
     within(0, 100);
     c.scale = v;
+  } else if (name == "visual_features") {
+    // what the law servoes on (issue 44), by its index: 0 points, 1 moments, 2 surface; the
+    // axis is written with the names (visual_features=points,surface)
+    within(0, 2);
+    if (v != std::floor(v)) within(1, 0);  // not an index
+    c.base.law.features = static_cast<control::VisualFeatures>(static_cast<int>(v));
   } else if (name == "outliers") {
     // the fraction of the spots whose ids are swapped at every frame
     within(0, 0.5);
@@ -104,7 +110,13 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
 std::string label(const std::vector<StudyAxis>& axes, const std::vector<double>& values) {
   std::ostringstream l;
   l << std::setprecision(6);
-  for (std::size_t i = 0; i < axes.size(); ++i) l << (i ? "," : "") << axes[i].name << '=' << values[i];
+  for (std::size_t i = 0; i < axes.size(); ++i) {
+    l << (i ? "," : "") << axes[i].name << '=';
+    if (axes[i].name == "visual_features")
+      l << control::to_string(static_cast<control::VisualFeatures>(static_cast<int>(values[i])));
+    else
+      l << values[i];
+  }
   return l.str();
 }
 
@@ -120,7 +132,7 @@ double depth_spread(const sim::Cell& cell) {
 
 std::vector<std::string> study_axis_names() {
   std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
-                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers"};
+                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "visual_features"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;
@@ -135,7 +147,14 @@ StudyAxis parse_study_axis(const std::string& spec) {
   a.name = spec.substr(0, eq);
   std::stringstream list(spec.substr(eq + 1));
   for (std::string item; std::getline(list, item, ',');) {
-    const std::optional<double> parsed = common::decimal_number(item);  // "0x10" is not 16
+    std::optional<double> parsed = common::decimal_number(item);  // "0x10" is not 16
+    if (a.name == "visual_features") {  // by name: points, moments, surface
+      try {
+        parsed = static_cast<double>(control::parse_visual_features(item));
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument("study axis visual_features: " + std::string(e.what()));
+      }
+    }
     const double v = parsed.value_or(0);
     if (!parsed)
       throw std::invalid_argument("study axis " + common::printable(a.name.substr(0, 60)) + ": '" +
@@ -217,7 +236,12 @@ std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions&
                     table_number(m.median_iterations, 0).c_str(), table_number(m.median_translation_mm, 3).c_str(),
                     table_number(m.median_rotation_deg, 4).c_str(), table_number(m.median_error_rise, 3).c_str());
       md << "| ";
-      for (double v : grid[g]) md << v << " | ";
+      for (std::size_t i = 0; i < grid[g].size(); ++i) {
+        if (o.axes[i].name == "visual_features")
+          md << control::to_string(static_cast<control::VisualFeatures>(static_cast<int>(grid[g][i]))) << " | ";
+        else
+          md << grid[g][i] << " | ";
+      }
       md << (row + 2);
     }
   }

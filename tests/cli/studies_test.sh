@@ -51,4 +51,12 @@ grep -qi "nan" <<<"$out" && fail "a campaign summary shows nan: $out"
 out=$("$cellsim" study "$fig5" --features ideal --axis gain=16 --axis processing_frames=2 --models desired --runs 2 \
   --max-iterations 150 -o "$tmp/rising" 2>/dev/null)
 grep -q "| 16 | 2 | [0-9.]* | desired | 0/2 | 0 | 2 | 0 | 0 | 2 |" <<<"$out" || fail "a study cell whose |e| rose does not say so: $out"
+# issue 44: the visual features as an axis, by name
+out=$("$cellsim" study "$src/sim/scenarios/plane.yaml" --axis visual_features=points,surface --models current --runs 1 \
+  --no-plot -o "$tmp/features" 2>/dev/null) || fail "a study over the visual features: exit $?"
+grep -q "^| points | 0.0 | current | 1/1 " <<<"$out" && grep -q "^| surface | 0.0 | current | 1/1 " <<<"$out" ||
+  fail "a study over the visual features does not name them: $out"
+[ -d "$tmp/features/visual_features=surface" ] || fail "no folder visual_features=surface"
+one_line_error "an unknown feature set" "expected points, moments or surface" \
+  "$cellsim" study "$src/sim/scenarios/plane.yaml" --axis visual_features=lines -o "$tmp/y"
 echo "studies: tables and plots written, fig5 search reproducible, errors and delays applied, bad values refused"

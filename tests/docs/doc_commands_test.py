@@ -130,6 +130,8 @@ NOT_RUN = {
     "build/bin/cellsim campaign sim/scenarios/fig5.yaml --features ideal --runs 12": "12 runs of 800 iterations: minutes",
     "build/bin/cellsim study sim/scenarios/plane.yaml --features ideal --axis gain=1,4,16": "9 points of 20 runs: minutes",
     "build/bin/cellsim fig5-search": "1000 tries: minutes (cli tests run 1 to 20)",
+    "build/bin/cellsim study sim/scenarios/cylinder.yaml --axis visual_features": "54 runs of up to 900 iterations: 35 s "
+    "on both cores, a minute under load",
     "bin/compare-features": "12 studies of 72 runs: 18 min",
     "bin/decode-heldout": "96 sweeps: 1.5 min (cli.decode_heldout runs a subset)",
     "ROS_DOMAIN_ID=": "the services, each in a terminal of its own (the closed_loop tests run them)",

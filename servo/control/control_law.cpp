@@ -327,10 +327,18 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
   out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
   out.weights.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
   if (params.features != VisualFeatures::kPoints) {
-    if (params.features == VisualFeatures::kMoments)
-      moment_system(u, params, error, L);
-    else
-      surface_system(u, params, error, L);
+    // the points may give no moments or no plane (all on one spot, all on a line: a few spots
+    // left at an edge): a safe stop with the reason, as too few points are, never a throw
+    try {
+      if (params.features == VisualFeatures::kMoments)
+        moment_system(u, params, error, L);
+      else
+        surface_system(u, params, error, L);
+    } catch (const std::invalid_argument& e) {
+      out.status = ControlStatus::kTooFewPoints;
+      out.reason = e.what();
+      return out;
+    }
     out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold, &out.condition);
     for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else if (params.robust == RobustEstimator::kNone) {

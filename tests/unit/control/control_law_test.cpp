@@ -136,6 +136,18 @@ TEST(ControlLaw, TheMomentsAndTheSurfaceBringTheCameraBackWithEveryModel) {
     EXPECT_EQ(out.status, ControlStatus::kConverged) << to_string(features) << ", " << to_string(model) << " after " << k << " iterations";
     EXPECT_LT(worst, 2e-3) << to_string(features) << ", " << to_string(model) << ": a point " << worst * 1e3 << " mm from its place";
   }
+  // points on a line give no plane, points on one spot no moments: a safe stop, never a throw
+  std::vector<Eigen::Vector3d> line;
+  for (int i = 0; i < 8; ++i) line.emplace_back(0.01 * i, 0.02 * i, 0.8 + 0.01 * i);
+  for (auto features : {VisualFeatures::kMoments, VisualFeatures::kSurface}) {
+    ControlLawOptions p;
+    p.model = InteractionModel::kCurrent;
+    p.features = features;
+    const auto same = std::vector<Eigen::Vector3d>(8, Eigen::Vector3d(0.1, 0.1, 0.8));
+    const ControlOutput a = compute_control(matched(line, line), p), b = compute_control(matched(same, same), p);
+    EXPECT_EQ(features == VisualFeatures::kSurface ? a.status : b.status, ControlStatus::kTooFewPoints) << a.reason << b.reason;
+    EXPECT_TRUE(a.twist.isZero() && b.twist.isZero());
+  }
   ControlLawOptions robust;
   robust.features = VisualFeatures::kSurface;
   robust.robust = RobustEstimator::kTukey;

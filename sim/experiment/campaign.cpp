@@ -516,6 +516,7 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
                      {"min_points", law.min_points},
                      {"epipolar", o.base.decoder.epipolar.enabled},
                      {"robust", control::to_string(law.robust)},
+                     {"visual_features", control::to_string(law.features)},
                      {"outliers", o.outlier_fraction}};
   return meta;
 }

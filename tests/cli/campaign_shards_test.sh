@@ -33,6 +33,8 @@ one_line_error "shards of two campaigns" "another campaign" "$cellsim" campaign 
 one_line_error "another gain" "gain.*parameters.gain" "$cellsim" campaign merge "$tmp/a" "$tmp/gain" -o "$tmp/x"
 "$cellsim" campaign "${args[@]}" --divergence-ratio 3 --shard 2/2 -o "$tmp/ratio" >/dev/null 2>&1 || fail "ratio shard"
 one_line_error "another divergence ratio" "ratio/campaign.json.*parameters.divergence_ratio" "$cellsim" campaign merge "$tmp/a" "$tmp/ratio" -o "$tmp/x"
+"$cellsim" campaign "${args[@]}" --visual-features moments --shard 2/2 -o "$tmp/moments" >/dev/null 2>&1 || fail "moments shard"
+one_line_error "other visual features" "parameters.visual_features" "$cellsim" campaign merge "$tmp/a" "$tmp/moments" -o "$tmp/x"
 # another scene under the same name:
 sed "s|\.\./\.\./|$src/|g; s|albedo: 0.8|albedo: 0.7|" "$src/sim/scenarios/fig5.yaml" > "$tmp/fig5_other.yaml"
 cmp -s "$tmp/fig5_other.yaml" "$src/sim/scenarios/fig5.yaml" && fail "the other scene is not another"

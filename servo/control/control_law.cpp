@@ -359,6 +359,14 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
       return out;
     }
   }
+  // a task that is not a number (moments of coordinates past what a double squares and cubes)
+  // moves nothing: a safe stop that says so
+  if (!out.task.allFinite()) {
+    out.task.setZero();
+    out.status = ControlStatus::kTooFewPoints;
+    out.reason = "the " + to_string(params.features) + " gave a task function that is not finite";
+    return out;
+  }
   out.error_norm = out.task.norm();
   if (out.task.head<3>().norm() < params.convergence_translation_m &&
       out.task.tail<3>().norm() < params.convergence_rotation_rad) {

@@ -148,6 +148,13 @@ TEST(ControlLaw, TheMomentsAndTheSurfaceBringTheCameraBackWithEveryModel) {
     EXPECT_EQ(features == VisualFeatures::kSurface ? a.status : b.status, ControlStatus::kTooFewPoints) << a.reason << b.reason;
     EXPECT_TRUE(a.twist.isZero() && b.twist.isZero());
   }
+  // coordinates whose cubes overflow: no NaN twist
+  auto huge = matched(scene_points(10, 9), scene_points(10, 10));
+  for (auto& m : huge) m.x *= 1e110, m.y *= 1e110;
+  ControlLawOptions moments;
+  moments.features = VisualFeatures::kMoments;
+  const ControlOutput h = compute_control(huge, moments);
+  EXPECT_TRUE(h.twist.allFinite() && h.twist.isZero()) << h.twist.transpose();
   ControlLawOptions robust;
   robust.features = VisualFeatures::kSurface;
   robust.robust = RobustEstimator::kTukey;

@@ -132,6 +132,8 @@ NOT_RUN = {
     "build/bin/cellsim fig5-search": "1000 tries: minutes (cli tests run 1 to 20)",
     "build/bin/cellsim study sim/scenarios/cylinder.yaml --axis visual_features": "54 runs of up to 900 iterations: 35 s "
     "on both cores, a minute under load",
+    "build/bin/cellsim study sim/scenarios/plane.yaml --axis visual_features": "54 runs: 36 s on both cores",
+    "build/bin/cellsim study sim/scenarios/plane.yaml --axis outliers": "18 runs of up to 900 iterations",
     "bin/compare-features": "12 studies of 72 runs: 18 min",
     "bin/decode-heldout": "96 sweeps: 1.5 min (cli.decode_heldout runs a subset)",
     "ROS_DOMAIN_ID=": "the services, each in a terminal of its own (the closed_loop tests run them)",

@@ -32,6 +32,7 @@ AXIS_LABELS = {
     "error_scale": "calibration errors (× the drawn ones)",
     "offset_scale": "initial offset (× the paper's)",
     "outliers": "ids swapped per frame (share)",
+    "losses": "decoded spots dropped per frame (share)",
     "focal_pct": "focal length error (%)", "principal_point_px": "principal point error (px)",
     "distortion_k1": "k1 error", "projector_position_mm": "projector position error (mm)",
     "projector_rotation_deg": "projector rotation error (deg)", "hand_eye_position_mm": "hand-eye position error (mm)",

@@ -275,6 +275,7 @@ struct ConditionFlags {
   std::vector<std::string> errors, latencies;
   double divergence_ratio = 0;
   double outliers = 0;
+  double losses = 0;
 
   void add(CLI::App* c) {
     std::string names;
@@ -293,6 +294,10 @@ struct ConditionFlags {
                   "swap the ids of this fraction of the spots at every frame (seeded; wrong matches for the robust "
                   "law, issue 19)")
         ->check(common::finite_in(0, 0.5))
+        ->capture_default_str();
+    c->add_option("--losses", losses,
+                  "drop this fraction of the decoded spots at every frame (seeded; decoding losses, issue 44)")
+        ->check(common::finite_in(0, 0.9))
         ->capture_default_str();
   }
   sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
@@ -357,6 +362,7 @@ struct CampaignFlags {
     c.latency = conditions.latency_for(cell.scenario);
     c.divergence_ratio = conditions.divergence_ratio;
     c.outlier_fraction = conditions.outliers;
+    c.loss_fraction = conditions.losses;
     return c;
   }
 };
@@ -374,6 +380,7 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   o.errors = conditions.errors_for(cell->scenario);
   o.latency = conditions.latency_for(cell->scenario);
   o.outlier_fraction = conditions.outliers;
+  o.loss_fraction = conditions.losses;
   o.servo = experiment::servo_config_for(*cell);
   o.servo.divergence_ratio = conditions.divergence_ratio;
   law.apply(o.servo, desired_depth(*cell));

@@ -178,6 +178,7 @@ loop::LoopSetup loop_setup(const sim::Cell& cell, const ExperimentOptions& o, st
   setup.noise_seed = seed;
   setup.source = o.source;
   setup.outlier_fraction = o.outlier_fraction;
+  setup.loss_fraction = o.loss_fraction;
   setup.max_steps = o.max_iterations;
   setup.render_threads = o.render_threads;
   return setup;

@@ -66,6 +66,10 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
     within(0, 2);
     if (v != std::floor(v)) within(1, 0);  // not an index
     c.base.law.features = static_cast<control::VisualFeatures>(static_cast<int>(v));
+  } else if (name == "losses") {
+    // the fraction of the decoded spots dropped at every frame (decoding losses, issue 44)
+    within(0, 0.9);
+    c.loss_fraction = v;
   } else if (name == "outliers") {
     // the fraction of the spots whose ids are swapped at every frame
     within(0, 0.5);
@@ -132,7 +136,7 @@ double depth_spread(const sim::Cell& cell) {
 
 std::vector<std::string> study_axis_names() {
   std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
-                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "visual_features"};
+                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "losses", "visual_features"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;

@@ -22,6 +22,7 @@ namespace experiment {
 //   any calibration error      focal_pct, hand_eye_rotation_deg, ... (sim::error_names)
 //   error_scale                every calibration error given (scenario, --error) times this
 //   any delay                  acquisition_frames, processing_frames, actuation_s
+//   losses                     the share of the decoded spots dropped at every frame
 //   visual_features            points, moments, surface (by name; study.csv holds 0, 1, 2)
 struct StudyAxis {
   std::string name;

@@ -47,6 +47,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       noise_seed_(setup.noise_seed),
       source_(setup.source),
       outlier_fraction_(setup.outlier_fraction),
+      loss_fraction_(setup.loss_fraction),
       cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot)),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
@@ -97,12 +98,15 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
       if (t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
     x.reply = servo_.on_spots(stamp, spots, 0, now_s_);
   } else {
-    if (outlier_fraction_ > 0 && !f.teach) {
-      // decoded as the servo would, then some ids swapped before it steps on them
+    if ((outlier_fraction_ > 0 || loss_fraction_ > 0) && !f.teach) {
+      // decoded as the servo would, then some spots dropped and some ids swapped before it
+      // steps on them
       int detected = 0;
       std::vector<servo::ImageSpot> spots = servo_.pipeline().locate(rgb, reported, &detected);
-      x.swapped = inject_outliers(spots, outlier_fraction_,
-                                  sim::frame_seed(noise_seed_ ^ 0x6f75746c69657273ull, f.index + 1), &x.wrong);
+      if (loss_fraction_ > 0) drop_spots(spots, loss_fraction_, sim::frame_seed(noise_seed_ ^ 0x6c6f7373ull, f.index + 1));
+      if (outlier_fraction_ > 0)
+        x.swapped = inject_outliers(spots, outlier_fraction_,
+                                    sim::frame_seed(noise_seed_ ^ 0x6f75746c69657273ull, f.index + 1), &x.wrong);
       x.reply = servo_.on_spots(stamp, spots, detected, now_s_);
     } else {
       const servo::ImageView view{stamp,
@@ -154,6 +158,20 @@ sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
     answer(exchanges.back(), exchanges.back().reply.twist);  // each frame answered before the next is seen
   }
   return out;
+}
+
+int drop_spots(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed) {
+  if (!(fraction > 0) || spots.empty()) return 0;
+  const std::size_t n = std::min(spots.size(), static_cast<std::size_t>(std::lround(fraction * static_cast<double>(spots.size()))));
+  std::mt19937_64 rng(seed);
+  std::vector<char> drop(spots.size(), 0);
+  for (std::size_t i = 0; i < n; ++i) drop[i] = 1;
+  std::shuffle(drop.begin(), drop.end(), rng);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < spots.size(); ++i)
+    if (!drop[i]) spots[kept++] = spots[i];
+  spots.resize(kept);
+  return static_cast<int>(n);
 }
 
 int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,

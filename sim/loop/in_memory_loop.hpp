@@ -33,6 +33,9 @@ struct LoopSetup {
   // outlier injection (issue 19): at every frame the ids of this fraction of the decoded spots
   // are swapped among them before the servo steps on them
   double outlier_fraction = 0;
+  // decoding losses (issue 44): at every frame this fraction of the decoded spots is dropped
+  // (seeded) before the servo steps, as spots a harder scene would not have decoded
+  double loss_fraction = 0;
   long max_steps = 400;  // the cell's iteration cap
   int render_threads = 0;  // sim::RenderScratch::threads: 0 OpenCV's pool, 1 this thread
 };
@@ -96,6 +99,7 @@ class InMemoryLoop {
   std::uint64_t noise_seed_;
   FeatureSource source_;
   double outlier_fraction_;
+  double loss_fraction_;
   sim::CellStateMachine cell_;
   servo::ServoStateMachine servo_;
   sim::RenderScratch scratch_;
@@ -109,5 +113,9 @@ class InMemoryLoop {
 // `wrong`, when given, receives the ids the chosen spots carry now.
 int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,
                     std::vector<std::pair<int, int>>* wrong = nullptr);
+
+// The loss injection: `fraction` of `spots` (rounded) dropped, chosen by `seed`, the others
+// kept in their order. Returns how many were dropped.
+int drop_spots(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed);
 
 }  // namespace loop

@@ -121,9 +121,7 @@ RobustEstimator parse_robust_estimator(const std::string& name) {
   if (name == "none") return RobustEstimator::kNone;
   if (name == "tukey") return RobustEstimator::kTukey;
   if (name == "huber") return RobustEstimator::kHuber;
-  std::string shown;
-  for (char c : name.substr(0, 40)) shown += (c >= 0x20 && c < 0x7f) ? c : '?';
-  throw std::invalid_argument("robust estimator '" + shown + "': expected tukey, huber or none");
+  throw std::invalid_argument("robust estimator '" + printable_name(name) + "': expected tukey, huber or none");
 }
 
 std::string to_string(RobustEstimator e) {

@@ -63,9 +63,7 @@ VisualFeatures parse_visual_features(const std::string& name) {
   if (name == "points") return VisualFeatures::kPoints;
   if (name == "moments") return VisualFeatures::kMoments;
   if (name == "surface") return VisualFeatures::kSurface;
-  std::string shown;
-  for (char c : name.substr(0, 40)) shown += (c >= 0x20 && c < 0x7f) ? c : '?';
-  throw std::invalid_argument("visual features '" + shown + "': expected points, moments or surface");
+  throw std::invalid_argument("visual features '" + printable_name(name) + "': expected points, moments or surface");
 }
 
 double moment_area(const Eigen::VectorXd& xy) {

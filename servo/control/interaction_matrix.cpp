@@ -31,11 +31,17 @@ std::string to_string(InteractionModel m) {
   return "?";
 }
 
+std::string printable_name(const std::string& name) {
+  std::string shown;
+  for (char c : name.substr(0, 40)) shown += (c >= 0x20 && c < 0x7f) ? c : '?';
+  return shown;
+}
+
 InteractionModel parse_interaction_model(const std::string& name) {
   for (auto m : {InteractionModel::kDesiredConstantDepth, InteractionModel::kDesired, InteractionModel::kCurrent,
                  InteractionModel::kMean})
     if (to_string(m) == name) return m;
-  throw std::invalid_argument("interaction model '" + name +
+  throw std::invalid_argument("interaction model '" + printable_name(name) +
                               "': expected desired-constant-depth, desired, current or mean");
 }
 

@@ -26,6 +26,9 @@ Eigen::MatrixXd stacked_interaction_matrix(const Eigen::VectorXd& xy, const Eige
 enum class InteractionModel { kDesiredConstantDepth, kDesired, kCurrent, kMean };
 
 std::string to_string(InteractionModel m);
+// A name as an error message shows it: at most 40 characters, control and non-ASCII bytes as
+// '?' (the parsers below echo what they were given).
+std::string printable_name(const std::string& name);
 // Accepts the names above in kebab case: desired-constant-depth, desired, current, mean.
 // Throws std::invalid_argument naming the accepted values.
 InteractionModel parse_interaction_model(const std::string& name);

@@ -300,6 +300,14 @@ class SimService {
   // the participant, every reader and writer, and the node that names them
   void make_endpoints(const ServiceOptions& o) {
     participant_ = cell_dds::make_participant(cell_dds::participant_options(o, "cellsim", "cellsim"));
+    make_writers(o);
+    make_readers(o);
+    record_writes();
+    announce_node(o);
+  }
+
+  // what cellsim publishes (the autorun's commands among them)
+  void make_writers(const ServiceOptions& o) {
     auto& p = *participant_;
     using cell_dds::Stream;
     image_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(
@@ -320,6 +328,17 @@ class SimService {
         p, topic(cell_dds::kTfTopic), cell_dds::writer_qos(Stream::kFrame));
     description_ = std::make_unique<cell_dds::Writer<std_msgs::msg::dds_::String_PubSubType>>(
         p, topic(cell_dds::kRobotDescriptionTopic), cell_dds::writer_qos(Stream::kLatched));
+    accepted_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
+        p, topic(cell_dds::kAcceptedTopic), cell_dds::writer_qos(Stream::kCommand));
+    if (o.autorun)
+      control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
+          p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
+  }
+
+  // what cellsim hears: twists, commands, the servo's status (and, recording, its spots)
+  void make_readers(const ServiceOptions& o) {
+    auto& p = *participant_;
+    using cell_dds::Stream;
     using cell_record::recorded_reader;
     twist_in_ = recorded_reader<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(
         p, topic(cell_dds::kTwistTopic), Stream::kFrame,
@@ -362,12 +381,9 @@ class SimService {
             if (annotations_) annotations_->on_spots(x);
           },
           recorder_.get());
-    accepted_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-        p, topic(cell_dds::kAcceptedTopic), cell_dds::writer_qos(Stream::kCommand));
-    record_writes();
-    if (o.autorun)
-      control_out_ = std::make_unique<cell_dds::Writer<cell_msgs::msg::dds_::SimControl_PubSubType>>(
-          p, topic(cell_dds::kControlTopic), cell_dds::writer_qos(Stream::kCommand));
+  }
+
+  void announce_node(const ServiceOptions& o) {
     // every endpoint, the autorun's command writer included (issue 21: `ros2 topic info -v`
     // showed it as _NODE_NAME_UNKNOWN_)
     std::vector<eprosima::fastrtps::rtps::GUID_t> writers{image_->guid(),   info_->guid(),   pose_->guid(),
@@ -377,7 +393,7 @@ class SimService {
     if (control_out_) writers.push_back(control_out_->guid());
     std::vector<eprosima::fastrtps::rtps::GUID_t> readers{twist_in_->guid(), control_in_->guid(), status_in_->guid()};
     if (spots_in_) readers.push_back(spots_in_->guid());
-    node_ = std::make_unique<cell_dds::NodeAnnouncement>(p, "cellsim", readers, writers,
+    node_ = std::make_unique<cell_dds::NodeAnnouncement>(*participant_, "cellsim", readers, writers,
                                                          o.ns.empty() ? std::string("/") : "/" + o.ns);
   }
 

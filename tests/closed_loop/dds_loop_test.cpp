@@ -236,29 +236,28 @@ TEST(DdsLoop, HamConvergesInLockstep) {
   expect_lockstep_convergence(unique_domain(9), tmp_dir("ham"), servo_args("0.6", {}, kCurvedPattern), "ham", "1200");
 }
 
-TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
-  const int domain = unique_domain(8);
-  const std::string dir = tmp_dir("cylinder_current");
+// The servo with the cylinder's projector calibration (depths by triangulation) and the
+// current model, converging over DDS in lockstep; `extra`: more of the servo's flags.
+void expect_triangulated_convergence(int salt, const std::string& name, const std::vector<std::string>& extra) {
+  const int domain = unique_domain(salt);
+  const std::string dir = tmp_dir(name);
   Process calib({kBin + "cellsim", "calibration", kSrc + "/sim/scenarios/cylinder.yaml", "-o", dir + "/projector.yaml"},
                 domain, dir + "/calib.log");
   ASSERT_EQ(calib.wait_exit(30s), 0);
-  expect_lockstep_convergence(
-      domain, dir, {kBin + "servo", "run", "--pattern", kCurvedPattern, "--model", "current", "--projector", dir + "/projector.yaml"},
-      "cylinder", "1200");
+  std::vector<std::string> servo{kBin + "servo", "run", "--pattern", kCurvedPattern, "--model", "current", "--projector",
+                                 dir + "/projector.yaml"};
+  servo.insert(servo.end(), extra.begin(), extra.end());
+  expect_lockstep_convergence(domain, dir, servo, "cylinder", "1200");
+}
+
+TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
+  expect_triangulated_convergence(8, "cylinder_current", {});
 }
 
 // issue 44: the surface as a feature (the plane of the triangulated spots and three moments)
 // over DDS, the servo with the projector's calibration, as in-process
 TEST(DdsLoop, TheSurfaceFeaturesConvergeOnTheCylinder) {
-  const int domain = unique_domain(25);
-  const std::string dir = tmp_dir("cylinder_surface");
-  Process calib({kBin + "cellsim", "calibration", kSrc + "/sim/scenarios/cylinder.yaml", "-o", dir + "/projector.yaml"},
-                domain, dir + "/calib.log");
-  ASSERT_EQ(calib.wait_exit(30s), 0);
-  expect_lockstep_convergence(domain, dir,
-                              {kBin + "servo", "run", "--pattern", kCurvedPattern, "--model", "current", "--projector",
-                               dir + "/projector.yaml", "--visual-features", "surface"},
-                              "cylinder", "1200");
+  expect_triangulated_convergence(25, "cylinder_surface", {"--visual-features", "surface"});
 }
 
 TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {

@@ -49,7 +49,7 @@ def label(axis):
 
 
 # an axis of names (study.csv holds their index): its ticks are the names
-NAMED_AXES = {"visual_features": ["points", "moments", "surface"]}
+NAMED_AXES = {"visual_features": ["points", "moments", "surface", "plane"]}
 
 
 def tick_names(axis, values):

@@ -412,9 +412,10 @@ struct ServoConfigFlags {
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
     c->add_option("--visual-features", features,
                   "points (every decoded spot's x, y) | moments (the six image moments of the matched spots) | "
-                  "surface (the plane of the triangulated spots and three moments: needs --projector); config key "
-                  "visual_features")
-        ->check(CLI::IsMember({"points", "moments", "surface"}));
+                  "surface (the plane of the triangulated spots and three moments: needs --projector) | plane (its "
+                  "normal and distance alone, three degrees of freedom: the one for a projector on the camera); "
+                  "config key visual_features")
+        ->check(CLI::IsMember({"points", "moments", "surface", "plane"}));
   }
   void apply_to(servo::ServoConfig& config) const {
     if (!config_file.empty()) servo::load_servo_config(config_file, config);

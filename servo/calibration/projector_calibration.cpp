@@ -16,7 +16,7 @@ calibration::ProjectorModel load_projector_calibration(const std::filesystem::pa
   using common::Reader;
   try {
     const Reader top(file, common::load_yaml_file(file, "projector calibration"));
-    top.only_keys({"fx", "fy", "cx", "cy", "spot_pitch_px", "rows", "cols", "position_m", "orientation_xyzw"});
+    top.only_keys({"fx", "fy", "cx", "cy", "spot_pitch_px", "rows", "cols", "mount", "position_m", "orientation_xyzw"});
     calibration::ProjectorModel m;
     m.fx = top.at("fx").in_range(1, 1e5);
     m.fy = top.at("fy").in_range(1, 1e5);
@@ -35,9 +35,17 @@ calibration::ProjectorModel load_projector_calibration(const std::filesystem::pa
       std::snprintf(norm, sizeof norm, "%.6g", quat.norm());
       qr.fail(std::string("must be a unit quaternion [x, y, z, w], its norm is ") + norm);
     }
-    m.world_T_projector = Eigen::Isometry3d::Identity();
-    m.world_T_projector.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
-    m.world_T_projector.linear() = quat.normalized().toRotationMatrix();
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+    pose.linear() = quat.normalized().toRotationMatrix();
+    // mount: world (the default) or camera, whose frame the pose is then given in
+    const std::string mount = top.has("mount") ? top.at("mount").text(16) : "world";
+    if (mount == "camera")
+      m.on_camera = pose;
+    else if (mount == "world")
+      m.world_T_projector = pose;
+    else
+      top.at("mount").fail("must be world or camera");
     return m;
   } catch (const common::ConfigError& e) {
     throw std::runtime_error(e.what());
@@ -46,13 +54,15 @@ calibration::ProjectorModel load_projector_calibration(const std::filesystem::pa
 
 void write_projector_calibration(const calibration::ProjectorModel& m, const std::filesystem::path& file,
                                  const std::string& comment) {
-  const Eigen::Quaterniond q(m.world_T_projector.rotation());
-  const Eigen::Vector3d t = m.world_T_projector.translation();
+  const Eigen::Isometry3d& pose = m.on_camera ? *m.on_camera : m.world_T_projector;
+  const Eigen::Quaterniond q(pose.rotation());
+  const Eigen::Vector3d t = pose.translation();
   std::ofstream f(file);
   if (!f) throw std::runtime_error(file.string() + ": cannot write");
   f << std::setprecision(12) << "# " << comment << "\n"
     << "fx: " << m.fx << "\nfy: " << m.fy << "\ncx: " << m.cx << "\ncy: " << m.cy
-    << "\nspot_pitch_px: " << m.spot_pitch_px << "\nrows: " << m.rows << "\ncols: " << m.cols << "\nposition_m: ["
+    << "\nspot_pitch_px: " << m.spot_pitch_px << "\nrows: " << m.rows << "\ncols: " << m.cols
+    << (m.on_camera ? "\nmount: camera  # the pose below is the camera's frame's" : "") << "\nposition_m: ["
     << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z()
     << ", " << q.w() << "]\n";
   if (!f.flush()) throw std::runtime_error(file.string() + ": cannot write");

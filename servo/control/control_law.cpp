@@ -22,7 +22,7 @@ std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, co
     const auto it = by_id.find(static_cast<long>(d.row) * 65536 + d.col);
     if (it == by_id.end()) continue;
     const Feature& c = *it->second;
-    out.push_back({d.row, d.col, c.x, c.y, d.x, d.y, c.z, d.z});
+    out.push_back({d.row, d.col, c.x, c.y, d.x, d.y, c.z, d.z, c.ray ? c.ray : d.ray});
   }
   return out;
 }
@@ -43,7 +43,8 @@ Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel) {
   return svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose();
 }
 
-Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel, double* condition) {
+Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel, double* condition,
+                                     Eigen::Index rank) {
   // A is tall (2k x 6): the SVD of A is read off the eigen-decomposition of the 6 x 6 A^T A
   // (A = U S V^T, A^T A = V S^2 V^T), so A^+ b = V S^-2 V^T A^T b, with singular values below
   // rel x the largest dropped. O(k) instead of an SVD of the 2k x 6 matrix.
@@ -52,7 +53,9 @@ Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::Vect
   const Eigen::VectorXd& ev = eig.eigenvalues();  // ascending
   const double top = ev.size() ? std::sqrt(std::max(ev[ev.size() - 1], 0.0)) : 0;
   if (condition) {
-    const double bottom = ev.size() ? std::sqrt(std::max(ev[0], 0.0)) : 0;
+    // over the singular values asked that A has: a wide A (the plane's 3 x 6) has only as many as rows
+    const Eigen::Index first = ev.size() - std::min({rank, A.rows(), ev.size()});
+    const double bottom = ev.size() ? std::sqrt(std::max(ev[first], 0.0)) : 0;
     *condition = bottom > 0 ? top / bottom : std::numeric_limits<double>::infinity();
   }
   Eigen::VectorXd inv = Eigen::VectorXd::Zero(ev.size());
@@ -182,7 +185,9 @@ UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLa
                                   ") has non-finite coordinates");
     const Depths d = model_depths(p, params);
     // the surface is fitted to s's and s*'s triangulated points whatever the model
-    const bool surface = params.features == VisualFeatures::kSurface;
+    // so are a riding spot's rows (its surface's plane)
+    const bool surface =
+        params.features == VisualFeatures::kSurface || params.features == VisualFeatures::kPlane || p.ray.has_value();
     const bool needs_current = params.model == InteractionModel::kCurrent || params.model == InteractionModel::kMean;
     const bool needs_desired = params.model != InteractionModel::kCurrent;
     if (surface && !(p.z && *p.z > 0 && p.z_star && *p.z_star > 0)) continue;
@@ -192,37 +197,6 @@ UsablePoints usable_points(const std::vector<MatchedPoint>& all, const ControlLa
     u.depths.push_back(d);
   }
   return u;
-}
-
-// The stacked error s - s* and the model's interaction matrix L-hat; the depth each point's
-// rows used goes to z_model.
-void stack_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L,
-                  std::vector<double>& z_model) {
-  const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
-  error.resize(2 * k);
-  L = Eigen::MatrixXd::Zero(2 * k, 6);
-  for (Eigen::Index i = 0; i < k; ++i) {
-    const MatchedPoint& p = *u.points[i];
-    error[2 * i] = p.x - p.x_star;
-    error[2 * i + 1] = p.y - p.y_star;
-    const Depths& d = u.depths[i];
-    switch (params.model) {
-      case InteractionModel::kDesiredConstantDepth:
-      case InteractionModel::kDesired:
-        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x_star, p.y_star, *d.desired);
-        z_model[u.index[i]] = *d.desired;
-        break;
-      case InteractionModel::kCurrent:
-        L.block<2, 6>(2 * i, 0) = point_interaction_matrix(p.x, p.y, *d.current);
-        z_model[u.index[i]] = *d.current;
-        break;
-      case InteractionModel::kMean:
-        L.block<2, 6>(2 * i, 0) = 0.5 * (point_interaction_matrix(p.x, p.y, *d.current) +
-                                         point_interaction_matrix(p.x_star, p.y_star, *d.desired));
-        z_model[u.index[i]] = *d.current;
-        break;
-    }
-  }
 }
 
 // The matched points' coordinates, s and s*, with depths: the model's (the moments' rows take
@@ -244,6 +218,54 @@ PointSets point_sets(const UsablePoints& u, bool triangulated) {
   return p;
 }
 
+// The planes riding spots' rows need (the surface's normal where they land, camera frame),
+// fitted to the triangulated points of s and of s*; none when no spot rides on the camera.
+// Throws std::invalid_argument when the points give no plane.
+struct RidingPlanes {
+  std::optional<Plane> now, goal;
+};
+RidingPlanes riding_planes(const UsablePoints& u) {
+  if (std::none_of(u.points.begin(), u.points.end(), [](const MatchedPoint* p) { return p->ray.has_value(); })) return {};
+  const PointSets t = point_sets(u, true);
+  return {fit_plane(t.s, t.z), fit_plane(t.s_star, t.z_star)};
+}
+
+// A point's two rows at (x, y) with depth Z: eq. 7's, or a riding spot's on `plane`.
+Matrix26 point_rows(const MatchedPoint& p, double x, double y, double Z, const std::optional<Plane>& plane) {
+  return p.ray && plane ? riding_point_interaction_matrix(x, y, Z, *p.ray, plane->n) : point_interaction_matrix(x, y, Z);
+}
+
+// The stacked error s - s* and the model's interaction matrix L-hat; the depth each point's
+// rows used goes to z_model.
+void stack_system(const UsablePoints& u, const ControlLawOptions& params, const RidingPlanes& planes,
+                  Eigen::VectorXd& error, Eigen::MatrixXd& L, std::vector<double>& z_model) {
+  const Eigen::Index k = static_cast<Eigen::Index>(u.points.size());
+  error.resize(2 * k);
+  L = Eigen::MatrixXd::Zero(2 * k, 6);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const MatchedPoint& p = *u.points[i];
+    error[2 * i] = p.x - p.x_star;
+    error[2 * i + 1] = p.y - p.y_star;
+    const Depths& d = u.depths[i];
+    switch (params.model) {
+      case InteractionModel::kDesiredConstantDepth:
+      case InteractionModel::kDesired:
+        L.block<2, 6>(2 * i, 0) = point_rows(p, p.x_star, p.y_star, *d.desired, planes.goal);
+        z_model[u.index[i]] = *d.desired;
+        break;
+      case InteractionModel::kCurrent:
+        L.block<2, 6>(2 * i, 0) = point_rows(p, p.x, p.y, *d.current, planes.now);
+        z_model[u.index[i]] = *d.current;
+        break;
+      case InteractionModel::kMean:
+        L.block<2, 6>(2 * i, 0) = 0.5 * (point_rows(p, p.x, p.y, *d.current, planes.now) +
+                                         point_rows(p, p.x_star, p.y_star, *d.desired, planes.goal));
+        z_model[u.index[i]] = *d.current;
+        break;
+    }
+  }
+}
+
 // L where the model takes it: at s* for the desired models, at s for current, their mean
 template <typename Now, typename AtGoal>
 Eigen::MatrixXd by_model(InteractionModel model, Now&& now, AtGoal&& at_goal) {
@@ -257,15 +279,24 @@ Eigen::MatrixXd by_model(InteractionModel model, Now&& now, AtGoal&& at_goal) {
 }
 
 // The moments' system (image_moments.hpp): their error and interaction matrix.
-void moment_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
+void moment_system(const UsablePoints& u, const ControlLawOptions& params, const RidingPlanes& planes,
+                   Eigen::VectorXd& error, Eigen::MatrixXd& L) {
   const PointSets p = point_sets(u, false);
+  // each point's rows, at s and at s*, with the depths the model gives
+  std::vector<Matrix26> now, at_goal;
+  for (std::size_t i = 0; i < u.points.size(); ++i) {
+    const MatchedPoint& m = *u.points[i];
+    const auto k = static_cast<Eigen::Index>(i);
+    now.push_back(point_rows(m, m.x, m.y, p.z[k], planes.now));
+    at_goal.push_back(point_rows(m, m.x_star, m.y_star, p.z_star[k], planes.goal));
+  }
   // a_n's value at the goal: the desired depths' mean where the model has them, else Z-hat
   const bool desired_depths = params.model != InteractionModel::kCurrent;
   const MomentScale scale{moment_area(p.s_star), desired_depths ? p.z_star.mean() : params.z_hat_m};
   error = moment_error(moment_features(p.s, scale), moment_features(p.s_star, scale));
   L = by_model(
-      params.model, [&] { return moment_interaction_matrix(p.s, p.z, scale); },
-      [&] { return moment_interaction_matrix(p.s_star, p.z_star, scale); });
+      params.model, [&] { return moment_interaction_matrix(p.s, now, scale); },
+      [&] { return moment_interaction_matrix(p.s_star, at_goal, scale); });
 }
 
 // The surface's system (surface_features.hpp): the planes of s's and s*'s triangulated points
@@ -280,10 +311,21 @@ void surface_system(const UsablePoints& u, const ControlLawOptions& params, Eige
       [&] { return surface_interaction_matrix(p.s_star, p.z_star, fit_plane(p.s_star, p.z_star), scale); });
 }
 
+// The plane-to-plane task's system (surface_features.hpp): the planes of s's and s*'s
+// triangulated points, their normals and distances.
+void plane_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L) {
+  const PointSets p = point_sets(u, true);
+  const Plane now = fit_plane(p.s, p.z), goal = fit_plane(p.s_star, p.z_star);
+  error = plane_features(now) - plane_features(goal);
+  L = by_model(
+      params.model, [&] { return Eigen::MatrixXd(plane_interaction_matrix(now)); },
+      [&] { return Eigen::MatrixXd(plane_interaction_matrix(goal)); });
+}
+
 // The robust task function by IRLS: weights from the residuals of the last estimate, e from
 // the weighted system. Returns the points' last weights.
 std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd& error, const ControlLawOptions& params,
-                                Vector6d& task, double* condition) {
+                                Vector6d& task, double* condition, Eigen::Index rank) {
   const Eigen::Index k = L.rows() / 2;
   std::vector<double> w(static_cast<std::size_t>(k), 1.0), residual(static_cast<std::size_t>(k));
   Eigen::MatrixXd WL = L;
@@ -299,9 +341,33 @@ std::vector<double> robust_task(const Eigen::MatrixXd& L, const Eigen::VectorXd&
       We[2 * i] = w[static_cast<std::size_t>(i)] * error[2 * i];
       We[2 * i + 1] = w[static_cast<std::size_t>(i)] * error[2 * i + 1];
     }
-    task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold, condition);
+    task = pseudo_inverse_solve(WL, We, params.svd_relative_threshold, condition, rank);
   }
   return w;
+}
+
+// The system of the features the options name: e = s - s* and L-hat, and the points' error's
+// RMS. False, with the status and reason in `out`, when the points give no plane or no moments
+// (all on one spot, all on a line: a few spots left at an edge): a safe stop, as too few points
+// are, never a throw out of the servo's frame.
+bool feature_system(const UsablePoints& u, const ControlLawOptions& params, Eigen::VectorXd& error, Eigen::MatrixXd& L,
+                    ControlOutput& out) {
+  try {
+    const RidingPlanes planes = riding_planes(u);
+    stack_system(u, params, planes, error, L, out.z_model);
+    out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(error.size()));
+    switch (params.features) {
+      case VisualFeatures::kPoints: break;
+      case VisualFeatures::kMoments: moment_system(u, params, planes, error, L); break;
+      case VisualFeatures::kPlane: plane_system(u, params, error, L); break;
+      case VisualFeatures::kSurface: surface_system(u, params, error, L); break;
+    }
+    return true;
+  } catch (const std::invalid_argument& e) {
+    out.status = ControlStatus::kTooFewPoints;
+    out.reason = e.what();
+    return false;
+  }
 }
 
 }  // namespace
@@ -321,29 +387,16 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& all, const Contro
   const Eigen::Index k = out.points;
   Eigen::VectorXd error;
   Eigen::MatrixXd L;
-  stack_system(u, params, error, L, out.z_model);
-  out.feature_rms = std::sqrt(error.squaredNorm() / static_cast<double>(2 * k));
+  if (!feature_system(u, params, error, L, out)) return out;
+  // spots cast from the camera see the plane's three degrees of freedom, no more
+  const bool riding = std::any_of(u.points.begin(), u.points.end(), [](const MatchedPoint* p) { return p->ray.has_value(); });
+  const Eigen::Index rank = riding ? 3 : 6;
   out.weights.assign(all.size(), std::numeric_limits<double>::quiet_NaN());
-  if (params.features != VisualFeatures::kPoints) {
-    // the points may give no moments or no plane (all on one spot, all on a line: a few spots
-    // left at an edge): a safe stop with the reason, as too few points are, never a throw
-    try {
-      if (params.features == VisualFeatures::kMoments)
-        moment_system(u, params, error, L);
-      else
-        surface_system(u, params, error, L);
-    } catch (const std::invalid_argument& e) {
-      out.status = ControlStatus::kTooFewPoints;
-      out.reason = e.what();
-      return out;
-    }
-    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold, &out.condition);
-    for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
-  } else if (params.robust == RobustEstimator::kNone) {
-    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold, &out.condition);
+  if (params.features != VisualFeatures::kPoints || params.robust == RobustEstimator::kNone) {
+    out.task = pseudo_inverse_solve(L, error, params.svd_relative_threshold, &out.condition, rank);
     for (Eigen::Index i = 0; i < k; ++i) out.weights[u.index[i]] = 1.0;
   } else {
-    const std::vector<double> w = robust_task(L, error, params, out.task, &out.condition);
+    const std::vector<double> w = robust_task(L, error, params, out.task, &out.condition, rank);
     int kept = 0;
     for (Eigen::Index i = 0; i < k; ++i) {
       out.weights[u.index[i]] = w[static_cast<std::size_t>(i)];

@@ -24,6 +24,9 @@ struct MatchedPoint {
   double x_star = 0, y_star = 0;   // desired
   std::optional<double> z;         // current depth (m), e.g. triangulated
   std::optional<double> z_star;    // desired depth (m)
+  // a spot cast by a projector riding on the camera: its ray's direction in the camera frame
+  // (fixed: the same at s and s*); its rows are then riding_point_interaction_matrix's
+  std::optional<Eigen::Vector3d> ray;
 };
 
 // A feature with its id, as the decoder gives it (normalised).
@@ -31,6 +34,7 @@ struct Feature {
   int row = 0, col = 0;
   double x = 0, y = 0;
   std::optional<double> z;
+  std::optional<Eigen::Vector3d> ray;  // as MatchedPoint::ray
 };
 
 // s and s* matched by spot id: only spots present in both, in s*'s order.
@@ -124,12 +128,13 @@ ControlOutput compute_control(const std::vector<MatchedPoint>& points, const Con
 
 // Moore-Penrose pseudo-inverse by SVD, dropping singular values below rel x the largest.
 Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& A, double rel);
-// A^+ b for a tall A (rows >= cols), the same thresholding, without forming A^+: what the
-// control law uses every iteration.
+// A^+ b, the same thresholding, without forming A^+: what the control law uses every iteration.
 // `condition` (optional): A's condition number, its largest singular value over its smallest
-// (infinity when A is singular), read off the same decomposition.
+// (infinity when A is singular), read off the same decomposition; over the `rank` largest (and
+// no more than A has rows): the degrees of freedom the features can see (3 for spots cast from
+// the camera: the plane's), so that the directions they never see do not make it infinite.
 Eigen::VectorXd pseudo_inverse_solve(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rel,
-                                     double* condition = nullptr);
+                                     double* condition = nullptr, Eigen::Index rank = 6);
 
 // Beyond the paper's experiments (§6, after [6]): choose `count` points greedily so that the
 // interaction matrix built from them is as well conditioned as possible.

@@ -55,6 +55,7 @@ std::string to_string(VisualFeatures f) {
     case VisualFeatures::kPoints: return "points";
     case VisualFeatures::kMoments: return "moments";
     case VisualFeatures::kSurface: return "surface";
+    case VisualFeatures::kPlane: return "plane";
   }
   return "?";
 }
@@ -63,7 +64,8 @@ VisualFeatures parse_visual_features(const std::string& name) {
   if (name == "points") return VisualFeatures::kPoints;
   if (name == "moments") return VisualFeatures::kMoments;
   if (name == "surface") return VisualFeatures::kSurface;
-  throw std::invalid_argument("visual features '" + printable_name(name) + "': expected points, moments or surface");
+  if (name == "plane") return VisualFeatures::kPlane;
+  throw std::invalid_argument("visual features '" + printable_name(name) + "': expected points, moments, surface or plane");
 }
 
 double moment_area(const Eigen::VectorXd& xy) {
@@ -83,16 +85,27 @@ Vector6d moment_features(const Eigen::VectorXd& xy, const MomentScale& scale) {
 }
 
 Matrix66 moment_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z, const MomentScale& scale) {
-  const Vector9d q = moments(xy);
   const Eigen::Index n = xy.size() / 2;
   if (Z.size() != n)
     throw std::invalid_argument("image moments: " + std::to_string(Z.size()) + " depths for " + std::to_string(n) + " points");
+  std::vector<Matrix26> rows(static_cast<std::size_t>(n));
+  for (Eigen::Index k = 0; k < n; ++k) rows[static_cast<std::size_t>(k)] = point_interaction_matrix(xy[2 * k], xy[2 * k + 1], Z[k]);
+  return moment_interaction_matrix(xy, rows, scale);
+}
+
+Matrix66 moment_interaction_matrix(const Eigen::VectorXd& xy, const std::vector<Matrix26>& point_rows,
+                                   const MomentScale& scale) {
+  const Vector9d q = moments(xy);
+  const Eigen::Index n = xy.size() / 2;
+  if (static_cast<Eigen::Index>(point_rows.size()) != n)
+    throw std::invalid_argument("image moments: " + std::to_string(point_rows.size()) + " rows for " + std::to_string(n) +
+                                " points");
   // L_q = sum_k dq/dx_k L_x,k + dq/dy_k L_y,k
   Eigen::Matrix<double, 9, 6> Lq = Eigen::Matrix<double, 9, 6>::Zero();
   const double in = 1.0 / static_cast<double>(n);
   for (Eigen::Index k = 0; k < n; ++k) {
     const double u = xy[2 * k] - q[kXg], w = xy[2 * k + 1] - q[kYg];
-    const Matrix26 Lp = point_interaction_matrix(xy[2 * k], xy[2 * k + 1], Z[k]);
+    const Matrix26& Lp = point_rows[static_cast<std::size_t>(k)];
     Vector9d dx, dy;
     dx << in, 0, 2 * u * in, w * in, 0, 3 * in * (u * u - q[k20]), 2 * in * (u * w - q[k11]), in * (w * w - q[k02]), 0;
     dy << 0, in, 0, u * in, 2 * w * in, 0, in * (u * u - q[k20]), 2 * in * (u * w - q[k11]), 3 * in * (w * w - q[k02]);

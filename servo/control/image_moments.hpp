@@ -35,9 +35,10 @@ using Matrix66 = Eigen::Matrix<double, 6, 6>;
 
 // What the law servoes on: every point's (x, y) (the paper), the points' image moments, or the
 // surface they lie on with three of the moments (surface_features.hpp).
-enum class VisualFeatures { kPoints, kMoments, kSurface };
+// points: x, y of every spot; moments: image_moments.hpp; surface, plane: surface_features.hpp
+enum class VisualFeatures { kPoints, kMoments, kSurface, kPlane };
 std::string to_string(VisualFeatures f);
-VisualFeatures parse_visual_features(const std::string& name);  // "points" | "moments" | "surface"; throws
+VisualFeatures parse_visual_features(const std::string& name);  // "points" | "moments" | "surface" | "plane"; throws
 
 struct MomentScale {
   double a_star = 1;  // a of the desired points
@@ -49,6 +50,10 @@ struct MomentScale {
 Vector6d moment_features(const Eigen::VectorXd& xy, const MomentScale& scale);
 // Its interaction matrix, each point's rows with its depth Z_k (one per point).
 Matrix66 moment_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z, const MomentScale& scale);
+// The same from each point's own two rows (one per point): a spot riding on the camera's
+// projector has riding_point_interaction_matrix's, not eq. 7's.
+Matrix66 moment_interaction_matrix(const Eigen::VectorXd& xy, const std::vector<Matrix26>& point_rows,
+                                   const MomentScale& scale);
 // a = mu_20 + mu_02 of the points (MomentScale::a_star of the desired ones)
 double moment_area(const Eigen::VectorXd& xy);
 // s - s*, with alpha's difference wrapped into (-pi/2, pi/2] (an orientation is defined mod pi)

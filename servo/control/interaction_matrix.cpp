@@ -12,6 +12,15 @@ Matrix26 point_interaction_matrix(double x, double y, double Z) {
   return L;
 }
 
+Matrix26 riding_point_interaction_matrix(double x, double y, double Z, const Eigen::Vector3d& b, const Eigen::Vector3d& n) {
+  const Eigen::Vector3d X = Z * Eigen::Vector3d(x, y, 1);
+  Eigen::Matrix<double, 2, 3> P;
+  P << 1, 0, -x, 0, 1, -y;
+  Eigen::Matrix<double, 1, 6> mu_dot;  // times -(n . b)
+  mu_dot << n.transpose(), X.cross(n).transpose();
+  return -(P * b) * mu_dot / (Z * n.dot(b));
+}
+
 Eigen::MatrixXd stacked_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z) {
   if (xy.size() != 2 * Z.size())
     throw std::invalid_argument("stacked_interaction_matrix: " + std::to_string(xy.size()) + " coordinates for " +

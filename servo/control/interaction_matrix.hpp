@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,17 @@ using Matrix26 = Eigen::Matrix<double, 2, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 Matrix26 point_interaction_matrix(double x, double y, double Z);
+
+// A spot cast by a projector riding on the camera (issue 44) is no fixed point of the world: it
+// lies on a ray fixed in the camera frame, X = o + mu b, where the ray meets the surface, and
+// slides along the ray as the camera moves. With the surface's plane n . X = d there (camera
+// frame), n_dot = n x w and d_dot = -n . v (surface_features.hpp), so n . X_dot = d_dot -
+// n_dot . X gives mu_dot = -(n . v + (X x n) . w) / (n . b), and with X = Z (x, y, 1):
+//   L = -(1/Z) [1 0 -x; 0 1 -y] b [n^T, (X x n)^T] / (n . b)
+// Rank 1: the spot moves along its epipolar line, and only the plane's three degrees of freedom
+// (its distance and two tilts) move it. Exact on a plane (tests/unit/control: finite
+// differences); on a curved surface n is the fitted plane's, not the local normal.
+Matrix26 riding_point_interaction_matrix(double x, double y, double Z, const Eigen::Vector3d& b, const Eigen::Vector3d& n);
 
 // Stacked for k points (eq. 8): 2k x 6. xy holds (x1, y1, x2, y2, ...), Z one depth per point.
 Eigen::MatrixXd stacked_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z);

@@ -33,22 +33,29 @@ Plane fit_plane(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z) {
 }
 
 Vector6d surface_features(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z, const MomentScale& scale) {
-  const Plane p = fit_plane(xy, Z);
   const Vector6d m = moment_features(xy, scale);
   Vector6d s;
-  s << p.n.x(), p.n.y(), p.d, m[0], m[1], m[3];
+  s << plane_features(fit_plane(xy, Z)), m[0], m[1], m[3];
   return s;
+}
+
+Eigen::Vector3d plane_features(const Plane& plane) { return {plane.n.x(), plane.n.y(), plane.d}; }
+
+Eigen::Matrix<double, 3, 6> plane_interaction_matrix(const Plane& plane) {
+  const Eigen::Vector3d& n = plane.n;
+  Eigen::Matrix<double, 3, 6> L = Eigen::Matrix<double, 3, 6>::Zero();
+  // n_dot = [n]_x w: its x and y rows
+  L(0, 4) = -n.z(), L(0, 5) = n.y();
+  L(1, 3) = n.z(), L(1, 5) = -n.x();
+  L.block<1, 3>(2, 0) = -n.transpose();  // d_dot = -n . v
+  return L;
 }
 
 Matrix66 surface_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z, const Plane& plane,
                                     const MomentScale& scale) {
   const Matrix66 M = moment_interaction_matrix(xy, Z, scale);
-  const Eigen::Vector3d& n = plane.n;
   Matrix66 L = Matrix66::Zero();
-  // n_dot = [n]_x w: its x and y rows
-  L(0, 4) = -n.z(), L(0, 5) = n.y();
-  L(1, 3) = n.z(), L(1, 5) = -n.x();
-  L.block<1, 3>(2, 0) = -n.transpose();  // d_dot = -n . v
+  L.topRows<3>() = plane_interaction_matrix(plane);
   L.row(3) = M.row(0);
   L.row(4) = M.row(1);
   L.row(5) = M.row(3);

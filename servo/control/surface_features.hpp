@@ -30,6 +30,12 @@ struct Plane {
 // for fewer than 3 points, a non-positive depth, or points on a line (no plane).
 Plane fit_plane(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z);
 
+// The plane-to-plane task alone (the follow-up's, for an emitter on the camera, whose spots show
+// the plane and nothing else): s = (n_x, n_y, d), the first three rows of the surface's. Three
+// degrees of freedom; the law's pseudo-inverse leaves the other three still.
+Eigen::Vector3d plane_features(const Plane& plane);
+Eigen::Matrix<double, 3, 6> plane_interaction_matrix(const Plane& plane);
+
 Vector6d surface_features(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z, const MomentScale& scale);
 // with the plane's rows from `plane` and the moments' from the points with depths Z
 Matrix66 surface_interaction_matrix(const Eigen::VectorXd& xy, const Eigen::VectorXd& Z, const Plane& plane,

@@ -4,7 +4,7 @@ namespace control {
 
 std::optional<double> triangulate_depth(const Eigen::Vector2d& xy, int row, int col, const calibration::ProjectorModel& projector,
                                         const Eigen::Isometry3d& world_T_camera) {
-  const Eigen::Isometry3d c_T_p = world_T_camera.inverse() * projector.world_T_projector;
+  const Eigen::Isometry3d c_T_p = projector.camera_T_projector(world_T_camera);
   // camera ray: origin 0, direction a; projector ray: origin o, direction b (camera frame)
   const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
   const Eigen::Vector3d o = c_T_p.translation();

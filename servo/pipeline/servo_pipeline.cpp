@@ -9,16 +9,36 @@ namespace servo {
 ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
     : decoder_(std::move(table), config.decoder), config_(std::move(config)) {
   control::check_options(config_.law);  // a malformed law is refused at start, not at the first frame
-  if (config_.law.features == control::VisualFeatures::kSurface && !config_.projector)
-    throw std::invalid_argument(
-        "visual features 'surface' need the spots' depths: give the projector's calibration (--projector)");
+  const control::VisualFeatures f = config_.law.features;
+  const bool triangulated = f == control::VisualFeatures::kSurface || f == control::VisualFeatures::kPlane;
+  if (triangulated && !config_.projector)
+    throw std::invalid_argument("visual features '" + control::to_string(f) +
+                                "' need the spots' depths: give the projector's calibration (--projector)");
+  // spots cast from the camera show the surface and nothing more: the surface's three moments
+  // would servo the degrees of freedom they cannot see (points and moments take the riding
+  // spots' own rows, interaction_matrix.hpp)
+  if (config_.projector && config_.projector->on_camera && f == control::VisualFeatures::kSurface)
+    throw std::invalid_argument("the projector rides on the camera (mount: camera): its spots show the surface alone, "
+                                "not the motion along it that the surface's moments servo; use --visual-features "
+                                "plane, points or moments");
 }
+
+namespace {
+// Where the camera stands for the projector's geometry: the robot's pose, or none needed when
+// the projector rides on the camera (its pose is the camera's).
+std::optional<Eigen::Isometry3d> geometry_pose(const std::optional<calibration::ProjectorModel>& projector,
+                                               const std::optional<Eigen::Isometry3d>& wTc) {
+  if (projector && projector->on_camera) return wTc.value_or(Eigen::Isometry3d::Identity());
+  return wTc;
+}
+}  // namespace
 
 std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,
                                              int* detected) const {
   std::optional<vision::EpipolarGeometry> geometry;
-  if (wTc && config_.projector && config_.decoder.epipolar.enabled)
-    geometry.emplace(config_.camera, *config_.projector, *wTc, config_.decoder.epipolar.tolerance_px);
+  const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
+  if (at && config_.projector && config_.decoder.epipolar.enabled)
+    geometry.emplace(config_.camera, *config_.projector, *at, config_.decoder.epipolar.tolerance_px);
   const vision::DecodeResult r = decoder_.decode(rgb, geometry ? &*geometry : nullptr);
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
@@ -31,10 +51,14 @@ std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpo
                                                       const std::optional<Eigen::Isometry3d>& wTc) const {
   std::vector<control::Feature> out;
   out.reserve(spots.size());
+  const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
   for (const ImageSpot& s : spots) {
     const Eigen::Vector2d xy = calibration::normalise(config_.camera, {s.u, s.v});
     control::Feature f{s.row, s.col, xy.x(), xy.y(), std::nullopt};
-    if (wTc && config_.projector) f.z = control::triangulate_depth(xy, s.row, s.col, *config_.projector, *wTc);
+    if (at && config_.projector) f.z = control::triangulate_depth(xy, s.row, s.col, *config_.projector, *at);
+    // a spot of a projector on the camera: its ray, fixed in the camera frame, for its rows of L
+    if (config_.projector && config_.projector->on_camera)
+      f.ray = config_.projector->on_camera->linear() * config_.projector->spot_ray(s.row, s.col);
     out.push_back(f);
   }
   return out;

@@ -310,7 +310,7 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
       try {
         c.law.features = control::parse_visual_features(r.text(16));
       } catch (const std::invalid_argument&) {
-        r.fail("must be points, moments or surface, got " + r.spelling());
+        r.fail("must be points, moments, surface or plane, got " + r.spelling());
       }
     }
     if (top.has("propagate_sources")) c.decoder.epipolar.min_sources = top.at("propagate_sources").integer_in(1, 9);

@@ -8,7 +8,7 @@ namespace vision {
 EpipolarGeometry::EpipolarGeometry(const calibration::CameraIntrinsics& camera, const calibration::ProjectorModel& projector,
                                    const Eigen::Isometry3d& world_T_camera, double tolerance_px)
     : camera_(camera), rows_(projector.rows), cols_(projector.cols), tolerance_px_(tolerance_px) {
-  const Eigen::Isometry3d c_T_p = world_T_camera.inverse() * projector.world_T_projector;
+  const Eigen::Isometry3d c_T_p = projector.camera_T_projector(world_T_camera);
   origin_ = c_T_p.translation();
   const double pixels = 0.5 * (camera.fx + camera.fy);
   rays_.reserve(static_cast<std::size_t>(rows_) * cols_);

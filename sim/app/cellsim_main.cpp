@@ -219,7 +219,7 @@ struct LawFlags {
   bool epipolar = false;
   int points = 0;
   std::string robust = "none";
-  std::string features = "points";
+  std::string features;  // empty: the scenario's (points; plane for a projector on the camera)
 
   void add(CLI::App* c) {
     add_visual_features(c);
@@ -257,16 +257,17 @@ struct LawFlags {
     cfg.decoder.epipolar.enabled = epipolar;
     cfg.points = points;
     cfg.law.robust = control::parse_robust_estimator(robust);
-    cfg.law.features = control::parse_visual_features(features);
+    cfg.law.features = experiment::visual_features_or_default(features, cfg);
   }
   // campaign and study add the law's flags one by one; this one they share with experiment
   void add_visual_features(CLI::App* c) {
     c->add_option("--visual-features", features,
                   "what the law servoes on: points (every decoded spot's x, y: the paper) | moments (the six image "
                   "moments of the matched spots) | surface (the plane of the triangulated spots, its normal and "
-                  "distance, and three moments); docs/results.md")
-        ->check(CLI::IsMember({"points", "moments", "surface"}))
-        ->capture_default_str();
+                  "distance, and three moments) | plane (its normal and distance alone: three degrees of freedom, "
+                  "for a projector on the camera); default: points, plane with the projector on the camera; "
+                  "docs/results.md")
+        ->check(CLI::IsMember({"points", "moments", "surface", "plane"}));
   }
 };
 
@@ -804,6 +805,7 @@ struct CalibrationCommand {
     m.rows = a.rows, m.cols = a.cols;
     // what a calibration would give: off by the scenario's projector errors, if any
     m.world_T_projector = s.projector.world_T_projector * sim::scenario_errors(s).projector_delta;
+    if (s.projector.on_camera) m.on_camera = *s.projector.on_camera * sim::scenario_errors(s).projector_delta;
     const bool off = s.errors.projector_position_mm > 0 || s.errors.projector_rotation_deg > 0;
     calibration::write_projector_calibration(m, out,
                                        "projector calibration of scenario " + s.name +

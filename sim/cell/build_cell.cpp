@@ -3,9 +3,13 @@
 // tables: sim::prepare_rendering), and the robot the scenario names.
 #include "sim/cell/build_cell.hpp"
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+
 #include "servo/pattern/pattern_file.hpp"
 #include "sim/arm/arm_robot.hpp"
 #include "sim/arm/arm_scenario.hpp"
+#include "sim/render/renderer.hpp"
 #include "sim/scene/mesh_check.hpp"
 
 namespace sim {
@@ -15,6 +19,8 @@ ResolvedScenario resolve(Scenario spec) {
     resolve_arm(spec);
     settle_workspace(spec);
   }
+  // a projector on the camera stands, in the cell's own tables, where the desired pose puts it
+  if (spec.projector.on_camera) spec.projector.world_T_projector = spec.world_T_desired * *spec.projector.on_camera;
   return ResolvedScenario(std::move(spec));
 }
 
@@ -50,6 +56,28 @@ void load_arm_meshes(const Scenario& scenario, Cell& cell) {
       cell.arm_meshes.add(m.chain[i].shape.visual, static_cast<int>(i) + 1, m.chain[i].shape.albedo);
 }
 
+// The plane through the spots a projector on the camera lights from the desired pose (least
+// squares), its normal away from the camera. Throws ScenarioError when they give none.
+GoalPlane lit_plane(const Cell& cell) {
+  const Scenario& s = cell.scenario;
+  std::vector<Eigen::Vector3d> points;
+  for (const SpotTruth& t : compute_truth(cell, s.world_T_desired))
+    if (t.visible) points.push_back(t.point_w);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= std::max<std::size_t>(1, points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) scatter += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+  if (points.size() < 3 || !(eig.eigenvalues()[1] > 1e-12 * eig.eigenvalues()[2]))
+    throw ScenarioError(s.file.string() + ": projector: mounted on the camera, it lights " + std::to_string(points.size()) +
+                        " spots the camera sees from the desired pose, not on a line: 3 or more needed");
+  GoalPlane g{eig.eigenvectors().col(0).normalized(), 0};
+  if (g.n_w.dot(mean - s.world_T_desired.translation()) < 0) g.n_w = -g.n_w;
+  g.d = g.n_w.dot(mean);
+  return g;
+}
+
 }  // namespace
 
 std::unique_ptr<Cell> build_cell(const ResolvedScenario& scenario) {
@@ -64,6 +92,7 @@ std::unique_ptr<Cell> build_cell(const ResolvedScenario& scenario) {
   cell->camera = std::make_unique<CameraModel>(scenario.camera.intrinsics, scenario.camera.distortion);
 
   prepare_rendering(*cell);
+  if (scenario.projector.on_camera) cell->goal_plane = lit_plane(*cell);
   return cell;
 }
 

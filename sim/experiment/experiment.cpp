@@ -102,6 +102,7 @@ calibration::ProjectorModel projector_model_of(const sim::Cell& cell) {
   pm.rows = cell.projector->pattern().rows;
   pm.cols = cell.projector->pattern().cols;
   pm.world_T_projector = p.world_T_projector;
+  pm.on_camera = cell.scenario.projector.on_camera;
   return pm;
 }
 
@@ -122,6 +123,7 @@ servo::ServoConfig servo_config_for(const sim::Cell& cell) {
 calibration::ProjectorModel believed_projector(const calibration::ProjectorModel& truth, const sim::DrawnErrors& d) {
   calibration::ProjectorModel p = truth;
   p.world_T_projector = truth.world_T_projector * d.projector_delta;
+  if (truth.on_camera) p.on_camera = *truth.on_camera * d.projector_delta;  // its mount as calibrated
   return p;
 }
 
@@ -382,8 +384,9 @@ class Experiment {
     // the trace says why the run ended, as the service's trace does
     if (trace_.is_open()) trace_ << "# session ended: " << res_.stop_reason << '\n';
     const Eigen::Isometry3d wTc = loop_.cell().world_T_camera();
-    res_.final_translation_error_m = sim::translation_error(wTc, scenario().world_T_desired);
-    res_.final_rotation_error_deg = sim::rotation_error(wTc, scenario().world_T_desired) * kRadToDeg;
+    const sim::GoalError goal = sim::goal_error(wTc, scenario().world_T_desired, cell_.goal_plane);
+    res_.final_translation_error_m = goal.translation_m;
+    res_.final_rotation_error_deg = goal.rotation_rad * kRadToDeg;
   }
 
   const sim::Cell& cell_;
@@ -409,6 +412,11 @@ class Experiment {
 }  // namespace
 
 ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) { return Experiment(cell, o).run(); }
+
+control::VisualFeatures visual_features_or_default(const std::string& name, const servo::ServoConfig& config) {
+  if (!name.empty()) return control::parse_visual_features(name);
+  return config.projector && config.projector->on_camera ? control::VisualFeatures::kPlane : control::VisualFeatures::kPoints;
+}
 
 double desired_depth(const sim::Cell& cell) {
   double sum = 0;

@@ -90,6 +90,10 @@ calibration::ProjectorModel projector_model_of(const sim::Cell& cell);
 // calibration taken as exact.
 servo::ServoConfig servo_config_for(const sim::Cell& cell);
 
+// The features `name` names, or for "" the scenario's: points, or the plane when the projector
+// rides on the camera (its spots show the surface and nothing more). Throws for a bad name.
+control::VisualFeatures visual_features_or_default(const std::string& name, const servo::ServoConfig& config);
+
 // Z-hat by default: the mean depth, at the desired pose, of the spots the camera sees.
 double desired_depth(const sim::Cell& cell);
 

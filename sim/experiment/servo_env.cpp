@@ -129,8 +129,9 @@ EnvObservation ServoEnv::observation_of(const loop::LoopExchange& x) const {
   o.error_norm = r.error_norm;
   o.servo_state = state_name(r.state);
   o.world_T_camera = x.frame.world_T_camera;
-  o.translation_error_m = sim::translation_error(x.frame.world_T_camera, cell_.scenario.world_T_desired);
-  o.rotation_error_deg = sim::rotation_error(x.frame.world_T_camera, cell_.scenario.world_T_desired) * 180.0 / M_PI;
+  const sim::GoalError goal = sim::goal_error(x.frame.world_T_camera, cell_.scenario.world_T_desired, cell_.goal_plane);
+  o.translation_error_m = goal.translation_m;
+  o.rotation_error_deg = goal.rotation_rad * 180.0 / M_PI;
   o.time_s = x.frame.time_s;
   o.limited = sim::limit_names(x.frame.robot_limits);
   if (options_.images) o.image = x.image;

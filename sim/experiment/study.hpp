@@ -23,7 +23,7 @@ namespace experiment {
 //   error_scale                every calibration error given (scenario, --error) times this
 //   any delay                  acquisition_frames, processing_frames, actuation_s
 //   losses                     the share of the decoded spots dropped at every frame
-//   visual_features            points, moments, surface (by name; study.csv holds 0, 1, 2)
+//   visual_features            points, moments, surface, plane (by name; study.csv holds 0, 1, 2, 3)
 struct StudyAxis {
   std::string name;
   std::vector<double> values;

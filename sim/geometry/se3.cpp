@@ -85,6 +85,14 @@ double rotation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return Eigen::AngleAxisd(a.rotation().transpose() * b.rotation()).angle();
 }
 
+GoalError goal_error(const Eigen::Isometry3d& wTc, const Eigen::Isometry3d& wTd, const std::optional<GoalPlane>& plane) {
+  if (!plane) return {translation_error(wTc, wTd), rotation_error(wTc, wTd)};
+  const Eigen::Vector3d& n = plane->n_w;
+  const double distance_c = plane->d - n.dot(wTc.translation()), distance_d = plane->d - n.dot(wTd.translation());
+  const Eigen::Vector3d seen_c = wTc.rotation().transpose() * n, seen_d = wTd.rotation().transpose() * n;
+  return {std::abs(distance_c - distance_d), std::atan2(seen_c.cross(seen_d).norm(), seen_c.dot(seen_d))};
+}
+
 Vector6d transform_twist(const Eigen::Isometry3d& a_T_b, const Vector6d& twist_b) {
   const Eigen::Matrix3d R = a_T_b.rotation();
   Vector6d out;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <optional>
 
 namespace sim {
 
@@ -31,5 +32,20 @@ Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& tar
 // Translation distance (m) and rotation angle (rad) between two poses.
 double translation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
 double rotation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
+
+// The plane-to-plane task's goal (a projector on the camera, whose spots show the surface and
+// nothing more): the plane n . X = d (world, n unit) its spots light from the desired pose.
+struct GoalPlane {
+  Eigen::Vector3d n_w = Eigen::Vector3d::UnitZ();
+  double d = 0;
+};
+// How far the camera at wTc is from the goal wTd: without a plane, translation_error and
+// rotation_error; with one, what the task can see of it: the difference of the camera's
+// distances to the plane and the angle between the plane's normal as the two poses see it (a
+// translation along the plane or a rotation about its normal leaves both unchanged).
+struct GoalError {
+  double translation_m = 0, rotation_rad = 0;
+};
+GoalError goal_error(const Eigen::Isometry3d& wTc, const Eigen::Isometry3d& wTd, const std::optional<GoalPlane>& plane);
 
 }  // namespace sim

@@ -48,7 +48,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       source_(setup.source),
       outlier_fraction_(setup.outlier_fraction),
       loss_fraction_(setup.loss_fraction),
-      cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot)),
+      cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot), cell.goal_plane),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
   scratch_.threads = setup.render_threads;

@@ -102,7 +102,7 @@ struct Scenario {
 
 // The servo's configuration for a scenario, as `cellsim experiment` makes it.
 servo::ServoConfig servo_config(const Scenario& s, const std::string& model, double z_hat, double gain,
-                                const std::string& robust, const std::string& visual_features = "points") {
+                                const std::string& robust, const std::string& visual_features = "") {
   servo::ServoConfig cfg = experiment::servo_config_for(*s.cell);
   cfg.law.model = control::parse_interaction_model(model);
   // as the CLI's --z-hat: finite, in [0, 100] m, 0 the scenario's desired depth
@@ -112,7 +112,7 @@ servo::ServoConfig servo_config(const Scenario& s, const std::string& model, dou
   if (!(gain > 0 && gain < 100)) throw py::value_error("gain must be in (0, 100)");
   cfg.law.gain = {gain, gain, 0};
   cfg.law.robust = control::parse_robust_estimator(robust);
-  cfg.law.features = control::parse_visual_features(visual_features);
+  cfg.law.features = experiment::visual_features_or_default(visual_features, cfg);  // "": the scenario's
   control::check_options(cfg.law);  // robust weights with the moments: refused here, in one line
   cfg.decoder.epipolar.enabled = false;
   return cfg;
@@ -383,10 +383,10 @@ PYBIND11_MODULE(cellsim, m) {
       .def("step", &Servo::step, py::arg("image"), "one iteration: dict of twist (6), error_norm, decoded, matched");
   m.def("experiment", &run_experiment_dict, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
-        py::arg("features") = "decoded", py::arg("visual_features") = "points",
+        py::arg("features") = "decoded", py::arg("visual_features") = "",
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns "
         "(features: where the spots come from, decoded | ideal; visual_features: what the law servoes on, points | "
-        "moments)");
+        "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera)");
   py::class_<Env>(m, "_ServoEnvCore",
                   "the environment's engine (ServoEnv, defined below in Python, is the public face)")
       .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&>(),

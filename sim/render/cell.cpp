@@ -121,35 +121,38 @@ std::vector<std::uint8_t> never_shadowed_planes(const SceneTriangles& tris, cons
 
 namespace {
 
-// The projector's beam window over its depth buffer (Cell::beam) and what the renderer keeps of
-// it: the depth there, the planes never in shadow, each triangle's gap to the window.
-void fit_beam(Cell& cell) {
-  const Projector& proj = *cell.projector;
-  const DepthBuffer& d = cell.projector_depth;
+// The projector's beam window over its depth buffer (Light::beam) and what the renderer keeps
+// of it: the depth there, the planes never in shadow, each triangle's gap to the window.
+void fit_beam(const SceneTriangles& triangles, Light& light) {
+  const Projector& proj = *light.projector;
+  const DepthBuffer& d = light.projector_depth;
   const Eigen::Vector2d a = proj.spot_pixel(0, 0), b = proj.spot_pixel(proj.pattern().rows - 1, proj.pattern().cols - 1);
-  const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(cell.farthest_spot_m + 0.5) + 4.0;
-  RasterClip& w = cell.beam;
+  const double spread = proj.spec().spot_radius_px + 3.0 * proj.defocus_sigma_px(light.farthest_spot_m + 0.5) + 4.0;
+  RasterClip& w = light.beam;
   w.x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - spread)) + d.margin);
   w.y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - spread)) + d.margin);
   w.x1 = std::min(d.width - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + spread)) + d.margin);
   w.y1 = std::min(d.height - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + spread)) + d.margin);
-  cell.beam_depth = beam_window(d, w);
-  cell.never_shadowed = never_shadowed_planes(cell.triangles, *cell.projector, d, w);
-  cell.beam_gap = beam_gaps(cell.triangles, *cell.projector, w, d.margin);
+  light.beam_depth = beam_window(d, w);
+  light.never_shadowed = never_shadowed_planes(triangles, proj, d, w);
+  light.beam_gap = beam_gaps(triangles, proj, w, d.margin);
 }
 
-
-// The projector's view of the static scene (its depth buffer, the spots' hits) and the beam
-// window over it.
-void light_the_scene(Cell& cell) {
-  rasterize(cell.triangles, cell.projector->projector_T_world(), cell.scenario.projector.intrinsics, 0,
-            cell.projector_depth);
-  cell.spot_hits = cell.projector->cast_spots(cell.world);
-  for (const SpotHit& h : cell.spot_hits)
+// The projector standing at world_T_projector: its spots' hits and, with_depth, its view of the
+// static scene (its depth buffer) and the beam window over it.
+void light_the_scene(const Cell& cell, const Eigen::Isometry3d& world_T_projector, bool with_depth, Light& light) {
+  ProjectorSpec spec = cell.projector->spec();
+  spec.world_T_projector = world_T_projector;
+  light.projector = std::make_shared<const Projector>(spec, cell.projector->pattern());
+  light.spot_hits = light.projector->cast_spots(cell.world);
+  light.farthest_spot_m = 0;
+  for (const SpotHit& h : light.spot_hits)
     if (h.centre)
-      cell.farthest_spot_m = std::max(cell.farthest_spot_m, (h.centre->point_w - cell.scenario.projector.world_T_projector.translation()).norm());
-  fit_beam(cell);
-
+      light.farthest_spot_m = std::max(light.farthest_spot_m, (h.centre->point_w - world_T_projector.translation()).norm());
+  light.with_depth = with_depth;
+  if (!with_depth) return;
+  rasterize(cell.triangles, light.projector->projector_T_world(), spec.intrinsics, 0, light.projector_depth);
+  fit_beam(cell.triangles, light);
 }
 
 // The camera's rays: the margin its depth buffer needs so every distorted pixel's ray lands in
@@ -223,9 +226,21 @@ void draw_symbols_and_noise(Cell& cell) {
 }  // namespace
 
 void prepare_rendering(Cell& cell) {
-  light_the_scene(cell);
+  light_the_scene(cell, cell.scenario.projector.world_T_projector, true, cell.light);
+  cell.light.projector = cell.projector;  // the same projector (and pose): one object
   lay_out_lens(cell);
   draw_symbols_and_noise(cell);
+}
+
+const Light& light_at(const Cell& cell, const Eigen::Isometry3d& world_T_camera, Light& scratch, bool with_depth) {
+  const std::optional<Eigen::Isometry3d>& mount = cell.scenario.projector.on_camera;
+  if (!mount) return cell.light;
+  // the same pose as the scratch's (to the bit): the light stands where it did
+  if (scratch.projector && scratch.at && scratch.at->matrix() == world_T_camera.matrix() && (scratch.with_depth || !with_depth))
+    return scratch;
+  light_the_scene(cell, world_T_camera * *mount, with_depth, scratch);
+  scratch.at = world_T_camera;
+  return scratch;
 }
 
 }  // namespace sim

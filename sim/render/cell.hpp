@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "sim/robot/robot.hpp"
@@ -29,15 +30,12 @@ inline double gap_beyond(const Eigen::AlignedBox2d& box, const Eigen::AlignedBox
                    box.min().y() - window.max().y()});
 }
 
-struct Cell {
-  explicit Cell(ResolvedScenario s) : scenario(std::move(s)) {}
-  const ResolvedScenario scenario;
-  World world;
-  SceneTriangles triangles;
-  TexturePool textures;  // the objects' textures, for the shading kernel
-  std::unique_ptr<Projector> projector;
-  std::unique_ptr<CameraModel> camera;
-  // static while the world is: the projector's view (its shadow map) and its spots' hits
+// What the projector lights from where it stands: its view of the static scene (its shadow
+// map), the window of it its spots reach, and its spots' hits. A static projector's is the
+// cell's, computed once; one riding on the camera (ProjectorSpec::on_camera) has one per frame
+// (light_at).
+struct Light {
+  std::shared_ptr<const Projector> projector;  // at this light's pose
   DepthBuffer projector_depth;
   // The window of the projector's depth buffer (inclusive cells) its spots can light: the
   // pattern's extent widened by the farthest a blurred spot reaches. The renderer reads the
@@ -56,6 +54,23 @@ struct Cell {
   std::vector<float> beam_gap;
   std::vector<SpotHit> spot_hits;
   double farthest_spot_m = 0;  // the farthest centre hit from the projector (bounds the blur)
+  // where the camera stood when this light was made (a light on the camera: light_at reuses it
+  // for the same pose); with_depth: the depth buffer and its tables are there, not only the hits
+  std::optional<Eigen::Isometry3d> at;
+  bool with_depth = false;
+};
+
+struct Cell {
+  explicit Cell(ResolvedScenario s) : scenario(std::move(s)) {}
+  const ResolvedScenario scenario;
+  World world;
+  SceneTriangles triangles;
+  TexturePool textures;  // the objects' textures, for the shading kernel
+  // the projector at the scenario's pose (on the camera: where it stands at the desired pose)
+  std::shared_ptr<Projector> projector;
+  std::unique_ptr<CameraModel> camera;
+  // the static projector's light (on the camera: the light at the desired pose)
+  Light light;
   int camera_margin_px = 0;  // how far beyond the ideal frame the distorted lens sees
   // for each camera pixel, the z-buffer cell its ray passes through (-1: none), in double
   // precision: the previous renderer's (tests/support/previous_renderer), kept as the baseline;
@@ -83,11 +98,19 @@ struct Cell {
   // places them with the robot's link poses (ArmRobot::world_T_links order)
   MovingMeshes arm_meshes;
   std::vector<std::string> object_names;
+  // a projector on the camera: the plane its spots light from the desired pose, the goal the
+  // camera is judged against (sim::goal_error); none for a static projector
+  std::optional<GoalPlane> goal_plane;
 };
 
 // The renderer's own tables of a cell whose world, projector and camera are in place (what
 // sim::build_cell, sim/cell, loads): the projector's view of the static scene and its beam
 // window, the lens laid out for the shading kernel, the spots' symbols, the noise pool.
 void prepare_rendering(Cell& cell);
+
+// The light of a frame whose camera stands at world_T_camera: the cell's own for a static
+// projector; for one on the camera, `scratch` made for that pose (kept while the pose is the
+// same). `with_depth` false: the spots' hits alone (what the truth needs).
+const Light& light_at(const Cell& cell, const Eigen::Isometry3d& world_T_camera, Light& scratch, bool with_depth);
 
 }  // namespace sim

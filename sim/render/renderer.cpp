@@ -56,9 +56,9 @@ SceneTriangles& posed_triangles(const Cell& cell, const LinkPoses& links, ArmFra
 
 // The arm's box on the projector's image plane; `behind` when some of it is behind the
 // projector (the box then says nothing).
-Eigen::AlignedBox2d arm_box_in_projector(const Cell& cell, const LinkPoses& links, bool& behind) {
+Eigen::AlignedBox2d arm_box_in_projector(const Cell& cell, const Light& light, const LinkPoses& links, bool& behind) {
   const MovingMeshes& arm = cell.arm_meshes;
-  const Projector& proj = *cell.projector;
+  const Projector& proj = *light.projector;
   const Intrinsics& kp = proj.spec().intrinsics;
   const Eigen::Isometry3d p_T_w = proj.projector_T_world();
   Eigen::AlignedBox2d box;
@@ -81,13 +81,13 @@ Eigen::AlignedBox2d arm_box_in_projector(const Cell& cell, const LinkPoses& link
 
 // The projector's depth with the arm: only the region the arm's box covers is redrawn over
 // the static depth, and only where spots can shine.
-const DepthBuffer& arm_projector_depth(const Cell& cell, const SceneTriangles& triangles, std::size_t first,
+const DepthBuffer& arm_projector_depth(const Light& light, const SceneTriangles& triangles, std::size_t first,
                                        const Eigen::AlignedBox2d& box, bool behind, ArmFrameBuffers& buf) {
-  const Projector& proj = *cell.projector;
+  const Projector& proj = *light.projector;
   const Intrinsics& kp = proj.spec().intrinsics;
   const Eigen::Isometry3d p_T_w = proj.projector_T_world();
   DepthBuffer& d = buf.arm_projector_depth;
-  const DepthBuffer& full = cell.projector_depth;
+  const DepthBuffer& full = light.projector_depth;
   const std::size_t n = static_cast<std::size_t>(full.width) * full.height;
   if (d.width != full.width || d.height != full.height || d.margin != full.margin || d.inv_depth.size() != n) {
     d.width = full.width;
@@ -105,8 +105,8 @@ const DepthBuffer& arm_projector_depth(const Cell& cell, const SceneTriangles& t
     std::fill(d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u0), d.inv_depth.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), 0.0f);
     std::fill(d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u0), d.triangle.begin() + static_cast<std::ptrdiff_t>(row + u1 + 1), -1);
   }
-  // only where spots can shine is the projector's depth ever read (Cell::beam)
-  RasterClip clip = cell.beam;
+  // only where spots can shine is the projector's depth ever read (Light::beam)
+  RasterClip clip = light.beam;
   if (!behind) {
     clip.x0 = std::max(clip.x0, static_cast<int>(std::floor(box.min().x())) + d.margin - 2);
     clip.y0 = std::max(clip.y0, static_cast<int>(std::floor(box.min().y())) + d.margin - 2);
@@ -123,22 +123,22 @@ const DepthBuffer& arm_projector_depth(const Cell& cell, const SceneTriangles& t
 
 }  // namespace
 
-FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buf, bool with_triangles,
-                      bool with_hits) {
-  FrameScene scene{&cell.triangles, &cell.spot_hits, &cell.projector_depth, nullptr, false};
+FrameScene pose_scene(const Cell& cell, const Light& light, const LinkPoses* links, ArmFrameBuffers& buf,
+                      bool with_triangles, bool with_hits) {
+  FrameScene scene{&cell.triangles, &light.spot_hits, &light.projector_depth, nullptr, false};
   if (!links || links->empty() || cell.arm_meshes.size() == 0) return scene;
   if (with_triangles) scene.triangles = &posed_triangles(cell, *links, buf);
   // is any of the arm in the projector's beam? its box on the projector's image plane
-  const Projector& proj = *cell.projector;
+  const Projector& proj = *light.projector;
   const Intrinsics& kp = proj.spec().intrinsics;
   bool behind = false;
-  const Eigen::AlignedBox2d box = arm_box_in_projector(cell, *links, behind);
+  const Eigen::AlignedBox2d box = arm_box_in_projector(cell, light, *links, behind);
   const double reach = proj.spec().spot_radius_px + 2;
   const Eigen::AlignedBox2d image(Eigen::Vector2d(-reach, -reach), Eigen::Vector2d(kp.width + reach, kp.height + reach));
   if (!behind && (box.isEmpty() || !box.intersects(image))) return scene;
   scene.arm_in_beam = true;
   if (with_hits) {
-    buf.spot_hits = cell.spot_hits;
+    buf.spot_hits = light.spot_hits;
     const int object_offset = static_cast<int>(cell.object_names.size());
     for (SpotHit& h : buf.spot_hits) {
       const Eigen::Vector2d c = proj.spot_pixel(h.row, h.col);
@@ -150,7 +150,7 @@ FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers&
     scene.spot_hits = &buf.spot_hits;
   }
   if (with_triangles)
-    scene.arm_projector_depth = &arm_projector_depth(cell, *scene.triangles, cell.triangles.a.size(), box, behind, buf);
+    scene.arm_projector_depth = &arm_projector_depth(light, *scene.triangles, cell.triangles.a.size(), box, behind, buf);
   return scene;
 }
 
@@ -192,19 +192,19 @@ const EdgeProfile& edge_profile() {
 // bands to share out)
 constexpr int kBandRowsOneThread = 120, kBandRowsShared = 48;
 
-shading::DepthView beam_view(const Cell& cell, const std::vector<float>& window) {
-  const RasterClip& w = cell.beam;
+shading::DepthView beam_view(const Light& light, const std::vector<float>& window) {
+  const RasterClip& w = light.beam;
   if (w.x0 > w.x1 || w.y0 > w.y1) return {window.data(), 0, 0, 0, 0};
-  const int margin = cell.projector_depth.margin;
+  const int margin = light.projector_depth.margin;
   return {window.data(), w.x1 - w.x0 + 1, w.y1 - w.y0 + 1, margin - w.x0, margin - w.y0};
 }
 
 // Each triangle's numbers of shading.hpp, for this camera pose (double precision, then float);
 // then, from n on, the planes' numbers for their triangles outside the beam (outside_beam):
 // their ambient alone (G = 0: no point, no spot).
-void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen::Isometry3d& world_T_camera,
+void prepare_triangles(const Light& light, const SceneTriangles& tris, const Eigen::Isometry3d& world_T_camera,
                        const CameraSpec& cam, bool skip_unshadowed, std::vector<float>& out) {
-  const ProjectorSpec& ps = cell.projector->spec();
+  const ProjectorSpec& ps = light.projector->spec();
   const Eigen::Matrix3d R = world_T_camera.linear();
   const Eigen::Vector3d C = world_T_camera.translation();
   const Eigen::Vector3d P = ps.world_T_projector.translation();
@@ -230,7 +230,7 @@ void prepare_triangles(const Cell& cell, const SceneTriangles& tris, const Eigen
     const double facing = std::abs(tris.normal_w[i].dot(P) - tris.offset[i]);
     rec(shading::kReturn) = static_cast<float>(tris.albedo[i] * ps.brightness * facing * focus_mid * focus_mid);
     // the static scene's planes (the arm's come after them) never in its shadow: -K
-    if (skip_unshadowed && i < cell.never_shadowed.size() && cell.never_shadowed[i]) rec(shading::kReturn) *= -1;
+    if (skip_unshadowed && i < light.never_shadowed.size() && light.never_shadowed[i]) rec(shading::kReturn) *= -1;
   }
 }
 
@@ -279,17 +279,18 @@ void surface_colours(const Cell& cell, const SceneTriangles& tris, const Eigen::
 // that image lies a projector pixel or more beyond beam_pixels, no rounding in the kernel
 // (about 1e-3 of a pixel) brings any of those points into the window. Rays meeting the plane
 // at a grazing angle (cosine under 0.01) are not trusted: there the kernel's 1/z loses digits.
-void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::vector<std::uint8_t>& out) {
+void outside_beam(const Cell& cell, const Light& light, const Eigen::Isometry3d& world_T_camera,
+                  std::vector<std::uint8_t>& out) {
   const SceneTriangles& tris = cell.triangles;
-  const std::size_t n = std::min(tris.a.size(), cell.beam_gap.size());
+  const std::size_t n = std::min(tris.a.size(), light.beam_gap.size());
   out.assign(n, 0);
-  const RasterClip& w = cell.beam;
+  const RasterClip& w = light.beam;
   if (w.x0 > w.x1 || w.y0 > w.y1) return;
-  const Eigen::AlignedBox2d window = beam_pixels(w, cell.projector_depth.margin);
+  const Eigen::AlignedBox2d window = beam_pixels(w, light.projector_depth.margin);
   const Intrinsics& k = cell.scenario.camera.intrinsics;
-  const Intrinsics& kp = cell.projector->spec().intrinsics;
+  const Intrinsics& kp = light.projector->spec().intrinsics;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
-  const Eigen::Isometry3d p_T_c = cell.projector->projector_T_world() * world_T_camera;
+  const Eigen::Isometry3d p_T_c = light.projector->projector_T_world() * world_T_camera;
   const Eigen::Vector3d C = world_T_camera.translation();
   constexpr double kNearest = 0.01, kGrazing = 0.01, kClear = 1.0;  // metres, cosine, projector pixels
   // Below, reciprocals and squares stand for divisions and roots: this is a decision with a
@@ -307,7 +308,7 @@ void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std
   }
   const double inv_fx = 1.0 / k.fx, inv_fy = 1.0 / k.fy;
   for (std::size_t i = 0; i < n; ++i) {
-    if (!(cell.beam_gap[i] > kClear)) continue;  // its own image reaches the window: so does the region
+    if (!(light.beam_gap[i] > kClear)) continue;  // its own image reaches the window: so does the region
     // a face of a closed mesh turned away from the camera is never drawn (project_triangles)
     if (tris.outward.size() == tris.a.size() && faces_away(tris, i, C)) continue;
     Eigen::AlignedBox2d image;
@@ -348,11 +349,11 @@ auto shading_kernel(const RenderScratch& s) {
 // The frame's projector (defocus, spot grid, colours seen through the sensor's crosstalk, the
 // camera-to-projector pose) and sensor numbers (gain, noise). `colour` holds the colour
 // tables the frame points to.
-void projector_and_sensor(const Cell& cell, const CameraSpec& cam, const Eigen::Isometry3d& world_T_camera,
-                          std::uint64_t noise_seed, std::array<float, shading::kSymbolLut> (&colour)[3],
-                          shading::Frame& f) {
+void projector_and_sensor(const Cell& cell, const Light& light, const CameraSpec& cam,
+                          const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
+                          std::array<float, shading::kSymbolLut> (&colour)[3], shading::Frame& f) {
   const Intrinsics& k = cell.scenario.camera.intrinsics;
-  const Projector& proj = *cell.projector;
+  const Projector& proj = *light.projector;
   const ProjectorSpec& ps = proj.spec();
   f.focused_blur = static_cast<float>(ps.focused_blur_px);
   f.defocus_per_m = static_cast<float>(ps.defocus_px_per_m);
@@ -446,7 +447,8 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   RenderScratch local;
   RenderScratch& s = scratch ? *scratch : local;
   s.arm.scalar = s.scalar;
-  const FrameScene scene = pose_scene(cell, links, s.arm, true, false);
+  const Light& light = light_at(cell, world_T_camera, s.light, true);
+  const FrameScene scene = pose_scene(cell, light, links, s.arm, true, false);
   const SceneTriangles& tris = *scene.triangles;
   s.screen.clear();
   // the z-buffer names each pixel's plane (SceneTriangles::plane_of): a row of pixels crosses
@@ -454,10 +456,10 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   // triangle outside the beam names its plane's copy after the n triangles, which holds the
   // ambient light alone
   const auto n_tris = static_cast<std::int32_t>(tris.normal_w.size());
-  if (s.skip_outside_beam) outside_beam(cell, world_T_camera, s.outside);
+  if (s.skip_outside_beam) outside_beam(cell, light, world_T_camera, s.outside);
   project_triangles(tris, 0, world_T_camera.inverse(), k, cell.camera_margin_px, true, s.screen, true,
                     s.skip_outside_beam ? &s.outside : nullptr, n_tris);
-  prepare_triangles(cell, tris, world_T_camera, cam, s.skip_unshadowed, s.triangles);
+  prepare_triangles(light, tris, world_T_camera, cam, s.skip_unshadowed, s.triangles);
 
   const Cell::Lens& lens = cell.lens;
   shading::Frame f;
@@ -472,14 +474,14 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   surface_colours(cell, tris, world_T_camera, s, f);
   f.triangle_count = 2 * tris.normal_w.size();
   f.outside_from = n_tris;
-  f.projector_depth = beam_view(cell, cell.beam_depth);
+  f.projector_depth = beam_view(light, light.beam_depth);
   if (scene.arm_projector_depth) {
     // the arm's depth over the same window: one cell index serves both
-    s.arm_beam_depth = beam_window(*scene.arm_projector_depth, cell.beam);
-    f.arm_depth = beam_view(cell, s.arm_beam_depth);
+    s.arm_beam_depth = beam_window(*scene.arm_projector_depth, light.beam);
+    f.arm_depth = beam_view(light, s.arm_beam_depth);
   }
   std::array<float, shading::kSymbolLut> colour[3]{};
-  projector_and_sensor(cell, cam, world_T_camera, noise_seed, colour, f);
+  projector_and_sensor(cell, light, cam, world_T_camera, noise_seed, colour, f);
 
   const auto shade = shading_kernel(s);
   // Band by band: the z-buffer rows a band of image rows looks up are filled, then shaded
@@ -529,14 +531,16 @@ bool spot_resolved(double blur_px, const ProjectorSpec& spec) {
 
 std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& world_T_camera, const LinkPoses* links) {
   ArmFrameBuffers buffers;
-  const FrameScene scene = pose_scene(cell, links, buffers, false, true);
+  Light own;
+  const Light& light = light_at(cell, world_T_camera, own, false);
+  const FrameScene scene = pose_scene(cell, light, links, buffers, false, true);
   const bool arm = links && !links->empty() && cell.arm_meshes.size() > 0;
   const int first_arm_object = static_cast<int>(cell.object_names.size());
   const pattern::MArray& pat = cell.projector->pattern();
   const Intrinsics& k = cell.scenario.camera.intrinsics;
   const Eigen::Isometry3d c_T_w = world_T_camera.inverse();
   const Eigen::Vector3d C = world_T_camera.translation();
-  const Eigen::Isometry3d p_T_w = cell.projector->projector_T_world();
+  const Eigen::Isometry3d p_T_w = light.projector->projector_T_world();
   std::vector<SpotTruth> truth(pat.cells.size());
   for (int r = 0; r < pat.rows; ++r)
     for (int c = 0; c < pat.cols; ++c) {
@@ -571,8 +575,8 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
       t.hidden_by_arm = true;
     }
     if (!t.visible) continue;
-    t.blur_px = cell.projector->defocus_sigma_px((p_T_w * t.point_w).z());
-    t.resolved = spot_resolved(t.blur_px, cell.projector->spec());
+    t.blur_px = light.projector->defocus_sigma_px((p_T_w * t.point_w).z());
+    t.resolved = spot_resolved(t.blur_px, light.projector->spec());
     for (const auto& rim : h.rim)
       if (rim && rim->object == h.centre->object) {
         const Eigen::Vector3d R_c = c_T_w * rim->point_w;

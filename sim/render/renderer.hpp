@@ -43,8 +43,9 @@ struct ArmFrameBuffers {
 };
 // The arm's triangles are added when `with_triangles` (rendering), the spots' hits on it when
 // `with_hits` (the ground truth).
-FrameScene pose_scene(const Cell& cell, const LinkPoses* links, ArmFrameBuffers& buffers, bool with_triangles,
-                      bool with_hits);
+// `light`: the frame's (light_at).
+FrameScene pose_scene(const Cell& cell, const Light& light, const LinkPoses* links, ArmFrameBuffers& buffers,
+                      bool with_triangles, bool with_hits);
 
 // Buffers reused from frame to frame (pass the same one to avoid reallocating).
 struct RenderScratch {
@@ -66,6 +67,7 @@ struct RenderScratch {
   // says it lies outside the beam (the same bits: tests hold the two to each other)
   bool skip_outside_beam = true;
   std::vector<std::uint8_t> outside;  // outside_beam's flags for this frame
+  Light light;  // a projector on the camera: its light at this frame's pose (light_at)
   // 0: the rows are shared out over OpenCV's thread pool (as many threads as cv::setNumThreads
   // allows); 1: all on the calling thread (a campaign's runs, one thread each)
   int threads = 0;
@@ -83,7 +85,8 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
 // Per static triangle of the cell (Cell::triangles), 1 where no pixel the camera at
 // world_T_camera gives it can see a point the projector's beam window reaches (Cell::beam): such
 // a pixel takes the ambient light alone. Conservative: 0 where that is not certain.
-void outside_beam(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::vector<std::uint8_t>& out);
+void outside_beam(const Cell& cell, const Light& light, const Eigen::Isometry3d& world_T_camera,
+                  std::vector<std::uint8_t>& out);
 
 // Ground truth for one spot (pattern row, col).
 struct SpotTruth {

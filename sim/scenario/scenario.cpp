@@ -162,9 +162,15 @@ void read_objects(const Reader& top, Scenario& s) {
 }
 
 void read_projector(const Reader& p, ProjectorSpec& pr) {
-  p.only_keys({"pose", "resolution", "focal_px", "fov_deg", "principal_point_px", "pattern", "spot_pitch_px",
+  p.only_keys({"mount", "pose", "resolution", "focal_px", "fov_deg", "principal_point_px", "pattern", "spot_pitch_px",
                "spot_radius_px", "brightness", "focus_range_m", "defocus_px_per_m", "focused_blur_px", "only_spots"});
-  pr.world_T_projector = read_pose(p.at("pose"), Eigen::Vector3d::UnitZ());
+  const std::string mount = p.has("mount") ? p.at("mount").text(16) : "world";
+  if (mount == "camera")
+    pr.on_camera = read_pose(p.at("pose"), -Eigen::Vector3d::UnitY());  // the camera frame's up is -Y
+  else if (mount == "world")
+    pr.world_T_projector = read_pose(p.at("pose"), Eigen::Vector3d::UnitZ());
+  else
+    p.at("mount").fail("must be world or camera");
   pr.intrinsics = read_intrinsics(p, pr.intrinsics);
   pr.pattern = p.at("pattern").existing_file();
   pr.spot_pitch_px = p.at("spot_pitch_px").in_range(1, 1000);

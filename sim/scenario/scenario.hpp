@@ -61,7 +61,13 @@ struct Intrinsics {
 };
 
 struct ProjectorSpec {
+  // where the projector stands; on the camera (`mount: camera`), where it stands when the camera
+  // is at the desired pose: world_T_desired * camera_T_projector
   Eigen::Isometry3d world_T_projector = Eigen::Isometry3d::Identity();
+  // `mount: camera` (issue 44, the paper's future work): the projector rides on the camera's
+  // link, fixed to it by this camera_T_projector (`pose` in the camera frame: X right, Y down,
+  // Z along the optical axis); its spots move with the camera. Empty: static in the world.
+  std::optional<Eigen::Isometry3d> on_camera;
   Intrinsics intrinsics{1024, 768, 1500, 1500, 511.5, 383.5};
   std::filesystem::path pattern;          // pattern file (absolute)
   double spot_pitch_px = 22;              // distance between neighbouring spot centres

@@ -159,7 +159,8 @@ class SimService {
   explicit SimService(const ServiceOptions& o) : o_(o) {
     cell_ = sim::build_cell(sim::load_scenario(o.scenario));
     announce_conditions(cell_->scenario, o.mode);
-    machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cell_params(o), sim::make_robot(*cell_));
+    machine_ = std::make_unique<sim::CellStateMachine>(cell_->scenario, cell_params(o), sim::make_robot(*cell_),
+                                                       cell_->goal_plane);
     allowed_dir_ = allowed_scenarios_dir(o);
     open_recording(o);
     try {
@@ -495,7 +496,7 @@ class SimService {
       return;
     }
     cell_ = std::move(r.cell);
-    machine_->loaded(cell_->scenario, std::move(r.robot));
+    machine_->loaded(cell_->scenario, std::move(r.robot), cell_->goal_plane);
     {
       // another scenario, another frame period: the window of statuses starts again
       std::lock_guard<std::mutex> l(inbox_.m);
@@ -588,13 +589,13 @@ class SimService {
       std::lock_guard<std::mutex> l(inbox_.m);
       dropped = inbox_.dropped;
     }
+    const sim::GoalError goal = sim::goal_error(wTc, cell_->scenario.world_T_desired, cell_->goal_plane);
     std::printf("cellsim: %ld frames, %ld twists applied, rejected %ld NaN/Inf, %ld wrong frame, %ld stale, %ld out of "
                 "the workspace; %ld late answers (to frames already stepped); %ld watchdog stops; %ld robot stops "
                 "(collision); %ld commands (%ld refused); %ld inputs dropped; final error %.3f mm, %.4f deg\n",
                 c.frames, c.applied, c.rejected_nan, c.rejected_frame, c.rejected_stale, c.rejected_workspace,
                 c.late_answers, c.watchdog_stops, c.robot_stops, c.commands, c.commands_refused, dropped + c.dropped_inputs,
-                1e3 * sim::translation_error(wTc, cell_->scenario.world_T_desired),
-                sim::rotation_error(wTc, cell_->scenario.world_T_desired) * 180.0 / 3.14159265358979323846);
+                1e3 * goal.translation_m, goal.rotation_rad * 180.0 / 3.14159265358979323846);
     const std::string end = session_end_reason();
     std::printf("cellsim: session ended: %s\n", end.c_str());
     if (trace_.is_open()) trace_ << "# session ended: " << end << '\n' << std::flush;

@@ -52,8 +52,9 @@ FrameStamp frame_stamp(std::uint64_t index, double dt_s) {
   return {static_cast<std::int64_t>(ns / 1000000000ull), static_cast<std::uint32_t>(ns % 1000000000ull)};
 }
 
-CellStateMachine::CellStateMachine(const Scenario& scenario, CellOptions params, std::unique_ptr<Robot> robot)
-    : scenario_(scenario), p_(params), robot_(std::move(robot)),
+CellStateMachine::CellStateMachine(const Scenario& scenario, CellOptions params, std::unique_ptr<Robot> robot,
+                                   std::optional<GoalPlane> goal)
+    : scenario_(scenario), goal_(goal), p_(params), robot_(std::move(robot)),
       scenes_(params.latency.value_or(scenario.latency).acquisition_frames),
       delay_(params.latency.value_or(scenario.latency).processing_frames, params.latency.value_or(scenario.latency).actuation_s) {
   if (!(p_.watchdog_s > 0) || !(p_.physics_period_s > 0) || !(p_.republish_s > 0) || !(p_.teach_timeout_s > 0))
@@ -63,8 +64,9 @@ CellStateMachine::CellStateMachine(const Scenario& scenario, CellOptions params,
                                                 scenario_.robot.max_angular_radps);
 }
 
-void CellStateMachine::loaded(const Scenario& scenario, std::unique_ptr<Robot> robot) {
+void CellStateMachine::loaded(const Scenario& scenario, std::unique_ptr<Robot> robot, std::optional<GoalPlane> goal) {
   scenario_ = scenario;
+  goal_ = goal;
   robot_ = robot ? std::move(robot)
                  : std::make_unique<FreeFlyingCamera>(scenario_.world_T_desired, scenario_.robot.max_linear_mps,
                                                       scenario_.robot.max_angular_radps);
@@ -314,8 +316,8 @@ void CellStateMachine::check_convergence(const ServoReport& s) {
   // the servo's word is checked against the truth: a CONVERGED for a stale frame, another run
   // or a rogue publisher must not end a session with the robot away from the goal
   const Eigen::Isometry3d wTc = robot_->world_T_camera();
-  const double t = translation_error(wTc, scenario_.world_T_desired);
-  const double r = rotation_error(wTc, scenario_.world_T_desired) * kRadToDeg;
+  const GoalError e = goal_error(wTc, scenario_.world_T_desired, goal_);
+  const double t = e.translation_m, r = e.rotation_rad * kRadToDeg;
   if (t <= p_.accept_translation_m && r <= p_.accept_rotation_deg) {
     end_session(SessionEnd::kConverged, "converged: " + shown(s.reason, 200));
     return;
@@ -380,8 +382,9 @@ TraceRow CellStateMachine::row(const FrameOrder& f, const Vector6d& twist, const
   r.status = st;
   r.robot_limits = f.robot_limits;
   const Eigen::Isometry3d& wTc = f.world_T_camera;
-  r.translation_error_m = translation_error(wTc, scenario_.world_T_desired);
-  r.rotation_error_deg = rotation_error(wTc, scenario_.world_T_desired) * kRadToDeg;
+  const GoalError e = goal_error(wTc, scenario_.world_T_desired, goal_);
+  r.translation_error_m = e.translation_m;
+  r.rotation_error_deg = e.rotation_rad * kRadToDeg;
   return r;
 }
 

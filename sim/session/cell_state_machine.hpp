@@ -174,7 +174,10 @@ struct CellOutput {
 class CellStateMachine {
  public:
   // `robot`: what carries the camera (make_robot of the cell); null: a free-flying camera
-  CellStateMachine(const Scenario& scenario, CellOptions params, std::unique_ptr<Robot> robot = nullptr);
+  // `goal`: the plane the task servoes to, when the projector rides on the camera (Cell::goal_plane):
+  // the camera is then judged on what the task sees (sim::goal_error), not on its whole pose.
+  CellStateMachine(const Scenario& scenario, CellOptions params, std::unique_ptr<Robot> robot = nullptr,
+                   std::optional<GoalPlane> goal = std::nullopt);
 
   // Inputs, as they arrive. Each returns false when the input was refused (and says why in
   // the next output's log).
@@ -188,11 +191,12 @@ class CellStateMachine {
   double next_deadline(double now_s) const;
 
   // After a CellOutput::load: the scenario was loaded (robot at its desired pose, idle) or not.
-  void loaded(const Scenario& scenario, std::unique_ptr<Robot> robot = nullptr);
+  void loaded(const Scenario& scenario, std::unique_ptr<Robot> robot = nullptr, std::optional<GoalPlane> goal = std::nullopt);
   void load_failed(const std::string& reason);
 
   Eigen::Isometry3d world_T_camera() const { return robot_->world_T_camera(); }
   const Scenario& scenario() const { return scenario_; }
+  const std::optional<GoalPlane>& goal_plane() const { return goal_; }
   const CellCounters& counters() const { return counters_; }
   const SessionEndReport& session_end() const { return end_; }
   bool running() const { return running_; }
@@ -245,6 +249,7 @@ class CellStateMachine {
   long refusals_unsaid_ = 0;
 
   Scenario scenario_;
+  std::optional<GoalPlane> goal_;
   CellOptions p_;
   std::unique_ptr<Robot> robot_;
   std::uint32_t limits_ = 0;  // why the last motion was limited (RobotLimit bits)

@@ -49,7 +49,7 @@ cfg 'propagate_sources: 0\n' "propagate_sources: must be an integer in 1..9"
 cfg 'gain: 0.5\ngain: 0.6\n' "gain: key given twice"
 cfg 'gain: "\\x01\\xff"\n' "gain: must be a number"
 cfg 'gain: [\n' "YAML syntax error"
-cfg 'visual_features: lines\n' "visual_features: must be points, moments or surface, got 'lines'"
+cfg 'visual_features: lines\n' "visual_features: must be points, moments, surface or plane, got 'lines'"
 cfg 'visual_features: moments\nrobust: tukey\n' "robust weights are per point"
 one_line_error "--visual-features" "visual-features" "$servo" run --pattern "$pattern" --visual-features lines
 one_line_error "surface without depths" "need the spots' depths" "$servo" run --pattern "$pattern" --visual-features surface

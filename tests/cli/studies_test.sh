@@ -57,6 +57,6 @@ out=$("$cellsim" study "$src/sim/scenarios/plane.yaml" --axis visual_features=po
 grep -q "^| points | 0.0 | current | 1/1 " <<<"$out" && grep -q "^| surface | 0.0 | current | 1/1 " <<<"$out" ||
   fail "a study over the visual features does not name them: $out"
 [ -d "$tmp/features/visual_features=surface" ] || fail "no folder visual_features=surface"
-one_line_error "an unknown feature set" "expected points, moments or surface" \
+one_line_error "an unknown feature set" "expected points, moments, surface or plane" \
   "$cellsim" study "$src/sim/scenarios/plane.yaml" --axis visual_features=lines -o "$tmp/y"
 echo "studies: tables and plots written, fig5 search reproducible, errors and delays applied, bad values refused"

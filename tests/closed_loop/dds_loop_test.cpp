@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <sstream>
 #include <mutex>
 #include <optional>
@@ -258,6 +259,36 @@ TEST(DdsLoop, CurrentModelWithTriangulatedDepthsConvergesOnTheCylinder) {
 // over DDS, the servo with the projector's calibration, as in-process
 TEST(DdsLoop, TheSurfaceFeaturesConvergeOnTheCylinder) {
   expect_triangulated_convergence(25, "cylinder_surface", {"--visual-features", "surface"});
+}
+
+// Issue 44: the emitter on the camera over DDS. `cellsim calibration` writes the projector's
+// mount (`mount: camera`, its pose in the camera's frame); the servo, given it, servoes on the
+// plane; cellsim accepts the convergence on the wall's distance and attitude (Cell::goal_plane),
+// and the watcher finds the camera there.
+TEST(DdsLoop, AnEmitterOnTheCameraConvergesOnTheWallsDistanceAndAttitude) {
+  const int domain = unique_domain(26);
+  const std::string dir = tmp_dir("onboard_plane");
+  Process calib({kBin + "cellsim", "calibration", kSrc + "/sim/scenarios/onboard_plane.yaml", "-o", dir + "/projector.yaml"},
+                domain, dir + "/calib.log");
+  ASSERT_EQ(calib.wait_exit(30s), 0);
+  std::ifstream written(dir + "/projector.yaml");
+  const std::string text((std::istreambuf_iterator<char>(written)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("mount: camera"), std::string::npos) << text;
+  Watcher w(domain);
+  Process sim({kBin + "cellsim", "serve", kSrc + "/sim/scenarios/onboard_plane.yaml", "--autorun", "--exit-on-converged",
+               "--max-frames", "1200"},
+              domain, dir + "/sim.log");
+  ASSERT_TRUE(w.wait_until_cellsim_heard()) << "see " << dir;
+  std::vector<std::string> argv{kBin + "servo", "run", "--pattern", kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt",
+                                "--projector", dir + "/projector.yaml", "--visual-features", "plane"};
+  argv.insert(argv.end(), kStaysConverged.begin(), kStaysConverged.end());
+  Process servo(argv, domain, dir + "/servo.log");
+  ASSERT_EQ(sim.wait_exit(180s), 0) << "cellsim did not finish; see " << dir;
+  EXPECT_TRUE(w.wait_for([&] { return w.converged; }, 30s));
+  const auto cell = sim::build_cell(sim::load_scenario(kSrc + "/sim/scenarios/onboard_plane.yaml"));
+  const sim::GoalError e = sim::goal_error(w.pose_now(), cell->scenario.world_T_desired, cell->goal_plane);
+  EXPECT_LT(e.translation_m, 1e-3);
+  EXPECT_LT(e.rotation_rad * 180 / M_PI, 0.1);
 }
 
 TEST(DdsLoop, KilledServoStopsTheRobotAndARestartedOneFinishesTheRun) {

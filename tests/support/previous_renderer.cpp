@@ -168,7 +168,7 @@ cv::Mat render_image(const sim::Cell& cell, const Eigen::Isometry3d& world_T_cam
   RenderScratch s;
   s.scalar = s.arm.scalar = true;
   std::vector<SpotBox> boxes;
-  const FrameScene scene = pose_scene(cell, links, s.arm, true, true);
+  const FrameScene scene = pose_scene(cell, cell.light, links, s.arm, true, true);
   const SceneTriangles& tris = *scene.triangles;
   const std::vector<SpotHit>& hits = *scene.spot_hits;
   const DepthBuffer& projector_depth = *scene.projector_depth;

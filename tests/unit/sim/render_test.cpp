@@ -149,7 +149,7 @@ TEST(Render, CylinderHidesSomeOfItsOwnSpots) {
   const Eigen::Isometry3d wTc = cell->scenario.world_T_desired;
   int lit_on_cylinder = 0, visible_on_cylinder = 0;
   const auto truth = compute_truth(*cell, wTc);
-  for (const auto& h : cell->spot_hits) {
+  for (const auto& h : cell->light.spot_hits) {
     if (!h.centre || h.centre->object != 0) continue;
     ++lit_on_cylinder;
     visible_on_cylinder += truth[static_cast<std::size_t>(h.row) * 20 + h.col].visible;
@@ -227,7 +227,7 @@ TEST(Rasterizer, TheVectorPathFillsTheSameBufferAsTheScalarOne) {
     robot->reset(cell->scenario.world_T_initial());
     ArmFrameBuffers arm;
     const LinkPoses links = robot->world_T_links();
-    const FrameScene scene = pose_scene(*cell, &links, arm, true, false);
+    const FrameScene scene = pose_scene(*cell, cell->light, &links, arm, true, false);
     std::vector<Eigen::Isometry3d> views{cell->projector->projector_T_world()};
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> cm(-40, 40), deg(-30, 30);
@@ -542,14 +542,14 @@ TEST(Render, SkippingWorkWhereNoShadowOrNoBeamCanFallChangesNoByte) {
 TEST(Render, OnlyPlanesNothingCanShadowSkipTheLookup) {
   const auto count = [](const Cell& cell, const std::string& object) {
     std::set<std::int32_t> seen;
-    const DepthBuffer& d = cell.projector_depth;
-    for (int y = cell.beam.y0; y <= cell.beam.y1; ++y)
-      for (int x = cell.beam.x0; x <= cell.beam.x1; ++x) seen.insert(d.triangle[static_cast<std::size_t>(y) * d.width + x]);
+    const DepthBuffer& d = cell.light.projector_depth;
+    for (int y = cell.light.beam.y0; y <= cell.light.beam.y1; ++y)
+      for (int x = cell.light.beam.x0; x <= cell.light.beam.x1; ++x) seen.insert(d.triangle[static_cast<std::size_t>(y) * d.width + x]);
     std::size_t flagged = 0, all = 0;
     for (const std::int32_t i : seen)
       if (i >= 0 && cell.object_names[static_cast<std::size_t>(cell.triangles.object[i])] == object) {
         ++all;
-        flagged += cell.never_shadowed.at(static_cast<std::size_t>(i));
+        flagged += cell.light.never_shadowed.at(static_cast<std::size_t>(i));
       }
     return std::make_pair(flagged, all);
   };
@@ -580,7 +580,7 @@ TEST(Render, TrianglesFlaggedOutsideTheBeamShowNoPixelThatTheBeamReaches) {
     const auto robot = make_robot(*cell);
     const Intrinsics& k = cell->scenario.camera.intrinsics;
     const Intrinsics& kp = cell->projector->spec().intrinsics;
-    const Eigen::AlignedBox2d window = beam_pixels(cell->beam, cell->projector_depth.margin);
+    const Eigen::AlignedBox2d window = beam_pixels(cell->light.beam, cell->light.projector_depth.margin);
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> cm(-40, 40), deg(-35, 35);
     int posed = 0;
@@ -601,7 +601,7 @@ TEST(Render, TrianglesFlaggedOutsideTheBeamShowNoPixelThatTheBeamReaches) {
       ++frames;
       const Eigen::Isometry3d w_T_c = robot->world_T_camera();
       std::vector<std::uint8_t> outside;
-      outside_beam(*cell, w_T_c, outside);
+      outside_beam(*cell, cell->light, w_T_c, outside);
       flagged[name] += static_cast<std::size_t>(std::count(outside.begin(), outside.end(), 1));
       // every cell centre inside a flagged triangle's image: the triangles one by one (not
       // a z-buffer: the argument holds for each whatever hides it)

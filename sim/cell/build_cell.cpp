@@ -71,7 +71,7 @@ GoalPlane lit_plane(const Cell& cell) {
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
   if (points.size() < 3 || !(eig.eigenvalues()[1] > 1e-12 * eig.eigenvalues()[2]))
     throw ScenarioError(s.file.string() + ": projector: mounted on the camera, it lights " + std::to_string(points.size()) +
-                        " spots the camera sees from the desired pose, not on a line: 3 or more needed");
+                        " spots the camera sees from the desired pose: 3 or more, not on one line, are needed");
   GoalPlane g{eig.eigenvectors().col(0).normalized(), 0};
   if (g.n_w.dot(mean - s.world_T_desired.translation()) < 0) g.n_w = -g.n_w;
   g.d = g.n_w.dot(mean);

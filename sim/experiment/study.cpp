@@ -61,9 +61,9 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
     within(0, 100);
     c.scale = v;
   } else if (name == "visual_features") {
-    // what the law servoes on (issue 44), by its index: 0 points, 1 moments, 2 surface; the
-    // axis is written with the names (visual_features=points,surface)
-    within(0, 2);
+    // what the law servoes on (issue 44), by its index: 0 points, 1 moments, 2 surface, 3
+    // plane; the axis is written with the names (visual_features=points,surface)
+    within(0, 3);
     if (v != std::floor(v)) within(1, 0);  // not an index
     c.base.law.features = static_cast<control::VisualFeatures>(static_cast<int>(v));
   } else if (name == "losses") {
@@ -152,7 +152,7 @@ StudyAxis parse_study_axis(const std::string& spec) {
   std::stringstream list(spec.substr(eq + 1));
   for (std::string item; std::getline(list, item, ',');) {
     std::optional<double> parsed = common::decimal_number(item);  // "0x10" is not 16
-    if (a.name == "visual_features") {  // by name: points, moments, surface
+    if (a.name == "visual_features") {  // by name: points, moments, surface, plane
       try {
         parsed = static_cast<double>(control::parse_visual_features(item));
       } catch (const std::invalid_argument& e) {

@@ -6,6 +6,8 @@
 
 #include <cstdio>
 #include <fstream>
+#include <iterator>
+#include <regex>
 #include <string>
 #include <unistd.h>
 
@@ -38,6 +40,37 @@ TEST(ProjectorCalibration, WhatIsWrittenIsReadBack) {
   std::string first;
   std::getline(in, first);
   EXPECT_EQ(first, "# written by a test");
+  std::remove(f.c_str());
+}
+
+// Issue 44: a projector on the camera is written with `mount: camera` and its pose in the
+// camera's frame, read back as such (camera_T_projector the same wherever the camera stands);
+// another mount is one line naming the key.
+TEST(ProjectorCalibration, AProjectorOnTheCameraKeepsItsMount) {
+  calibration::ProjectorModel m;
+  Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();
+  mount.translation() = Eigen::Vector3d(0.15, 0, 0);
+  mount.linear() = Eigen::AngleAxisd(-0.165, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  m.on_camera = mount;
+  const std::string f = temp_file("projector_on_camera.yaml");
+  calibration::write_projector_calibration(m, f, "on the camera");
+  const calibration::ProjectorModel r = calibration::load_projector_calibration(f);
+  ASSERT_TRUE(r.on_camera.has_value());
+  EXPECT_TRUE(r.on_camera->isApprox(mount, 1e-10));
+  Eigen::Isometry3d somewhere = Eigen::Isometry3d::Identity();
+  somewhere.translation() = Eigen::Vector3d(1, 2, 3);
+  EXPECT_TRUE(r.camera_T_projector(somewhere).isApprox(mount, 1e-10));
+  std::ifstream in(f);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(f) << std::regex_replace(text, std::regex("mount: camera"), "mount: wall");
+  try {
+    calibration::load_projector_calibration(f);
+    ADD_FAILURE() << "a mount on the wall was read";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("mount: must be world or camera"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
   std::remove(f.c_str());
 }
 

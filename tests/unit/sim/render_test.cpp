@@ -711,3 +711,36 @@ TEST(DepthBuffer, NearestPixelOfAbsurdCoordinatesIsOutside) {
 
 }  // namespace
 }  // namespace sim
+
+namespace sim {
+namespace {
+
+// Issue 44: a projector on the camera lights the scene from where the camera puts it. At a pose,
+// the frame is byte for byte the frame of a static projector standing there (the same light,
+// made per frame); the same pose twice gives the same bytes (the scratch's light reused); and
+// where the camera moves, the light moves with it, not the static projector's.
+TEST(Render, AProjectorOnTheCameraLightsAsAStaticOneStandingWhereTheCameraPutsIt) {
+  Scenario spec = read_scenario(kScenarios + "onboard_plane.yaml");
+  const auto onboard = build_cell(resolve(spec));
+  const Eigen::Isometry3d wTd = onboard->scenario.world_T_desired, wTi = onboard->scenario.world_T_initial();
+  const auto standing_at = [&](const Eigen::Isometry3d& wTc) {
+    Scenario s = spec;
+    s.projector.world_T_projector = wTc * *spec.projector.on_camera;
+    s.projector.on_camera.reset();
+    return build_cell(resolve(s));
+  };
+  RenderScratch scratch;
+  for (const Eigen::Isometry3d& wTc : {wTd, wTi}) {
+    const cv::Mat moving = render_image(*onboard, wTc, 7, &scratch);
+    const cv::Mat again = render_image(*onboard, wTc, 7, &scratch);
+    const cv::Mat fixed = render_image(*standing_at(wTc), wTc, 7);
+    EXPECT_EQ(cv::norm(moving, again, cv::NORM_INF), 0);
+    EXPECT_EQ(cv::norm(moving, fixed, cv::NORM_INF), 0);
+  }
+  // the desired pose's static projector, seen from the initial pose, is not the light there
+  const cv::Mat left_behind = render_image(*standing_at(wTd), wTi, 7);
+  EXPECT_GT(cv::norm(render_image(*onboard, wTi, 7), left_behind, cv::NORM_L1), 1e5);
+}
+
+}  // namespace
+}  // namespace sim

@@ -111,6 +111,30 @@ TEST(Scenario, AlbedoIsGreyOrPerChannel) {
   }
 }
 
+// Issue 44: `mount: camera` puts the projector on the camera, its pose in the camera's frame;
+// the cell then stands it where the desired pose puts it and knows the plane it lights. Another
+// mount, or a mount lighting nothing the camera sees, is one line naming the file.
+TEST(Scenario, AProjectorOnTheCameraIsReadInTheCamerasFrame) {
+  const Scenario s = load_scenario(kScenarios + "onboard_plane.yaml");
+  ASSERT_TRUE(s.projector.on_camera.has_value());
+  EXPECT_TRUE(s.projector.on_camera->translation().isApprox(Eigen::Vector3d(0.15, 0, 0)));
+  EXPECT_TRUE(s.projector.world_T_projector.isApprox(s.world_T_desired * *s.projector.on_camera));
+  EXPECT_FALSE(load_scenario(kScenarios + "plane.yaml").projector.on_camera.has_value());
+  std::string e = error_of(variant("mount_bad", "projector:\n", "projector:\n  mount: ceiling\n"));
+  EXPECT_NE(e.find("projector.mount: must be world or camera"), std::string::npos) << e;
+  // on the camera, the plane.yaml projector's pose looks away from the wall: nothing lit is seen
+  const std::string away = variant("mount_away", "projector:\n", "projector:\n  mount: camera\n");
+  try {
+    build_cell(load_scenario(away));
+    ADD_FAILURE() << "a projector lighting nothing the camera sees was built";
+  } catch (const ScenarioError& x) {
+    e = x.what();
+  }
+  std::remove(away.c_str());
+  EXPECT_NE(e.find("mounted on the camera, it lights 0 spots"), std::string::npos) << e;
+  EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 0) << e;
+}
+
 TEST(Scenario, OffsetConventionIsTranslationThenIntrinsicXYZ) {
   const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d T = offset_pose(I, {10, 0, 0}, {0, 0, 90});

@@ -229,6 +229,8 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
   d["final_rotation_error_deg"] = r.final_rotation_error_deg;
   d["path_length_m"] = r.path_length_m;
   d["straight_line_m"] = r.straight_line_m;
+  d["condition_median"] = r.condition_median;  // of the law's L over the run (cellsim experiment prints it)
+  d["condition_max"] = r.condition_max;
   d["t"] = column<double>(tr, [](const I& i) { return i.t_s; });
   d["twist"] = twist;
   d["error_norm"] = column<double>(tr, [](const I& i) { return i.error_norm; });

@@ -74,6 +74,18 @@ def test_an_experiment_can_servo_on_the_image_moments(plane):
     one_line(e)
 
 
+def test_an_emitter_on_the_camera_servoes_on_the_plane_by_default():
+    # issue 44: the projector rides on the camera; the default features there are the plane's,
+    # and the final error is the wall's distance and attitude (three degrees of freedom)
+    onboard = cellsim.Scenario(os.path.join(SRC, "sim/scenarios/onboard_plane.yaml"))
+    r = cellsim.experiment(onboard)
+    assert r["converged"] and r["final_translation_error_m"] < 1e-3 and r["final_rotation_error_deg"] < 0.1
+    assert abs(r["condition_median"] - 1) < 0.05
+    with pytest.raises(ValueError) as e:
+        cellsim.experiment(onboard, visual_features="surface")
+    one_line(e)
+
+
 def test_the_envs_300_step_plane_run_with_a_proportional_controller_converges(plane):
     env = cellsim.ServoEnv(plane, max_steps=300)
     obs, info = env.reset(options={"initial_pose": "initial"})

@@ -14,7 +14,7 @@ namespace sim {
 
 namespace {
 
-// Cell::beam_gap: each triangle's image box on the projector's plane against beam_pixels.
+// Light::beam_gap: each triangle's image box on the projector's plane against beam_pixels.
 std::vector<float> beam_gaps(const SceneTriangles& tris, const Projector& proj, const RasterClip& w, int margin) {
   std::vector<float> gap(tris.a.size(), 0.0f);
   if (w.x0 > w.x1 || w.y0 > w.y1) return gap;
@@ -36,7 +36,7 @@ std::vector<float> beam_gaps(const SceneTriangles& tris, const Projector& proj, 
   return gap;
 }
 
-// Cell::never_shadowed. A plane P qualifies when, at every cell c of the beam window, P's 1/z
+// Light::never_shadowed. A plane P qualifies when, at every cell c of the beam window, P's 1/z
 // over c's +-0.51 px box (the kernel looks up the cell nearest to a point's projector
 // coordinates, computed in single precision) stays above 0, and the stored 1/z at c (the
 // nearest surface, as the kernel reads it) no more than 0.1 % above its least (1/z is affine

@@ -55,12 +55,12 @@ struct RenderScratch {
   std::vector<float> triangles;  // each triangle's vectors for this pose (shading.hpp)
   std::vector<float> tint;       // each triangle's colour (Frame::tint), when a surface is coloured
   TextureFrame texture;          // each textured triangle's map (Frame::texture_map), when one is
-  std::vector<float> arm_beam_depth;  // the arm's projector depth over Cell::beam
+  std::vector<float> arm_beam_depth;  // the arm's projector depth over Light::beam
   // true: the scalar path even where the CPU has AVX2 (tests hold the two to the same bits)
   bool scalar = false;
   // false: the AVX2 path even where the CPU has AVX-512 (the same bits again)
   bool avx512 = true;
-  // false: the projector's depth looked up for every lit point, also where Cell::unshadowed
+  // false: the projector's depth looked up for every lit point, also where Light::never_shadowed
   // says no shadow can fall (the same bits: tests hold the two to each other)
   bool skip_unshadowed = true;
   // false: every pixel's surface point projected into the projector, also where outside_beam
@@ -83,7 +83,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
                      const LinkPoses* links = nullptr);
 
 // Per static triangle of the cell (Cell::triangles), 1 where no pixel the camera at
-// world_T_camera gives it can see a point the projector's beam window reaches (Cell::beam): such
+// world_T_camera gives it can see a point the projector's beam window reaches (Light::beam): such
 // a pixel takes the ambient light alone. Conservative: 0 where that is not certain.
 void outside_beam(const Cell& cell, const Light& light, const Eigen::Isometry3d& world_T_camera,
                   std::vector<std::uint8_t>& out);

@@ -55,7 +55,7 @@ constexpr float kEdgeReach = 4.0f;   // 0.5 erfc(4 / sqrt 2) = 3e-5: nothing bey
 
 // The projector's depth (1 / z, 0 where nothing) over the window of its image that its spots
 // can light: projector pixel (x, y) at (x + offset_x, y + offset_y) of the window. Beyond the
-// window no spot's light reaches (Cell::beam), so nothing there is lit.
+// window no spot's light reaches (Light::beam), so nothing there is lit.
 struct DepthView {
   const float* inv_depth = nullptr;
   int width = 0, height = 0, offset_x = 0, offset_y = 0;

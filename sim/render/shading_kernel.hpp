@@ -349,7 +349,7 @@ CELL_STAGE void surface_point(const Frame& f, std::size_t first, int u, const Ro
   const F ly = L::sub(L::set(f.qy), L::mul(dy, zc));
   const F lz = L::sub(L::set(f.qz), zc);
   const F dist2 = L::add(L::add(L::mul(lx, lx), L::mul(ly, ly)), L::mul(lz, lz));
-  // K < 0: the plane is never in the static scene's shadow (Cell::never_shadowed), |K| its K
+  // K < 0: the plane is never in the static scene's shadow (Light::never_shadowed), |K| its K
   const M free = L::lt(field[kReturn], zero);
   const F k_return = L::max(field[kReturn], L::sub(zero, field[kReturn]));
   L::store(rows.weight + u, L::div(k_return, L::mul(dist2, L::sqrt(dist2))));

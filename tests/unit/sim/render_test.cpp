@@ -487,7 +487,7 @@ TEST(Render, EveryVectorUnitAndThreadCountGivesTheScalarPathsBytes) {
   std::printf("%d frames equal to the scalar path's, byte for byte\n", frames);
 }
 
-// Cell::never_shadowed lets the kernel skip the shadow lookup on planes that nothing in the
+// Light::never_shadowed lets the kernel skip the shadow lookup on planes that nothing in the
 // static scene can darken. Skipping it must change no byte, on any frame: every render case,
 // and poses much farther out (surfaces seen at grazing angles, the arm anywhere), on the
 // scalar path and the widest vector unit.

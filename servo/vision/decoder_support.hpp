@@ -39,14 +39,19 @@ class SpatialGrid {
     std::vector<int> fill(start_.begin(), start_.end() - 1);
     for (std::size_t i = 0; i < spots.size(); ++i) index_[fill[key(spots[i].u, spots[i].v)]++] = static_cast<int>(i);
   }
+  // The spots of the cells within `reach` cells of (u, v), cell by cell in row-major order. The
+  // cells of one row are consecutive keys, so their spots are one span of index_: a row costs
+  // one span however many cells it has (an isolated blob's reach can span the whole image, which
+  // cell by cell took a quarter of a ham frame's decoding), in the same order.
   template <typename F>
   void around(double u, double v, int reach, F&& f) const {
     const int cu = static_cast<int>((u - origin_u_) / cell_), cv = static_cast<int>((v - origin_v_) / cell_);
-    for (int r = std::max(0, cv - reach); r <= std::min(rows_ - 1, cv + reach); ++r)
-      for (int c = std::max(0, cu - reach); c <= std::min(cols_ - 1, cu + reach); ++c) {
-        const std::size_t k = static_cast<std::size_t>(r) * cols_ + c;
-        for (int i = start_[k]; i < start_[k + 1]; ++i) f(index_[i]);
-      }
+    const int c0 = std::max(0, cu - reach), c1 = std::min(cols_ - 1, cu + reach);
+    if (c0 > c1) return;
+    for (int r = std::max(0, cv - reach); r <= std::min(rows_ - 1, cv + reach); ++r) {
+      const std::size_t row = static_cast<std::size_t>(r) * cols_;
+      for (int i = start_[row + c0]; i < start_[row + c1 + 1]; ++i) f(index_[i]);
+    }
   }
 
  private:

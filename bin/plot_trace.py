@@ -8,9 +8,27 @@ with the robust law, weights.png from features.jsonl (genuine and swapped matche
 Usage: plot_trace.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
 import csv
 import os
+import re
 import sys
 
 from plot_common import dir_and_title, plt, save
+
+
+# what |e| is made of, by the visual features the trace's first line names (cellsim experiment)
+ERROR_UNITS = {
+    "points": "|e| (normalised image coordinates)",
+    "moments": "|e| (image moments: normalised coordinates, ratios, rad)",
+    "surface": "|e| (n: unit vector, d: m, moments)",
+    "plane": "|e| (the plane's n: unit vector, d: m)",
+}
+
+
+def error_label(path):
+    """The y label of |e| for the visual features the trace names; points when it names none."""
+    with open(path) as f:
+        first = f.readline()
+    m = re.search(r"visual features (\w+)", first) if first.startswith("#") else None
+    return ERROR_UNITS.get(m.group(1) if m else "points", ERROR_UNITS["points"])
 
 
 def read_trace(path):
@@ -20,7 +38,9 @@ def read_trace(path):
     if not rows:
         sys.exit(f"plot_trace: {path} has no iterations")
     text = {"robot_limits"}  # the robot's reasons for limiting a step: names, not numbers
-    return {k: [r[k] if k in text else float(r[k]) for r in rows] for k in rows[0]}
+    t = {k: [r[k] if k in text else float(r[k]) for r in rows] for k in rows[0]}
+    t["error_label"] = error_label(path)
+    return t
 
 
 def plot_occlusion(directory, title, trace=None):
@@ -112,7 +132,7 @@ def plot_fig4(directory, title, t):
     ax.plot(t["t"], t["error_norm"], color="k")
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("|e| (normalised image coordinates)")
+    ax.set_ylabel(t["error_label"])
     ax.set_title("d) norm of the task function", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     if title:
@@ -142,7 +162,7 @@ def main():
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     ax.plot(t["t"], t["error_norm"], color="k")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("|e| (normalised image coordinates)")
+    ax.set_ylabel(t["error_label"])
     ax.set_yscale("log")
     ax.set_title(f"{args.title}: norm of the task function" if args.title else "norm of the task function")
     ax.grid(True, which="both", alpha=0.3)

@@ -404,9 +404,10 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   }
   o.progress = true;
   const auto r = experiment::run_experiment(*cell, o);
-  std::printf("%s, model %s (z-hat %.3f m), %s features%s\n", cell->scenario.name.c_str(), law.model.c_str(),
-              o.servo.law.z_hat_m, experiment::to_string(o.source).c_str(),
-              o.source == loop::FeatureSource::kIdeal ? " (simulator truth)" : "");
+  std::printf("%s, model %s (z-hat %.3f m), %s features%s, visual features %s\n", cell->scenario.name.c_str(),
+              law.model.c_str(), o.servo.law.z_hat_m, experiment::to_string(o.source).c_str(),
+              o.source == loop::FeatureSource::kIdeal ? " (simulator truth)" : "",
+              control::to_string(o.servo.law.features).c_str());
   std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
   const std::string conds = sim::describe(*o.errors, *o.latency);
   if (conds != "none") std::printf("  errors and delays: %s\n", conds.c_str());
@@ -416,7 +417,9 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
                 r.iterations * cell->scenario.dt_s);
   else
     std::printf("  %s: no run\n", r.stop_reason.c_str());
-  if (ran) std::printf("  final error: %.3f mm, %.4f deg\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg);
+  if (ran)
+    std::printf("  final error: %.3f mm, %.4f deg%s\n", 1e3 * r.final_translation_error_m, r.final_rotation_error_deg,
+                cell->goal_plane ? " (to the plane its spots light: distance, attitude)" : "");
   if (ran && r.straight_line_m > 0)
     std::printf("  path: %.1f mm for %.1f mm away (%.2fx the straight line); condition of L: median %.3g, largest %.3g\n",
                 1e3 * r.path_length_m, 1e3 * r.straight_line_m, r.path_length_m / r.straight_line_m, r.condition_median,

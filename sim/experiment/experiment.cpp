@@ -257,7 +257,7 @@ class Experiment {
     if (!trace_) throw std::runtime_error((o_.out_dir / "trace.csv").string() + ": cannot write");
     trace_ << "# scenario " << scenario().name << ", model " << control::to_string(o_.servo.law.model) << ", features "
            << to_string(o_.source) << (o_.source == loop::FeatureSource::kIdeal ? " (simulator truth, not decoded)" : "")
-           << "\n"
+           << ", visual features " << control::to_string(o_.servo.law.features) << "\n"
            << sim::kTraceHeader << "\n"
            << std::setprecision(9);
   }

@@ -227,54 +227,6 @@ bool nearest_free_line(const std::vector<Spot>& spots, int j, const pattern::Spo
   return true;
 }
 
-// how far (fraction of a lattice step) a grown spot may be from where the lattice puts it:
-// wider than a propagated link's (0.25), as the prediction may reach across a missing link and
-// the step changes fast on the oblique flanks. 0.45 (was 0.35): +0.4 points of the ham's
-// readable spots, +0.6 of the cylinder's, the same wrong ids in 24 sweeps of 1000 poses; 0.55
-// names fewer (a farther spot wins the place)
-constexpr double kGrowSlack = 0.45;
-// a grown spot no bigger than this many times any source: a wider blob is the colour wash of a
-// surface far out of focus behind a silhouette, not a spot
-constexpr double kGrowLargest = 2.5;
-// A spot named from a single row or column neighbour (and corners) must look like its sources'
-// mean: at a silhouette the prediction can fall on a speck or a faint wash blob. Set on 1000-pose
-// sweeps of the cylinder behind an occluder, the scenario that showed such wrong ids.
-constexpr double kGrowDimmest = 0.6, kGrowAreaBelow = 0.6, kGrowAreaAbove = 1.7;
-constexpr int kGrowSmallestPx = 10;
-// nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
-// glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
-// `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint
-constexpr float kGrowFaintest = 5.0F;
-// A single source naming another id is outvoted by this many more sources than it. Until now any
-// dissent left the spot unnamed: in 1000 ham poses, 1 683 spots that colour, epipolar line and
-// uniqueness would have named right. Outvoting one dissent by 2: +0.6 points of the ham's
-// readable spots, the same wrong ids in 24 calibrated sweeps; two dissents by 1: +0.1 more.
-constexpr int kGrowMajority = 2;
-// One source fewer than asked names a spot when every source's step lands within this fraction
-// of a step of the blob (the prediction a quarter as loose as kGrowSlack) and the blob looks like
-// its sources. At a silhouette only two identified spots may touch the next one (a row or
-// column neighbour and a corner); what fell at a depth edge within 0.2 of a step was the surface
-// behind's spot, never one within 0.12. +0.3 points of the ham's readable spots, +0.5 of the
-// cylinder's, the same wrong ids in 32 calibrated sweeps of 1000 poses.
-constexpr double kGrowTightSlack = 0.12;
-// Or when the row or column neighbour's step lands on the blob's line (within 0.08 of a step
-// aside) at 0.85-1.2 of its length, the corner's within kGrowSlack: towards a silhouette the
-// surface turns away and the last step shrinks or stretches along itself (the ham's first and
-// last columns), and the corner's prediction, two steps, drifts by 0.2-0.4. Along a row the
-// epipolar line cannot tell a column from another, so the blob of the surface behind can lie on
-// the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the step,
-// 0.45 as strong as its sources. A spot named one short is at least half as strong as them.
-// +0.2 points of the ham's readable spots, the same wrong ids in 32 calibrated sweeps.
-constexpr double kGrowOnLineAside = 0.08, kGrowOnLineShortest = 0.85, kGrowOnLineLongest = 1.2;
-constexpr double kGrowOneShortDimmest = 0.5;
-// A spot the lattice pins (three sources or more, two of them row or column neighbours, each
-// within kGrowTightSlack) needs no uniqueness among the ids around it: along a row the epipolar
-// lines coincide, so a row's neighbour of the same colour fits as well as the id itself one time
-// in three, and such spots were refused however many sources agreed (the table at the
-// pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots, 64.8 -> 65.4 %
-// of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
-constexpr int kGrowPinnedSources = 3;
-
 // The spots on a grid whose cells are a lattice step wide (the median length of the graph's
 // links); none without a link.
 inline std::optional<SpatialGrid> lattice_grid(const std::vector<Spot>& spots, const AdjacencyGraph& graph) {

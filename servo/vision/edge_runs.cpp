@@ -10,22 +10,6 @@
 namespace vision {
 using namespace decoder_support;
 
-namespace {
-// Where a run's candidate may lie from its source, along the source's step: the steps shrink
-// towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
-// most 0.3 of a step aside
-constexpr double kRunNearest = 0.3, kRunFarthest = 1.15, kRunAside = 0.3;
-// how much two neighbouring candidates' offset may differ from their sources' (fraction of
-// the sources' step): the run follows the identified line beside it
-constexpr double kRunFollow = 0.35;
-// consecutive candidates a run needs: each has the colour the pattern has there by chance one
-// time in three, so a run of 4 is one in 81 before the epipolar line and the positions
-constexpr int kRunLength = 4;
-// a line beyond is foreshortened: its spots no larger than their sources (a larger blob there is
-// the wash of a surface behind, out of focus), and a run bridges one missing id at most
-constexpr double kRunLargest = 1.2;
-constexpr int kRunGaps = 1;
-}  // namespace
 
 namespace {
 
@@ -34,9 +18,9 @@ namespace {
 class EdgeRuns {
  public:
   EdgeRuns(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
-           const SpatialGrid& near, int k)
+           const SpatialGrid& near, int k, const EdgeRunOptions& options, float faintest)
       : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), dr_(kIdStep[k][0]), dc_(kIdStep[k][1]),
-        candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1) {}
+        candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1), o_(options), faintest_(faintest) {}
 
   // each cell's candidate: the blob ahead of an identified spot along its step
   void find_candidates(const std::vector<DecodedSpot>& decoded) {
@@ -53,13 +37,13 @@ class EdgeRuns {
       near_.around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
         const double du = spots_[j].u - s.u, dv = spots_[j].v - s.v;
         const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
-        if (along < kRunNearest || along > kRunFarthest || aside > kRunAside) return;
+        if (along < o_.nearest || along > o_.farthest || aside > o_.aside) return;
         const double d2 = du * du + dv * dv;
         if (d2 < best) best = d2, found = j;
       });
       if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || spots_[found].colour != pattern_.at(r, c) ||
-          spots_[found].strength < kGrowFaintest || spots_[found].strength < kAlike * s.strength ||
-          spots_[found].area_px > kRunLargest * s.area_px || !check_.confirms_grown(found, {r, c}))
+          spots_[found].strength < faintest_ || spots_[found].strength < kAlike * s.strength ||
+          spots_[found].area_px > o_.largest * s.area_px || !check_.confirms_grown(found, {r, c}))
         continue;
       candidate_[static_cast<std::size_t>(r) * pattern_.cols + c] = found;
     }
@@ -79,7 +63,7 @@ class EdgeRuns {
         if (cand(x.row, x.col) < 0) continue;
         // a gap is an id no spot has, its source beside the run's
         const pattern::SpotId gap = pr == 0 ? pattern::SpotId{line, i - 1} : pattern::SpotId{i - 1, line};
-        const bool bridged = i - last == 1 || (i - last == 2 && gaps < kRunGaps && !ids_.taken(gap.row, gap.col) &&
+        const bool bridged = i - last == 1 || (i - last == 2 && gaps < o_.gaps && !ids_.taken(gap.row, gap.col) &&
                                                ids_.spot_at(gap.row - dr_, gap.col - dc_) >= 0);
         if (!run.empty() && (!bridged || !follows(run.back(), x))) {
           take_run(run, claimed_by, added);
@@ -104,11 +88,11 @@ class EdgeRuns {
     if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
     const double su = spots_[sb].u - spots_[sa].u, sv = spots_[sb].v - spots_[sa].v;
     const double eu = spots_[b].u - spots_[a].u - su, ev = spots_[b].v - spots_[a].v - sv;
-    return eu * eu + ev * ev <= kRunFollow * kRunFollow * (su * su + sv * sv);
+    return eu * eu + ev * ev <= o_.follow * o_.follow * (su * su + sv * sv);
   }
   void take_run(const std::vector<pattern::SpotId>& run, std::vector<int>& claimed_by,
                 std::vector<DecodedSpot>& added) const {
-    if (static_cast<int>(run.size()) < kRunLength) return;
+    if (static_cast<int>(run.size()) < o_.length) return;
     // no other placement of the whole run fits it as well, taken ids or not: in the crowded
     // columns at a silhouette the lattice shears, and at a depth edge the surface behind goes
     // on, so that the next line's spots, one over, can sit where this run's ids are predicted
@@ -138,13 +122,16 @@ class EdgeRuns {
   const SpatialGrid& near_;
   int dr_, dc_;
   std::vector<int> candidate_;
+  const EdgeRunOptions& o_;
+  float faintest_;  // GrowthOptions::faintest: a run's blob is no fainter than a grown spot
 };
 
 }  // namespace
 
 std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                         const EpipolarCheck& check, const pattern::MArray& pattern,
-                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here) {
+                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here,
+                                        const EdgeRunOptions& options, const GrowthOptions& growth) {
   const std::size_t n = spots.size();
   if (named_here) named_here->assign(n, 0);
   if (decoded.empty() || n < 2) return decoded;
@@ -154,7 +141,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
   std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
   std::vector<DecodedSpot> added;
   for (int k = 0; k < 4; ++k) {
-    EdgeRuns runs(spots, check, pattern, ids, *near, k);
+    EdgeRuns runs(spots, check, pattern, ids, *near, k, options, growth.faintest);
     runs.find_candidates(decoded);
     runs.read_runs(claimed_by, added);
   }

@@ -16,7 +16,7 @@ namespace {
 
 // The claims on one spot: the id most sources name, and the one other id (if any) that some
 // source names instead. On a curved surface one source's step can be a little off and place
-// its neighbour's id on the spot; one such dissent against `kGrowMajority` more agreeing sources
+// its neighbour's id on the spot; one such dissent against GrowthOptions::majority more agreeing sources
 // is outvoted, a second dissenting source or a third id leaves the spot unnamed.
 struct Claims {
   pattern::SpotId id{-1, -1};
@@ -46,8 +46,8 @@ struct Claim {
 class Lattice {
  public:
   Lattice(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
-          const SpatialGrid& near)
-      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near) {}
+          const SpatialGrid& near, const GrowthOptions& options)
+      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), o_(options) {}
 
   // The lattice step (dr, dc) at the identified spot (r, c), from identified spots only: ahead
   // of it, behind it, or beside it (the next row or column), the nearest first.
@@ -96,20 +96,20 @@ class Lattice {
 
   // Whether blob j takes the id most sources claim.
   bool names(std::size_t j, const Proposal& pr, int min_sources) const {
-    if (pr.third || pr.second.sources > 1 || (pr.second.sources == 1 && pr.first.sources < 1 + kGrowMajority))
+    if (pr.third || pr.second.sources > 1 || (pr.second.sources == 1 && pr.first.sources < 1 + o_.majority))
       return false;
     const Claims& p = pr.first;
     if (p.direct < 1) return false;
-    const bool on_line = p.direct == 1 && p.aside <= kGrowOnLineAside && p.along >= kGrowOnLineShortest &&
-                         p.along <= kGrowOnLineLongest && p.corner_off <= kGrowSlack;
-    const bool one_short = p.sources >= 2 && p.sources + 1 == min_sources && (p.off <= kGrowTightSlack || on_line);
+    const bool on_line = p.direct == 1 && p.aside <= o_.on_line_aside && p.along >= o_.on_line_shortest &&
+                         p.along <= o_.on_line_longest && p.corner_off <= o_.slack;
+    const bool one_short = p.sources >= 2 && p.sources + 1 == min_sources && (p.off <= o_.tight_slack || on_line);
     if (p.sources < min_sources && !one_short) return false;
     if ((p.direct == 1 || one_short) && !looks_like_sources(spots_[j], p, one_short)) return false;
     // the lattice itself names the blob when three sources, two of them row or column
-    // neighbours, all land within kGrowTightSlack of it: then an id beside that the blob could
+    // neighbours, all land within o_.tight_slack of it: then an id beside that the blob could
     // also carry (its colour, on the same epipolar line, a row's neighbour mostly) would need
     // every one of them off by a whole step
-    const bool pinned = p.sources >= kGrowPinnedSources && p.direct >= 2 && p.off <= kGrowTightSlack;
+    const bool pinned = p.sources >= o_.pinned_sources && p.direct >= 2 && p.off <= o_.tight_slack;
     const auto taken = [&](int rr, int cc) { return ids_.taken(rr, cc); };
     return !ids_.taken(p.id.row, p.id.col) &&
            (pinned || only_fitting_id(spots_, static_cast<int>(j), p.id, check_, pattern_, taken)) &&
@@ -117,18 +117,18 @@ class Lattice {
   }
 
  private:
-  // the blob nearest the predicted place (within kGrowSlack of a step), if it may carry the id
+  // the blob nearest the predicted place (within o_.slack of a step), if it may carry the id
   void claim_at(const DecodedSpot& from, const pattern::SpotId& id, bool direct, double pu, double pv, double step2,
                 std::vector<Claim>& out) const {
     int found = -1;
-    double best = kGrowSlack * kGrowSlack * step2;
+    double best = o_.slack * o_.slack * step2;
     near_.around(pu, pv, 1, [&](int j) {
       const double du = spots_[j].u - pu, dv = spots_[j].v - pv;
       if (du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
     });
     const Spot& source = spots_[from.spot];
     if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || !alike(source, spots_[found]) ||
-        spots_[found].area_px > kGrowLargest * source.area_px)
+        spots_[found].area_px > o_.largest * source.area_px)
       return;
     // a claim the blob cannot carry (another colour, off the id's epipolar line) is no claim:
     // across a depth edge a source's steps reach onto the other surface's spots
@@ -139,10 +139,10 @@ class Lattice {
     out.push_back({found, id, direct, std::sqrt(best / step2), (bu * xu + bv * xv) / x2, std::abs(bu * xv - bv * xu) / x2});
   }
   // a spot named from a single row or column neighbour, or one source short, looks like its sources' mean
-  static bool looks_like_sources(const Spot& x, const Claims& p, bool one_short) {
+  bool looks_like_sources(const Spot& x, const Claims& p, bool one_short) const {
     const double strength = p.strength / p.sources, area = p.area / p.sources;
-    return !(x.strength < (one_short ? kGrowOneShortDimmest : kGrowDimmest) * strength || x.area_px < kGrowAreaBelow * area ||
-             x.area_px > kGrowAreaAbove * area || x.area_px < kGrowSmallestPx || x.strength < kGrowFaintest);
+    return !(x.strength < (one_short ? o_.one_short_dimmest : o_.dimmest) * strength || x.area_px < o_.area_below * area ||
+             x.area_px > o_.area_above * area || x.area_px < o_.smallest_px || x.strength < o_.faintest);
   }
 
   const std::vector<Spot>& spots_;
@@ -150,6 +150,7 @@ class Lattice {
   const pattern::MArray& pattern_;
   const IdMap& ids_;
   const SpatialGrid& near_;
+  const GrowthOptions& o_;
 };
 
 // A source's claim into the proposals on its blob.
@@ -177,13 +178,13 @@ void tally(const Claim& claim, const Spot& source, std::vector<Proposal>& propos
 
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                       const EpipolarCheck& check, const pattern::MArray& pattern,
-                                      std::vector<DecodedSpot> decoded, int min_sources) {
+                                      std::vector<DecodedSpot> decoded, int min_sources, const GrowthOptions& options) {
   const std::size_t n = spots.size();
   if (decoded.empty() || n < 2) return decoded;
   IdMap ids(pattern, n, decoded);
   const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
   if (!near) return decoded;
-  const Lattice lattice(spots, check, pattern, ids, *near);
+  const Lattice lattice(spots, check, pattern, ids, *near, options);
   std::vector<Proposal> proposals(n);
   // A source's claims depend only on the ids within one step of it, so they are recomputed
   // only for sources new or next to an id named in the round before (two steps, for margin);

@@ -59,7 +59,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     }
     if (e.grow) {
-      r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources);
+      r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources, e.growth);
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
       if (e.edge_runs) {
         // the slivers join the spots, unlinked
@@ -71,7 +71,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
           hoods.window.push_back(w);
           epipolar->xy.push_back(geometry->normalise(x.u, x.v));
         }
-        r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run);
+        r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run, e.edge_run,
+                                   e.growth);
         r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
       }
       // the grown region's new links and sources carry propagation further (once: a second

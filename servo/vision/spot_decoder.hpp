@@ -166,6 +166,75 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // missing spot or crossed a sheared column would otherwise pass an id on shifted by one.
 // Breadth first from the decoded spots. This names spots whose windows are cut by the
 // object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
+// Step 7's numbers (the grown lattice), each set on the tuning scenes with what it did there.
+struct GrowthOptions {
+  // how far (fraction of a lattice step) a grown spot may be from where the lattice puts it:
+  // wider than a propagated link's (0.25), as the prediction may reach across a missing link
+  // and the step changes fast on the oblique flanks. 0.45 (was 0.35): +0.4 points of the ham's
+  // readable spots, +0.6 of the cylinder's, the same wrong ids in 24 sweeps of 1000 poses; 0.55
+  // names fewer (a farther spot wins the place)
+  double slack = 0.45;
+  // a grown spot no bigger than this many times any source: a wider blob is the colour wash of
+  // a surface far out of focus behind a silhouette, not a spot
+  double largest = 2.5;
+  // A spot named from a single row or column neighbour (and corners) must look like its
+  // sources' mean: at a silhouette the prediction can fall on a speck or a faint wash blob. Set
+  // on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed such wrong ids.
+  double dimmest = 0.6, area_below = 0.6, area_above = 1.7;
+  int smallest_px = 10;
+  // nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
+  // glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
+  // `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint. Step 8 asks it too.
+  float faintest = 5.0F;
+  // A single source naming another id is outvoted by this many more sources than it. Until then
+  // any dissent left the spot unnamed: in 1000 ham poses, 1 683 spots that colour, epipolar line
+  // and uniqueness would have named right. Outvoting one dissent by 2: +0.6 points of the ham's
+  // readable spots, the same wrong ids in 24 calibrated sweeps; two dissents by 1: +0.1 more.
+  int majority = 2;
+  // One source fewer than asked names a spot when every source's step lands within this
+  // fraction of a step of the blob (the prediction a quarter as loose as `slack`) and the blob
+  // looks like its sources. At a silhouette only two identified spots may touch the next one (a
+  // row or column neighbour and a corner); what fell at a depth edge within 0.2 of a step was
+  // the surface behind's spot, never one within 0.12. +0.3 points of the ham's readable spots,
+  // +0.5 of the cylinder's, the same wrong ids in 32 calibrated sweeps of 1000 poses.
+  double tight_slack = 0.12;
+  // Or when the row or column neighbour's step lands on the blob's line (within 0.08 of a step
+  // aside) at 0.85-1.2 of its length, the corner's within `slack`: towards a silhouette the
+  // surface turns away and the last step shrinks or stretches along itself (the ham's first and
+  // last columns), and the corner's prediction, two steps, drifts by 0.2-0.4. Along a row the
+  // epipolar line cannot tell a column from another, so the blob of the surface behind can lie
+  // on the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the
+  // step, 0.45 as strong as its sources. A spot named one short is at least half as strong as
+  // them. +0.2 points of the ham's readable spots, the same wrong ids in 32 calibrated sweeps.
+  double on_line_aside = 0.08, on_line_shortest = 0.85, on_line_longest = 1.2;
+  double one_short_dimmest = 0.5;
+  // A spot the lattice pins (this many sources or more, two of them row or column neighbours,
+  // each within `tight_slack`) needs no uniqueness among the ids around it: along a row the
+  // epipolar lines coincide, so a row's neighbour of the same colour fits as well as the id
+  // itself one time in three, and such spots were refused however many sources agreed (the
+  // table at the pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots,
+  // 64.8 -> 65.4 % of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
+  int pinned_sources = 3;
+};
+
+// Step 8's numbers (edge runs).
+struct EdgeRunOptions {
+  // where a run's candidate may lie from its source, along the source's step: the steps shrink
+  // towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
+  // most 0.3 of a step aside
+  double nearest = 0.3, farthest = 1.15, aside = 0.3;
+  // how much two neighbouring candidates' offset may differ from their sources' (fraction of
+  // the sources' step): the run follows the identified line beside it
+  double follow = 0.35;
+  // consecutive candidates a run needs: each has the colour the pattern has there by chance one
+  // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
+  int length = 4;
+  // a line beyond is foreshortened: its spots no larger than their sources (a larger blob there
+  // is the wash of a surface behind, out of focus), and a run bridges one missing id at most
+  double largest = 1.2;
+  int gaps = 1;
+};
+
 // Step 7, beyond the paper. The lattice grown from the identified region where the graph has
 // no link: from every identified spot, the lattice's steps (from identified neighbours) predict
 // where each of the 8 ids around it lies; the spot found there (within 0.45 of a step) takes
@@ -174,7 +243,8 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // step 6. The links the grown lattice found are added to `graph` where both ends had none.
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                       const EpipolarCheck& check, const pattern::MArray& pattern,
-                                      std::vector<DecodedSpot> decoded, int min_sources = 3);
+                                      std::vector<DecodedSpot> decoded, int min_sources = 3,
+                                      const GrowthOptions& options = {});
 
 // Step 8, beyond the paper. Runs along an edge: beyond an identified line of spots (a column
 // before the cylinder's silhouette), the next line is foreshortened to slivers, closer than a
@@ -187,7 +257,8 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
 // (0.2-0.5 px on the cylinder), the sliver being the whole spot seen edge-on.
 std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                         const EpipolarCheck& check, const pattern::MArray& pattern,
-                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here = nullptr);
+                                        std::vector<DecodedSpot> decoded, std::vector<char>* named_here = nullptr,
+                                        const EdgeRunOptions& options = {}, const GrowthOptions& growth = {});
 
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
@@ -222,6 +293,8 @@ struct EpipolarOptions {
   bool propagate = false;
   bool grow = true;        // step 7
   bool edge_runs = true;   // step 8 (after step 7)
+  GrowthOptions growth;
+  EdgeRunOptions edge_run;
   // A spot with exactly two votes, both from exact windows (no repaired reading among its
   // votes), is named too, where `min_votes` asks for three: a spot next to a window cut by a
   // missing link, the image border or an edge has only two. With the epipolar check and without

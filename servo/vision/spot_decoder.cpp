@@ -54,8 +54,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     epipolar->set_grown_limit(r.decoded);
     if (e.propagate) {
-      r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded),
-                                e.min_sources);
+      r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded), e.min_sources);
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
     }
     if (e.grow) {

@@ -93,7 +93,15 @@ TEST(CellErrorsLoop, TracesEqualThoseBeforeTheErrorsExisted) {
   const std::string golden = std::string(CELL_SOURCE_DIR) + "/tests/data/golden/";
   const std::string before = read(golden + "cylinder_ideal_60.csv");
   ASSERT_FALSE(before.empty());
-  EXPECT_EQ(cell_test::numeric_difference(now, before), "");
+  // the results, not the header's description of the run (it names more settings as they come)
+  const auto results = [](const std::string& text) {
+    std::istringstream in(text);
+    std::string out;
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind('#', 0) != 0) out += line + '\n';
+    return out;
+  };
+  EXPECT_EQ(cell_test::numeric_difference(results(now), results(before)), "");
   // CELL_WRITE_GOLDEN=1 writes the digest anew (after a deliberate change of the results)
   if (std::getenv("CELL_WRITE_GOLDEN")) std::ofstream(golden + "cylinder_ideal_60_features.digest") << cell_test::numeric_digest(features);
   const std::string digest = read(golden + "cylinder_ideal_60_features.digest");

@@ -19,7 +19,7 @@ namespace {
 // between two row chains vote for it, and when most agree, every spot of the two chains is
 // linked by it (a link the nearest-spot rule got wrong or missed is mended). Which offset is
 // the pattern's own, not a shear of it, the code decides later (resolve_column_shear).
-void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
+void align_chains(AdjacencyGraph& g, Direction along, Direction across, const AdjacencyOptions& o) {
   const auto back = static_cast<Direction>((along + 2) % 4), reverse = static_cast<Direction>((across + 2) % 4);
   const std::size_t n = g.next.size();
   std::vector<int> chain(n, -1), pos(n, 0);
@@ -49,7 +49,7 @@ void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
     if (j >= 0 && chain[j] >= 0 && chain[j] != chain[s]) votes.push_back({chain[s], chain[j], pos[j] - pos[static_cast<int>(s)]});
   }
   std::sort(votes.begin(), votes.end());
-  // per chain pair: the offset most links take, when at least 3 and three quarters of them do
+  // per chain pair: the offset most links take, when at least o.chain_votes and o.chain_share of them do
   struct Join {
     int upper, lower, offset;
   };
@@ -67,7 +67,7 @@ void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
       if (count > best) best = count, best_offset = votes[b].offset;
       b = c;
     }
-    if (best >= 3 && 4 * best >= 3 * total) joins.push_back({votes[a].upper, votes[a].lower, best_offset});
+    if (best >= o.chain_votes && best >= o.chain_share * total) joins.push_back({votes[a].upper, votes[a].lower, best_offset});
     a = b;
   }
   // a spot joined to two lower chains (or two upper) keeps its links as they are
@@ -94,15 +94,12 @@ void align_chains(AdjacencyGraph& g, Direction along, Direction across) {
   }
 }
 
-// how far (fraction of a step) a completed link's spot may be from where its neighbours put it
-constexpr double kCompletionSlack = 0.3;
-
 // Completion from the lattice around: a link the nearest-candidate rule missed (a column whose
 // candidates two spots contend for, a row squeezed towards the silhouette past the spacing
 // rule) is where the neighbours' links say it is. The spot missing its south link takes the
 // step its east and west neighbours take south, and links the spot found there if that one
 // has no north link yet. Two rounds: a completed link lends its step to the next.
-void complete_links(AdjacencyGraph& g, const std::vector<Spot>& spots, const SpatialGrid& near) {
+void complete_links(AdjacencyGraph& g, const std::vector<Spot>& spots, const SpatialGrid& near, double slack) {
   const std::size_t n = spots.size();
   for (int round = 0; round < 2; ++round) {
     std::vector<std::array<int, 4>> add(n, {-1, -1, -1, -1});
@@ -123,7 +120,7 @@ void complete_links(AdjacencyGraph& g, const std::vector<Spot>& spots, const Spa
         vu /= refs, vv /= refs;
         const double pu = spots[s].u + vu, pv = spots[s].v + vv, step2 = vu * vu + vv * vv;
         int found = -1;
-        double best = kCompletionSlack * kCompletionSlack * step2;
+        double best = slack * slack * step2;
         near.around(pu, pv, 1, [&](int j) {
           const double du = spots[j].u - pu, dv = spots[j].v - pv;
           if (j != static_cast<int>(s) && du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
@@ -181,9 +178,9 @@ std::vector<double> nearest_distances(const std::vector<Spot>& spots, double& gr
 // The candidate east, south, west and north neighbours of every spot.
 std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, const SpatialGrid& near,
                                                 const std::vector<double>& nn_dist, double spacing,
-                                                double grid_angle_rad) {
+                                                double grid_angle_rad, const AdjacencyOptions& o) {
   const std::size_t n = spots.size();
-  // Rows first: the closest spot within +-35 deg of the pattern's east and west. Then columns,
+  // Rows first: the closest spot within +-35 deg (o.row_cone_deg) of the pattern's east and west. Then columns,
   // against each spot's own row direction: under perspective the columns shear away from the
   // perpendicular and a diagonal neighbour can be nearer than the true one, so the north and
   // south candidates are ranked by distance weighted by their angle to the local perpendicular.
@@ -193,12 +190,12 @@ std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, 
     double du, dv, d2;  // squared distance: the square root only for the few in a cone
   };
   std::vector<Candidate> around;  // one spot's neighbours within reach, gathered once for both passes
-  const double row_cos = std::cos(35.0 * kPi / 180.0);
-  const double col_cos = std::cos(45.0 * kPi / 180.0);
+  const double row_cos = std::cos(o.row_cone_deg * kPi / 180.0);
+  const double col_cos = std::cos(o.column_cone_deg * kPi / 180.0);
   const double row_cos2 = row_cos * row_cos, col_cos2 = col_cos * col_cos;
   const double ce = std::cos(grid_angle_rad), se = std::sin(grid_angle_rad);
   for (std::size_t i = 0; i < n; ++i) {
-    const double reach = 3.5 * std::max(nn_dist[i], 0.5 * spacing);
+    const double reach = o.reach * std::max(nn_dist[i], 0.5 * spacing);
     const double reach2 = reach * reach;
     around.clear();
     near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
@@ -237,7 +234,7 @@ std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, 
       const double d = std::sqrt(c.d2);
       const double cosine = std::min(1.0, std::abs(dot) / d);
       // ~ d (1 + 2 angle): sqrt(2 (1 - cos)) is the angle to within 4 % below 45 deg, sans acos
-      const double score = d * (1.0 + 2.0 * std::sqrt(2.0 * (1.0 - cosine)));
+      const double score = d * (1.0 + o.angle_weight * std::sqrt(2.0 * (1.0 - cosine)));
       if (dot > 0 && score < best[0]) best[0] = score, cand[i][kSouth] = c.j;
       if (dot < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
     }
@@ -247,7 +244,7 @@ std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, 
 
 // The links kept: mutual candidates, regularly spaced, symmetric.
 void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::array<int, 4>>& cand,
-                        AdjacencyGraph& g) {
+                        double similar_length, AdjacencyGraph& g) {
   const std::size_t n = spots.size();
   std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
   for (std::size_t i = 0; i < n; ++i)
@@ -259,7 +256,7 @@ void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::a
   // on either side. Spacing varies smoothly along a row or column (perspective, curvature), so
   // a link is kept when a continuing link has a similar length, or when none exists to compare.
   const auto length = [&](int a, int b) { return std::hypot(spots[b].u - spots[a].u, spots[b].v - spots[a].v); };
-  const auto similar = [](double a, double b) { return a < 1.5 * b && b < 1.5 * a; };
+  const auto similar = [&](double a, double b) { return a < similar_length * b && b < similar_length * a; };
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 4; ++k) {
       const int j = mutual[i][k];
@@ -282,7 +279,7 @@ void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::a
 
 }  // namespace
 
-AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend, const AdjacencyOptions& o) {
   AdjacencyGraph g;
   const std::size_t n = spots.size();
   g.next.assign(n, {-1, -1, -1, -1});
@@ -290,10 +287,10 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend) {
   const std::vector<double> nn_dist = nearest_distances(spots, g.grid_angle_rad);
   const double spacing = median(nn_dist);
   const SpatialGrid near(spots, std::max(2.0, spacing));
-  keep_regular_links(spots, link_candidates(spots, near, nn_dist, spacing, g.grid_angle_rad), g);
+  keep_regular_links(spots, link_candidates(spots, near, nn_dist, spacing, g.grid_angle_rad, o), o.similar_length, g);
   if (!mend) return g;
-  align_chains(g, kEast, kSouth);  // columns between row chains
-  complete_links(g, spots, near);
+  align_chains(g, kEast, kSouth, o);  // columns between row chains
+  complete_links(g, spots, near, o.completion_slack);
   return g;
 }
 

@@ -131,17 +131,8 @@ inline bool reads(const std::vector<Spot>& spots, const Window& w, const pattern
   return id && smooth_window(spots, w) && (!check || check->confirms(w, *id));
 }
 
-// the epipolar residual a spot named beyond the windows may have: this many times the median
-// of the window-read spots' (EpipolarCheck::set_grown_limit), at least the floor; the median
-// taken from at least kGrownResidualSample of them
-constexpr double kGrownResidual = 4.0;
-constexpr double kGrownResidualFloorPx = 1.0;
-constexpr int kGrownResidualSample = 9;
-
-// a blob smaller than this fraction of the median area of the spots linked to it is a fragment
-constexpr double kFragmentArea = 0.5;
-
-inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& graph, int i) {
+// a blob smaller than `fraction` of the median area of the spots linked to it (DecoderOptions::fragment_area)
+inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& graph, int i, double fraction) {
   std::array<int, 4> areas{};
   std::size_t m = 0;
   for (const int j : graph.next[i])
@@ -150,7 +141,7 @@ inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& gr
   for (std::size_t a = 1; a < m; ++a)  // insertion sort of at most four
     for (std::size_t b = a; b > 0 && areas[b - 1] > areas[b]; --b) std::swap(areas[b - 1], areas[b]);
   const double median = m % 2 ? areas[m / 2] : 0.5 * (areas[m / 2 - 1] + areas[m / 2]);
-  return spots[i].area_px < kFragmentArea * median;
+  return spots[i].area_px < fraction * median;
 }
 
 

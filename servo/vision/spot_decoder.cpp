@@ -28,7 +28,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   const auto first_sliver = std::stable_partition(r.detected.begin(), r.detected.end(), [](const Spot& s) { return !s.sliver; });
   std::vector<Spot> slivers(first_sliver, r.detected.end());
   r.detected.erase(first_sliver, r.detected.end());
-  AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links);
+  AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links, options_.adjacency);
   Neighbourhoods hoods = check_graph_consistency(graph);
   int n = static_cast<int>(r.detected.size());
   std::vector<char> edge_run;  // the spots an edge run named (step 8)
@@ -52,7 +52,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes);
     r.decoded = check_vote_consistency(r.detected, votes, e.min_votes, e.two_exact_votes);
     r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
-    epipolar->set_grown_limit(r.decoded);
+    epipolar->set_grown_limit(r.decoded, e.grown_limit);
     if (e.propagate) {
       r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded), e.min_sources);
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
@@ -95,7 +95,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   // spots linked to it: a spot cut by a depth edge or the object's silhouette
   std::erase_if(r.decoded, [&](const DecodedSpot& d) {
     return r.detected[d.spot].truncated ||
-           (is_fragment(r.detected, graph, d.spot) && !(d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot]));
+           (is_fragment(r.detected, graph, d.spot, options_.fragment_area) && !(d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot]));
   });
   r.graph = std::move(graph);
   r.hoods = std::move(hoods);

@@ -16,7 +16,7 @@ EpipolarCheck::EpipolarCheck(const EpipolarGeometry& g, const std::vector<Spot>&
   for (const Spot& s : spots) xy.push_back(g.normalise(s.u, s.v));
 }
 
-void EpipolarCheck::set_grown_limit(const std::vector<DecodedSpot>& decoded) {
+void EpipolarCheck::set_grown_limit(const std::vector<DecodedSpot>& decoded, const GrownLimit& limit) {
   std::vector<double> residuals;
   residuals.reserve(decoded.size());
   for (const DecodedSpot& d : decoded) {
@@ -24,13 +24,13 @@ void EpipolarCheck::set_grown_limit(const std::vector<DecodedSpot>& decoded) {
     if (std::isfinite(r)) residuals.push_back(r);
   }
   // too few to say what the frame's residuals are: the tolerance alone
-  if (residuals.size() < static_cast<std::size_t>(kGrownResidualSample)) {
+  if (residuals.size() < static_cast<std::size_t>(limit.sample)) {
     grown_limit_px = geometry.tolerance_px();
     return;
   }
   const auto mid = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
   std::nth_element(residuals.begin(), mid, residuals.end());
-  grown_limit_px = std::min(geometry.tolerance_px(), std::max(kGrownResidualFloorPx, kGrownResidual * *mid));
+  grown_limit_px = std::min(geometry.tolerance_px(), std::max(limit.floor_px, limit.times_median * *mid));
 }
 
 bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) const {

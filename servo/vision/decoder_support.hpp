@@ -73,24 +73,18 @@ inline double median(std::vector<double> x) {
   return x[x.size() / 2];
 }
 
-// how much a run's step may change from one spot to the next (fraction of the step)
-constexpr double kRunBend = 0.4;
-
 // Three spots a, b, c in a row of the lattice on one smooth surface: the step b -> c close to
 // a -> b. Across a depth edge the spot from the surface behind breaks it.
-inline bool bends_little(const Spot& a, const Spot& b, const Spot& c) {
+inline bool bends_little(const Spot& a, const Spot& b, const Spot& c, double bend) {
   const double su = c.u - 2 * b.u + a.u, sv = c.v - 2 * b.v + a.v;
   const double lu = c.u - b.u, lv = c.v - b.v, pu = b.u - a.u, pv = b.v - a.v;
-  return su * su + sv * sv <= kRunBend * kRunBend * std::max(lu * lu + lv * lv, pu * pu + pv * pv);
+  return su * su + sv * sv <= bend * bend * std::max(lu * lu + lv * lv, pu * pu + pv * pv);
 }
-
-// how unlike (fraction of the step) the opposite sides of a window's lattice cell may be
-constexpr double kCellSlack = 0.35;
 
 // every row and column of the window (where all three spots are there) bends little, and each
 // of its four lattice cells is near a parallelogram: a cell across a depth edge, with a spot
 // from the surface behind shifted along its row, is not
-inline bool smooth_window(const std::vector<Spot>& spots, const Window& w) {
+inline bool smooth_window(const std::vector<Spot>& spots, const Window& w, const CellShape& shape) {
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 2; ++c) {
       const int a = w[3 * r + c], b = w[3 * r + c + 1], p = w[3 * r + c + 3], q = w[3 * r + c + 4];
@@ -102,13 +96,13 @@ inline bool smooth_window(const std::vector<Spot>& spots, const Window& w) {
       const double step2 = std::max(std::min(eu * eu + ev * ev, fu * fu + fv * fv), 0.0);
       const double side2 = su * su + sv * sv;
       // (the right side's difference from the left is the same vector)
-      if (du * du + dv * dv > kCellSlack * kCellSlack * std::max(step2, 0.25 * side2)) return false;
+      if (du * du + dv * dv > shape.cell_slack * shape.cell_slack * std::max(step2, 0.25 * side2)) return false;
     }
   for (int k = 0; k < 3; ++k) {
     const int r0 = w[3 * k], r1 = w[3 * k + 1], r2 = w[3 * k + 2];
-    if (r0 >= 0 && r1 >= 0 && r2 >= 0 && !bends_little(spots[r0], spots[r1], spots[r2])) return false;
+    if (r0 >= 0 && r1 >= 0 && r2 >= 0 && !bends_little(spots[r0], spots[r1], spots[r2], shape.bend)) return false;
     const int c0 = w[k], c1 = w[k + 3], c2 = w[k + 6];
-    if (c0 >= 0 && c1 >= 0 && c2 >= 0 && !bends_little(spots[c0], spots[c1], spots[c2])) return false;
+    if (c0 >= 0 && c1 >= 0 && c2 >= 0 && !bends_little(spots[c0], spots[c1], spots[c2], shape.bend)) return false;
   }
   return true;
 }
@@ -124,11 +118,11 @@ inline std::optional<std::array<std::uint8_t, 9>> colours_of(const std::vector<S
 }
 // the window is whole, smooth and reads as a pattern window (on its epipolar lines when checked)
 inline bool reads(const std::vector<Spot>& spots, const Window& w, const pattern::WindowTable& table,
-           const EpipolarCheck* check) {
+           const EpipolarCheck* check, const CellShape& shape) {
   const auto c = colours_of(spots, w);
   if (!c) return false;
   const auto id = table.find(c->data());  // the code first: it is cheaper than the geometry
-  return id && smooth_window(spots, w) && (!check || check->confirms(w, *id));
+  return id && smooth_window(spots, w, shape) && (!check || check->confirms(w, *id));
 }
 
 // a blob smaller than `fraction` of the median area of the spots linked to it (DecoderOptions::fragment_area)
@@ -145,14 +139,9 @@ inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& gr
 }
 
 
-// how far (fraction of a lattice step) a propagated spot may be from where the lattice puts it
-constexpr double kLatticeSlack = 0.25;
-
-
-// how much fainter or smaller than its source a propagated spot may be
-constexpr double kAlike = 0.4;
-inline bool alike(const Spot& source, const Spot& s) {
-  return s.strength >= kAlike * source.strength && s.area_px >= kAlike * source.area_px;
+// the blob at least `fraction` of its source's strength and area (GrowthOptions::alike)
+inline bool alike(const Spot& source, const Spot& s, double fraction) {
+  return s.strength >= fraction * source.strength && s.area_px >= fraction * source.area_px;
 }
 
 // Which spot carries each id, and where each identified spot is in the decoded list: the

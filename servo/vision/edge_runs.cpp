@@ -18,9 +18,10 @@ namespace {
 class EdgeRuns {
  public:
   EdgeRuns(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
-           const SpatialGrid& near, int k, const EdgeRunOptions& options, float faintest)
+           const SpatialGrid& near, int k, const EdgeRunOptions& options, const GrowthOptions& growth)
       : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), dr_(kIdStep[k][0]), dc_(kIdStep[k][1]),
-        candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1), o_(options), faintest_(faintest) {}
+        candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1), o_(options), faintest_(growth.faintest),
+        alike_(growth.alike) {}
 
   // each cell's candidate: the blob ahead of an identified spot along its step
   void find_candidates(const std::vector<DecodedSpot>& decoded) {
@@ -31,10 +32,10 @@ class EdgeRuns {
       if (back < 0) continue;
       const Spot& s = spots_[from.spot];
       const double vu = s.u - spots_[back].u, vv = s.v - spots_[back].v, step2 = vu * vu + vv * vv;
-      if (step2 < 4.0) continue;
+      if (step2 < o_.shortest_step_px * o_.shortest_step_px) continue;
       int found = -1;
       double best = 1e300;
-      near_.around(s.u + 0.7 * vu, s.v + 0.7 * vv, 1, [&](int j) {
+      near_.around(s.u + o_.search_at * vu, s.v + o_.search_at * vv, 1, [&](int j) {
         const double du = spots_[j].u - s.u, dv = spots_[j].v - s.v;
         const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
         if (along < o_.nearest || along > o_.farthest || aside > o_.aside) return;
@@ -42,7 +43,7 @@ class EdgeRuns {
         if (d2 < best) best = d2, found = j;
       });
       if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || spots_[found].colour != pattern_.at(r, c) ||
-          spots_[found].strength < faintest_ || spots_[found].strength < kAlike * s.strength ||
+          spots_[found].strength < faintest_ || spots_[found].strength < alike_ * s.strength ||
           spots_[found].area_px > o_.largest * s.area_px || !check_.confirms_grown(found, {r, c}))
         continue;
       candidate_[static_cast<std::size_t>(r) * pattern_.cols + c] = found;
@@ -124,6 +125,7 @@ class EdgeRuns {
   std::vector<int> candidate_;
   const EdgeRunOptions& o_;
   float faintest_;  // GrowthOptions::faintest: a run's blob is no fainter than a grown spot
+  double alike_;    // GrowthOptions::alike
 };
 
 }  // namespace
@@ -141,7 +143,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
   std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
   std::vector<DecodedSpot> added;
   for (int k = 0; k < 4; ++k) {
-    EdgeRuns runs(spots, check, pattern, ids, *near, k, options, growth.faintest);
+    EdgeRuns runs(spots, check, pattern, ids, *near, k, options, growth);
     runs.find_candidates(decoded);
     runs.read_runs(claimed_by, added);
   }

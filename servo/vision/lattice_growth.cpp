@@ -127,7 +127,7 @@ class Lattice {
       if (du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
     });
     const Spot& source = spots_[from.spot];
-    if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || !alike(source, spots_[found]) ||
+    if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || !alike(source, spots_[found], o_.alike) ||
         spots_[found].area_px > o_.largest * source.area_px)
       return;
     // a claim the blob cannot carry (another colour, off the id's epipolar line) is no claim:

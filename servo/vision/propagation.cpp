@@ -25,9 +25,10 @@ struct Proposal {
 class Propagation {
  public:
   Propagation(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
-              const EpipolarCheck& check, const pattern::MArray& pattern, std::vector<DecodedSpot>& decoded)
+              const EpipolarCheck& check, const pattern::MArray& pattern, std::vector<DecodedSpot>& decoded,
+              double slack, double alike)
       : spots_(spots), graph_(graph), hoods_(hoods), check_(check), pattern_(pattern), decoded_(decoded),
-        ids_(pattern, spots.size(), decoded), proposals_(spots.size()) {}
+        ids_(pattern, spots.size(), decoded), proposals_(spots.size()), slack_(slack), alike_(alike) {}
 
   // one round; false when it named nobody
   bool round(int min_sources) {
@@ -62,7 +63,7 @@ class Propagation {
     if (!continues_lattice(from, j, k)) return;  // j is not where this source's lattice goes
     // j looks like a spot of the source's surface: a faint speck of noise, or the dim light
     // of a surface behind an edge (defocused, oblique), is not
-    if (!alike(spots_[from.spot], spots_[j])) return;
+    if (!alike(spots_[from.spot], spots_[j], alike_)) return;
     if (!beyond_agrees(from, j, k, id)) return;
     if (p.sources > 0 && !(p.id == id)) p.conflict = true;
     p.id = id;
@@ -95,7 +96,7 @@ class Propagation {
       if (a < 0 || b < 0) continue;
       const double vu = spots_[b].u - spots_[a].u, vv = spots_[b].v - spots_[a].v;
       const double eu = spots_[j].u - spots_[from.spot].u - vu, ev = spots_[j].v - spots_[from.spot].v - vv;
-      return eu * eu + ev * ev <= kLatticeSlack * kLatticeSlack * (vu * vu + vv * vv);
+      return eu * eu + ev * ev <= slack_ * slack_ * (vu * vu + vv * vv);
     }
     return false;  // nothing to compare with: not propagated
   }
@@ -112,7 +113,7 @@ class Propagation {
     if (pattern_.at(next.row, next.col) != spots_[b].colour) return false;
     const double vu = spots_[j].u - spots_[from.spot].u, vv = spots_[j].v - spots_[from.spot].v;
     const double eu = spots_[b].u - spots_[j].u - vu, ev = spots_[b].v - spots_[j].v - vv;
-    return eu * eu + ev * ev <= kLatticeSlack * kLatticeSlack * (vu * vu + vv * vv);
+    return eu * eu + ev * ev <= slack_ * slack_ * (vu * vu + vv * vv);
   }
 
   const std::vector<Spot>& spots_;
@@ -123,6 +124,7 @@ class Propagation {
   std::vector<DecodedSpot>& decoded_;
   IdMap ids_;
   std::vector<Proposal> proposals_;
+  double slack_, alike_;  // EpipolarOptions::propagate_slack, GrowthOptions::alike
 };
 
 }  // namespace
@@ -130,8 +132,8 @@ class Propagation {
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
                                        const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
-                                       int min_sources) {
-  Propagation propagation(spots, graph, hoods, check, pattern, decoded);
+                                       int min_sources, double slack, double alike) {
+  Propagation propagation(spots, graph, hoods, check, pattern, decoded, slack, alike);
   while (propagation.round(min_sources)) {
   }
   return decoded;

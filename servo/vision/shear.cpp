@@ -15,11 +15,12 @@ namespace {
 
 // The line through t, m, b (before, the spot, after) goes straight on: a shear slants it,
 // curvature bends it a little; its two steps are alike in length.
-bool goes_straight(const Spot& t, const Spot& m, const Spot& b) {
+bool goes_straight(const Spot& t, const Spot& m, const Spot& b, const CellShape& shape) {
   const double eu = t.u + b.u - 2 * m.u, ev = t.v + b.v - 2 * m.v;
   const double lt = (t.u - m.u) * (t.u - m.u) + (t.v - m.v) * (t.v - m.v);
   const double lb = (b.u - m.u) * (b.u - m.u) + (b.v - m.v) * (b.v - m.v);
-  return eu * eu + ev * ev <= 0.16 * std::max(lt, lb) && lt <= 2.25 * lb && lb <= 2.25 * lt;
+  const double bend2 = shape.bend * shape.bend, ratio2 = shape.step_ratio * shape.step_ratio;
+  return eu * eu + ev * ev <= bend2 * std::max(lt, lb) && lt <= ratio2 * lb && lb <= ratio2 * lt;
 }
 
 // Rewrites the links across of every spot whose choice (before, after) a neighbour along the
@@ -69,7 +70,8 @@ AdjacencyGraph apply_shear_choices(const AdjacencyGraph& graph, const std::vecto
 }  // namespace
 
 AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
-                             const pattern::WindowTable& table, const EpipolarCheck* check, ShearAxis axis) {
+                             const pattern::WindowTable& table, const EpipolarCheck* check, ShearAxis axis,
+                             const CellShape& shape) {
   // `along`: the direction of the lines trusted (rows when columns are resolved); `across`: the
   // links rewritten, from the line before (reverse) to the line after (across)
   const bool columns = axis == ShearAxis::kColumns;
@@ -98,7 +100,7 @@ AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGrap
   std::array<int, 9> befores{}, afters{};
   for (std::size_t s = 0; s < n; ++s) {
     const int i = static_cast<int>(s);
-    if (reads(spots, hoods.window[s], table, check)) continue;  // its links read already
+    if (reads(spots, hoods.window[s], table, check, shape)) continue;  // its links read already
     const auto middle = line_of(i);
     if (!middle) continue;
     const int nt = centres(i, reverse, befores), nb = centres(i, across, afters);
@@ -108,7 +110,7 @@ AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGrap
       for (int b = 0; b < nb && matches <= 1; ++b) {
         const int t = befores[a], u = afters[b];
         if (t == u) continue;
-        if (!goes_straight(spots[t], spots[i], spots[u])) continue;
+        if (!goes_straight(spots[t], spots[i], spots[u], shape)) continue;
         const auto first = line_of(t), last = line_of(u);
         if (!first || !last) continue;
         Window w{};
@@ -117,7 +119,7 @@ AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGrap
           w[cell(1, k)] = (*middle)[k];
           w[cell(2, k)] = (*last)[k];
         }
-        if (!reads(spots, w, table, check)) continue;
+        if (!reads(spots, w, table, check, shape)) continue;
         ++matches;
         best = {t, u};
       }

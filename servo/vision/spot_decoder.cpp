@@ -21,6 +21,23 @@ SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
   }
 }
 
+namespace {
+
+// Step 8's slivers join the spots, unlinked (no window, their normalised coordinates checked).
+void join_slivers(const std::vector<Spot>& slivers, const EpipolarGeometry& geometry, std::vector<Spot>& detected,
+                  AdjacencyGraph& graph, Neighbourhoods& hoods, EpipolarCheck& check, int& n) {
+  for (const Spot& x : slivers) {
+    detected.push_back(x);
+    graph.next.push_back({-1, -1, -1, -1});
+    Window w{-1, -1, -1, -1, -1, -1, -1, -1, -1};
+    w[4] = n++;
+    hoods.window.push_back(w);
+    check.xy.push_back(geometry.normalise(x.u, x.v));
+  }
+}
+
+}  // namespace
+
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;
   r.detected = std::move(spots);
@@ -28,6 +45,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   const auto first_sliver = std::stable_partition(r.detected.begin(), r.detected.end(), [](const Spot& s) { return !s.sliver; });
   std::vector<Spot> slivers(first_sliver, r.detected.end());
   r.detected.erase(first_sliver, r.detected.end());
+  const CellShape& shape = options_.cell_shape;
   AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links, options_.adjacency);
   Neighbourhoods hoods = check_graph_consistency(graph);
   int n = static_cast<int>(r.detected.size());
@@ -36,7 +54,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   if (geometry) epipolar.emplace(*geometry, r.detected);
   if (options_.mend_links) {
     for (const ShearAxis axis : {ShearAxis::kColumns, ShearAxis::kRows}) {
-      graph = resolve_shear(r.detected, graph, hoods, table_, epipolar ? &*epipolar : nullptr, axis);
+      graph = resolve_shear(r.detected, graph, hoods, table_, epipolar ? &*epipolar : nullptr, axis, shape);
       hoods = check_graph_consistency(graph);
     }
   }
@@ -45,46 +63,39 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     const EpipolarCheck& check = *epipolar;
     ToleranceOptions tolerance = options_.tolerance;
     tolerance.enabled = tolerance.enabled || e.tolerant;
-    const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, tolerance, &check);
+    const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, tolerance, &check, shape);
     r.readings = static_cast<int>(readings.size());
     std::vector<IdVote> votes;
     add_window_votes(hoods, readings, votes);
-    if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes);
+    if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes, shape);
+    const auto islands = [&] { r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true); };
+    const auto propagate = [&] {
+      r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded), e.min_sources,
+                                e.propagate_slack, e.growth.alike);
+      islands();
+    };
     r.decoded = check_vote_consistency(r.detected, votes, e.min_votes, e.two_exact_votes);
-    r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+    islands();
     epipolar->set_grown_limit(r.decoded, e.grown_limit);
-    if (e.propagate) {
-      r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded), e.min_sources);
-      r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
-    }
+    if (e.propagate) propagate();
     if (e.grow) {
       r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources, e.growth);
-      r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+      islands();
       if (e.edge_runs) {
-        // the slivers join the spots, unlinked
-        for (const Spot& x : slivers) {
-          r.detected.push_back(x);
-          graph.next.push_back({-1, -1, -1, -1});
-          Window w{-1, -1, -1, -1, -1, -1, -1, -1, -1};
-          w[4] = n++;
-          hoods.window.push_back(w);
-          epipolar->xy.push_back(geometry->normalise(x.u, x.v));
-        }
+        join_slivers(slivers, *geometry, r.detected, graph, hoods, *epipolar, n);
         r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run, e.edge_run,
                                    e.growth);
-        r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+        islands();
       }
       // the grown region's new links and sources carry propagation further (once: a second
       // growth named spots whose links then condemned right ones, 1.2 points fewer on the ham)
       if (e.propagate) {
         hoods = check_graph_consistency(graph);
-        r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded),
-                                  e.min_sources);
-        r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true);
+        propagate();
       }
     }
   } else {
-    const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance);
+    const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance, nullptr, shape);
     r.readings = static_cast<int>(readings.size());
     r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes);
     if (options_.min_island > 0)
@@ -94,8 +105,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   // where its centre is: it is not reported. Nor is a fragment, a blob far smaller than the
   // spots linked to it: a spot cut by a depth edge or the object's silhouette
   std::erase_if(r.decoded, [&](const DecodedSpot& d) {
-    return r.detected[d.spot].truncated ||
-           (is_fragment(r.detected, graph, d.spot, options_.fragment_area) && !(d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot]));
+    const bool run = d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot];
+    return r.detected[d.spot].truncated || (is_fragment(r.detected, graph, d.spot, options_.fragment_area) && !run);
   });
   r.graph = std::move(graph);
   r.hoods = std::move(hoods);

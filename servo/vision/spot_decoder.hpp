@@ -129,9 +129,18 @@ struct EpipolarCheck {
 // kRows: the same with rows and columns exchanged (rows slanted against trusted columns: the
 // cylinder towards its silhouette), run after the columns.
 enum class ShearAxis { kColumns, kRows };
+// What a smooth lattice cell is (steps 2b and 3): on one smooth surface each row and column of a
+// window bends little and each of its four cells is near a parallelogram; across a depth edge,
+// with a spot from the surface behind shifted along its row, they are not (without the test the
+// mended links let 10 wrong ids through on the ham).
+struct CellShape {
+  double bend = 0.4;         // how much a line's step may change from one spot to the next (of the step)
+  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step)
+  double step_ratio = 1.5;   // step 2b's straight line: its two steps alike within this factor
+};
 AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
                              const pattern::WindowTable& table, const EpipolarCheck* check = nullptr,
-                             ShearAxis axis = ShearAxis::kColumns);
+                             ShearAxis axis = ShearAxis::kColumns, const CellShape& shape = {});
 
 struct ToleranceOptions {
   bool enabled = false;  // beyond the paper: accept a window with one missing neighbour or one
@@ -149,7 +158,7 @@ struct ToleranceOptions {
 // of the pattern windows within one symbol of it passes that check (a repair).
 std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
                                         const pattern::WindowTable& table, const ToleranceOptions& tolerance = {},
-                                        const EpipolarCheck* check = nullptr);
+                                        const EpipolarCheck* check = nullptr, const CellShape& shape = {});
 
 // One reading's claim on one spot.
 struct IdVote {
@@ -168,7 +177,8 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
 // needs no links across the other axis: it reads rows whose columns are sheared out of true
 // (a surface seen obliquely, a cylinder near its silhouette) and runs along an object's edge.
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
-                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes);
+                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes,
+                   const CellShape& shape = {});
 
 // Step 4. A spot is kept when all its votes agree (and it has at least `min_votes`, one of them
 // exact), and no other spot has its id.
@@ -247,6 +257,10 @@ struct GrowthOptions {
   // table at the pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots,
   // 64.8 -> 65.4 % of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
   int pinned_sources = 3;
+  // a propagated, grown or run blob at least this fraction of its source's strength and area
+  // (steps 6-8): a faint speck of noise, or the dim light of a surface behind an edge
+  // (defocused, oblique), is not a spot of the source's surface
+  double alike = 0.4;
 };
 
 // Step 8's numbers (edge runs).
@@ -261,6 +275,9 @@ struct EdgeRunOptions {
   // consecutive candidates a run needs: each has the colour the pattern has there by chance one
   // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
   int length = 4;
+  // the candidate is looked for around this far along the source's step (of the step), from a
+  // step of at least this many pixels
+  double search_at = 0.7, shortest_step_px = 2;
   // a line beyond is foreshortened: its spots no larger than their sources (a larger blob there
   // is the wash of a surface behind, out of focus), and a run bridges one missing id at most
   double largest = 1.2;
@@ -295,7 +312,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,
                                        const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
-                                       int min_sources = 3);
+                                       int min_sources = 3, double slack = 0.25, double alike = 0.4);
 
 // How the decoder uses a frame's epipolar geometry, when it is given one.
 struct EpipolarOptions {
@@ -323,6 +340,8 @@ struct EpipolarOptions {
   // edge: the wash of the wall behind continues the lattice on the epipolar line), and the grown
   // lattice names nearly all it named (-0.4 points on the cylinder, -0.1 on the ham).
   bool propagate = false;
+  // how far (of a lattice step) a propagated spot may be from where the lattice puts it
+  double propagate_slack = 0.25;
   GrownLimit grown_limit;  // steps 6-8's epipolar residual limit
   bool grow = true;        // step 7
   bool edge_runs = true;   // step 8 (after step 7)
@@ -360,6 +379,7 @@ struct DecoderOptions {
   // (a spot cut by an edge: its centroid is not its centre) and is not reported, unless an edge
   // run named it
   double fragment_area = 0.5;
+  CellShape cell_shape;
   EpipolarOptions epipolar;  // used when decode() is given the frame's geometry
 };
 

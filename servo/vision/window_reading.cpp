@@ -44,7 +44,7 @@ bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) con
 
 std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
                                         const pattern::WindowTable& table, const ToleranceOptions& tolerance,
-                                        const EpipolarCheck* check) {
+                                        const EpipolarCheck* check, const CellShape& shape) {
   std::vector<WindowReading> out;
   const int k = table.array().colours;
   for (std::size_t s = 0; s < hoods.window.size(); ++s) {
@@ -63,7 +63,7 @@ std::vector<WindowReading> read_windows(const std::vector<Spot>& spots, const Ne
     // the code, which is cheaper, rejects most windows)
     int smooth = -1;
     const auto is_smooth = [&] {
-      if (smooth < 0) smooth = smooth_window(spots, w);
+      if (smooth < 0) smooth = smooth_window(spots, w, shape);
       return smooth == 1;
     };
     if (n_missing == 0) {
@@ -129,7 +129,7 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
 
 
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
-                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes) {
+                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes, const CellShape& shape) {
   const int half = length / 2;
   if (half < 1) return;
   // the ids each spot may carry: its colour, on its epipolar line (a handful of the 400)
@@ -160,7 +160,7 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
       // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
       bool smooth = true;
       for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m)
-        smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]]);
+        smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]], shape.bend);
       if (!smooth) continue;
       // the run read straight along the axis, or sheared by one id across it per step (a
       // column seen obliquely links diagonal neighbours): a misread run that fits one way

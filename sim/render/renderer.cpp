@@ -439,6 +439,30 @@ std::vector<std::pair<int, int>> polygons_by_band(const Cell::Lens& lens, int he
   return band_rows;
 }
 
+namespace {
+
+// The frame's lens (its rays and z-buffer cells), its triangles' numbers, and the projector's
+// depth over the beam window (the arm's too, when it is in the beam).
+void lens_and_light(const Cell& cell, const Light& light, const FrameScene& scene, RenderScratch& s, shading::Frame& f) {
+  const Cell::Lens& lens = cell.lens;
+  f.width = cell.scenario.camera.intrinsics.width;
+  f.height = cell.scenario.camera.intrinsics.height;
+  f.stride = lens.stride;
+  f.zcell = lens.zcell.data();
+  f.zrun = lens.zrun.data();
+  f.ray_x = lens.ray_x.data();
+  f.ray_y = lens.ray_y.data();
+  f.triangles = s.triangles.data();
+  f.projector_depth = beam_view(light, light.beam_depth);
+  if (scene.arm_projector_depth) {
+    // the arm's depth over the same window: one cell index serves both
+    s.arm_beam_depth = beam_window(*scene.arm_projector_depth, light.beam);
+    f.arm_depth = beam_view(light, s.arm_beam_depth);
+  }
+}
+
+}  // namespace
+
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
                      RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links) {
   const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
@@ -463,23 +487,10 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
 
   const Cell::Lens& lens = cell.lens;
   shading::Frame f;
-  f.width = k.width;
-  f.height = k.height;
-  f.stride = cell.lens.stride;
-  f.zcell = lens.zcell.data();
-  f.zrun = lens.zrun.data();
-  f.ray_x = cell.lens.ray_x.data();
-  f.ray_y = cell.lens.ray_y.data();
-  f.triangles = s.triangles.data();
+  lens_and_light(cell, light, scene, s, f);
   surface_colours(cell, tris, world_T_camera, s, f);
   f.triangle_count = 2 * tris.normal_w.size();
   f.outside_from = n_tris;
-  f.projector_depth = beam_view(light, light.beam_depth);
-  if (scene.arm_projector_depth) {
-    // the arm's depth over the same window: one cell index serves both
-    s.arm_beam_depth = beam_window(*scene.arm_projector_depth, light.beam);
-    f.arm_depth = beam_view(light, s.arm_beam_depth);
-  }
   std::array<float, shading::kSymbolLut> colour[3]{};
   projector_and_sensor(cell, light, cam, world_T_camera, noise_seed, colour, f);
 

@@ -157,12 +157,24 @@ std::vector<double> nearest_distances(const std::vector<Spot>& spots, double& gr
   for (std::size_t i = 0; i < n; ++i) {
     double best = 1e18;
     int bj = -1;
-    grid.around(spots[i].u, spots[i].v, 2, [&](int j) {
+    const auto nearer = [&](int j) {
       if (j == static_cast<int>(i)) return;
       const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
       const double d2 = du * du + dv * dv;  // squared: std::hypot is ten times dearer and not needed
       if (d2 < best) best = d2, bj = j;
-    });
+    };
+    // The nearest within two cells. The adjacent cells first: when what they hold lies within
+    // two cells, the disc through it lies inside the two cells' square, and its cells, met in
+    // the square's order, hold the square's first nearest (the same spot, ties and all).
+    grid.around(spots[i].u, spots[i].v, 1, nearer);
+    if (best <= 4 * coarse * coarse) {
+      const double radius = std::sqrt(best);
+      best = 1e18, bj = -1;
+      grid.around_disc(spots[i].u, spots[i].v, radius, nearer);
+    } else {
+      best = 1e18, bj = -1;
+      grid.around(spots[i].u, spots[i].v, 2, nearer);
+    }
     if (bj < 0) continue;
     nn_dist[i] = std::sqrt(best);
     // (cos 4a, sin 4a) as the fourth power of the unit vector (x + iy): no trigonometry
@@ -175,69 +187,123 @@ std::vector<double> nearest_distances(const std::vector<Spot>& spots, double& gr
   return nn_dist;
 }
 
-// The candidate east, south, west and north neighbours of every spot.
-std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, const SpatialGrid& near,
-                                                const std::vector<double>& nn_dist, double spacing,
-                                                double grid_angle_rad, const AdjacencyOptions& o) {
-  const std::size_t n = spots.size();
-  // Rows first: the closest spot within +-35 deg (o.row_cone_deg) of the pattern's east and west. Then columns,
-  // against each spot's own row direction: under perspective the columns shear away from the
-  // perpendicular and a diagonal neighbour can be nearer than the true one, so the north and
-  // south candidates are ranked by distance weighted by their angle to the local perpendicular.
-  std::vector<std::array<int, 4>> cand(n, {-1, -1, -1, -1});
+// One spot's candidate neighbours: rows first (the closest spot within +-35 deg,
+// o.row_cone_deg, of the pattern's east and west), then columns against the spot's own row
+// direction. Under perspective the columns shear away from the perpendicular and a diagonal
+// neighbour can be nearer than the true one, so the north and south candidates are ranked by
+// distance weighted by their angle to the local perpendicular.
+class CandidateSearch {
+ public:
+  CandidateSearch(const std::vector<Spot>& spots, const SpatialGrid& near, double grid_angle_rad, const AdjacencyOptions& o)
+      : spots_(spots), near_(near), o_(o), ce_(std::cos(grid_angle_rad)), se_(std::sin(grid_angle_rad)), around_(spots.size()) {
+    const double row_cos = std::cos(o.row_cone_deg * kPi / 180.0), col_cos = std::cos(o.column_cone_deg * kPi / 180.0);
+    row_cos2_ = row_cos * row_cos, col_cos2_ = col_cos * col_cos;
+  }
+
+  // Within `reach` of spot i. The true neighbours lie about a spacing away, the reach is 3.5
+  // spacings (a link may bridge a missing spot): the disc of 2 is searched first, and what
+  // it finds is final when nothing beyond could do better (a row's nearest; a column's score,
+  // at least its distance, under the small disc's radius). Beyond it, the whole reach, in the
+  // same order: the same candidates, ties and all, for a third of the visits.
+  std::array<int, 4> operator()(int i, double reach, double near_reach) {
+    std::array<int, 4> cand{-1, -1, -1, -1};
+    const bool two = near_reach < reach;
+    gather(i, two ? near_reach : reach);
+    rows(cand);
+    bool whole = !two;
+    if (two && (cand[kEast] < 0 || cand[kWest] < 0)) gather(i, reach), rows(cand), whole = true;
+    const std::array<double, 2> score = columns(i, cand);
+    if (!whole && !(cand[kSouth] >= 0 && cand[kNorth] >= 0 && std::max(score[0], score[1]) <= near_reach))
+      gather(i, reach), columns(i, cand);
+    return cand;
+  }
+
+ private:
   struct Candidate {
     int j;
     double du, dv, d2;  // squared distance: the square root only for the few in a cone
   };
-  std::vector<Candidate> around;  // one spot's neighbours within reach, gathered once for both passes
-  const double row_cos = std::cos(o.row_cone_deg * kPi / 180.0);
-  const double col_cos = std::cos(o.column_cone_deg * kPi / 180.0);
-  const double row_cos2 = row_cos * row_cos, col_cos2 = col_cos * col_cos;
-  const double ce = std::cos(grid_angle_rad), se = std::sin(grid_angle_rad);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double reach = o.reach * std::max(nn_dist[i], 0.5 * spacing);
-    const double reach2 = reach * reach;
-    around.clear();
-    near.around(spots[i].u, spots[i].v, static_cast<int>(std::ceil(reach / std::max(2.0, spacing))), [&](int j) {
-      const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v;
-      const double d2 = du * du + dv * dv;
-      if (d2 <= reach2 && d2 > 1e-18) around.push_back({j, du, dv, d2});  // (j == i has d2 = 0)
+  // (every slot is written and the count advances only for a spot in reach: a branch on the
+  // distance mispredicted on half the visits)
+  void gather(int i, double reach) {
+    const double reach2 = reach * reach, u = spots_[i].u, v = spots_[i].v;
+    std::size_t n = 0;
+    near_.spans_in_disc(u, v, reach, [&](int k0, int k1) {
+      for (int k = k0; k < k1; ++k) {
+        const double du = near_.u(k) - u, dv = near_.v(k) - v, d2 = du * du + dv * dv;
+        around_[n] = {near_.spot(k), du, dv, d2};
+        n += (d2 <= reach2) & (d2 > 1e-18);  // (j == i has d2 = 0)
+      }
     });
-    // rows: cos >= row_cos, i.e. dot >= 0 and dot^2 >= row_cos^2 d^2
+    in_reach_ = n;
+  }
+  // rows: cos >= row_cos, i.e. dot >= 0 and dot^2 >= row_cos^2 d^2
+  void rows(std::array<int, 4>& cand) const {
     std::array<double, 2> best{1e300, 1e300};
-    for (const Candidate& c : around) {
-      const double dot = c.du * ce + c.dv * se;
-      if (dot * dot < row_cos2 * c.d2) continue;
+    cand[kEast] = cand[kWest] = -1;
+    for (const Candidate& c : in_reach()) {
+      const double dot = c.du * ce_ + c.dv * se_;
+      if (dot * dot < row_cos2_ * c.d2) continue;
       const int side = dot > 0 ? 0 : 1;
-      if (c.d2 < best[side]) best[side] = c.d2, cand[i][side == 0 ? kEast : kWest] = c.j;
+      if (c.d2 < best[side]) best[side] = c.d2, cand[side == 0 ? kEast : kWest] = c.j;
     }
-    // this spot's row direction, from its east and west candidates when it has them
-    double ru = ce, rv = se;
-    const int e = cand[i][kEast], w = cand[i][kWest];
+  }
+  // columns, against this spot's row direction (from its east and west candidates when it has
+  // them); the best south and north scores
+  std::array<double, 2> columns(int i, std::array<int, 4>& cand) const {
+    double ru = ce_, rv = se_;
+    const int e = cand[kEast], w = cand[kWest];
     if (e >= 0 || w >= 0) {
       ru = rv = 0;
       for (const auto& [j, sign] : {std::pair{e, 1.0}, std::pair{w, -1.0}}) {
         if (j < 0) continue;
-        const double du = spots[j].u - spots[i].u, dv = spots[j].v - spots[i].v, d = std::sqrt(du * du + dv * dv);
+        const double du = spots_[j].u - spots_[i].u, dv = spots_[j].v - spots_[i].v, d = std::sqrt(du * du + dv * dv);
         ru += sign * du / d;
         rv += sign * dv / d;
       }
       const double norm = std::sqrt(ru * ru + rv * rv);
       ru /= norm, rv /= norm;
     }
-    // columns
     const double pu = -rv, pv = ru;  // the perpendicular, pointing south (image y down)
-    best = {1e300, 1e300};
-    for (const Candidate& c : around) {
+    std::array<double, 2> best{1e300, 1e300};
+    cand[kSouth] = cand[kNorth] = -1;
+    for (const Candidate& c : in_reach()) {
       const double dot = c.du * pu + c.dv * pv;
-      if (dot * dot < col_cos2 * c.d2) continue;
+      if (dot * dot < col_cos2_ * c.d2) continue;
       const double d = std::sqrt(c.d2);
       const double cosine = std::min(1.0, std::abs(dot) / d);
       // ~ d (1 + 2 angle): sqrt(2 (1 - cos)) is the angle to within 4 % below 45 deg, sans acos
-      const double score = d * (1.0 + o.angle_weight * std::sqrt(2.0 * (1.0 - cosine)));
-      if (dot > 0 && score < best[0]) best[0] = score, cand[i][kSouth] = c.j;
-      if (dot < 0 && score < best[1]) best[1] = score, cand[i][kNorth] = c.j;
+      const double score = d * (1.0 + o_.angle_weight * std::sqrt(2.0 * (1.0 - cosine)));
+      if (dot > 0 && score < best[0]) best[0] = score, cand[kSouth] = c.j;
+      if (dot < 0 && score < best[1]) best[1] = score, cand[kNorth] = c.j;
     }
+    return best;
+  }
+
+  const std::vector<Spot>& spots_;
+  const SpatialGrid& near_;
+  const AdjacencyOptions& o_;
+  double ce_, se_, row_cos2_ = 0, col_cos2_ = 0;
+  // one spot's neighbours within reach: the first in_reach_ (room for every spot, made once)
+  std::vector<Candidate> around_;
+  std::size_t in_reach_ = 0;
+  struct Span {
+    const Candidate *b, *e;
+    const Candidate* begin() const { return b; }
+    const Candidate* end() const { return e; }
+  };
+  Span in_reach() const { return {around_.data(), around_.data() + in_reach_}; }
+};
+
+// The candidate east, south, west and north neighbours of every spot.
+std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, const SpatialGrid& near,
+                                                const std::vector<double>& nn_dist, double spacing,
+                                                double grid_angle_rad, const AdjacencyOptions& o) {
+  std::vector<std::array<int, 4>> cand(spots.size());
+  CandidateSearch search(spots, near, grid_angle_rad, o);
+  for (std::size_t i = 0; i < spots.size(); ++i) {
+    const double unit = std::max(nn_dist[i], 0.5 * spacing);
+    cand[i] = search(static_cast<int>(i), o.reach * unit, 2.0 * unit);
   }
   return cand;
 }
@@ -255,7 +321,10 @@ void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::a
   // Regular spacing: a link across a missing spot is twice as long as the links continuing it
   // on either side. Spacing varies smoothly along a row or column (perspective, curvature), so
   // a link is kept when a continuing link has a similar length, or when none exists to compare.
-  const auto length = [&](int a, int b) { return std::hypot(spots[b].u - spots[a].u, spots[b].v - spots[a].v); };
+  const auto length = [&](int a, int b) {  // (std::hypot guards an overflow no pixel offset comes near, at 5x the cost)
+    const double du = spots[b].u - spots[a].u, dv = spots[b].v - spots[a].v;
+    return std::sqrt(du * du + dv * dv);
+  };
   const auto similar = [&](double a, double b) { return a < similar_length * b && b < similar_length * a; };
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 4; ++k) {

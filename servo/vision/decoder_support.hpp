@@ -38,6 +38,8 @@ class SpatialGrid {
     index_.resize(spots.size());
     std::vector<int> fill(start_.begin(), start_.end() - 1);
     for (std::size_t i = 0; i < spots.size(); ++i) index_[fill[key(spots[i].u, spots[i].v)]++] = static_cast<int>(i);
+    u_.resize(spots.size()), v_.resize(spots.size());
+    for (std::size_t k = 0; k < index_.size(); ++k) u_[k] = spots[index_[k]].u, v_[k] = spots[index_[k]].v;
   }
   // The spots of the cells within `reach` cells of (u, v), cell by cell in row-major order. The
   // cells of one row are consecutive keys, so their spots are one span of index_: a row costs
@@ -53,6 +55,34 @@ class SpatialGrid {
       for (int i = start_[row + c0]; i < start_[row + c1 + 1]; ++i) f(index_[i]);
     }
   }
+  // The spots of the cells that meet the disc of `radius` about (u, v), row by row as around()
+  // meets them: each row's span trimmed to the disc's chord there. A link's reach is a disc of
+  // 3.5 spacings, which a square of cells covers with twice its area: every spot of the disc,
+  // in around()'s order, for half the visits. f(k0, k1): the grid's slots [k0, k1) (spot(k),
+  // u(k), v(k): their positions lie side by side, a span is read without a branch per spot).
+  template <typename F>
+  void spans_in_disc(double u, double v, double radius, F&& f) const {
+    const double gu = (u - origin_u_) / cell_, gv = (v - origin_v_) / cell_, gr = radius / cell_;
+    const int r0 = std::max(0, static_cast<int>(std::floor(gv - gr)));
+    const int r1 = std::min(rows_ - 1, static_cast<int>(std::floor(gv + gr)));
+    for (int r = r0; r <= r1; ++r) {
+      const double dv = std::max({0.0, r - gv, gv - (r + 1)});  // the row's nearest to the centre
+      const double half = std::sqrt(std::max(0.0, gr * gr - dv * dv));
+      const int c0 = std::max(0, static_cast<int>(std::floor(gu - half)));
+      const int c1 = std::min(cols_ - 1, static_cast<int>(std::floor(gu + half)));
+      const std::size_t row = static_cast<std::size_t>(r) * cols_;
+      if (c0 <= c1) f(start_[row + c0], start_[row + c1 + 1]);
+    }
+  }
+  template <typename F>
+  void around_disc(double u, double v, double radius, F&& f) const {
+    spans_in_disc(u, v, radius, [&](int k0, int k1) {
+      for (int k = k0; k < k1; ++k) f(index_[k]);
+    });
+  }
+  int spot(int k) const { return index_[k]; }
+  double u(int k) const { return u_[k]; }
+  double v(int k) const { return v_[k]; }
 
  private:
   std::size_t key(double u, double v) const {
@@ -65,6 +95,7 @@ class SpatialGrid {
   double origin_u_ = 0, origin_v_ = 0;
   int cols_ = 1, rows_ = 1;
   std::vector<int> start_, index_;
+  std::vector<double> u_, v_;  // the spots' positions in index_'s order
 };
 
 inline double median(std::vector<double> x) {

@@ -10,6 +10,7 @@
 
 #include "servo/pattern/palette.hpp"
 #include "servo/pattern/pattern_file.hpp"
+#include "servo/vision/decoder_support.hpp"
 
 namespace vision {
 namespace {
@@ -646,6 +647,84 @@ TEST(Segmentation, TheThreeByThreeMeanIsEachNeighbourhoodsRoundedMean) {
           ASSERT_EQ(out.at<cv::Vec3b>(v, u)[c], (sum + 4) / 9) << w << " x " << h << " at " << u << ", " << v;
         }
   }
+}
+
+
+// The foreground is weighed 16 pixels at a time and its runs read from their bit mask: the
+// same spots wherever a run starts or ends within those 16 (the image shifted by every offset
+// from 0 to 17 px gives the same spots, shifted). Spots from one pixel wide to wider than 16,
+// a width that leaves a tail of 5 pixels, a bar through the last columns (cut by the border:
+// a blob, not a spot).
+TEST(Segmentation, TheSameSpotsWhereverTheirRunsFallInTheSixteenPixelChunks) {
+  std::mt19937 rng(11);
+  struct Paint {
+    double u, v, sigma;
+    int channel;
+  };
+  std::vector<Paint> paints;
+  for (int k = 0; k < 40; ++k)
+    paints.push_back({24.0 + (k % 10) * 17.3 + (rng() % 100) / 100.0, 20.0 + (k / 10) * 18.0 + (rng() % 100) / 100.0,
+                      0.5 + (rng() % 100) / 40.0, k % 3});
+  const auto image = [&](int dx) {
+    cv::Mat rgb(96, 245, CV_8UC3, cv::Scalar(30, 30, 30));
+    for (const Paint& p : paints)
+      for (int y = 0; y < rgb.rows; ++y)
+        for (int x = 0; x < rgb.cols; ++x) {
+          const double d2 = (x - dx - p.u) * (x - dx - p.u) + (y - p.v) * (y - p.v);
+          auto& px = rgb.at<cv::Vec3b>(y, x)[p.channel];
+          px = cv::saturate_cast<std::uint8_t>(px + 200 * std::exp(-d2 / (2 * p.sigma * p.sigma)));
+        }
+    for (int y = 84; y < 90; ++y)
+      for (int x = 236; x < 245; ++x) rgb.at<cv::Vec3b>(y, x)[1] = 230;
+    return rgb;
+  };
+  // the painted spots (the bar stays where it is: the border cuts it)
+  const auto painted = [](const Segmentation& seg) {
+    Segmentation out;
+    for (const Spot& s : seg.spots)
+      if (s.u < 220) out.spots.push_back(s);
+    EXPECT_EQ(out.spots.size() + 1, seg.spots.size());
+    return out;
+  };
+  const Segmentation at0 = painted(segment_spots(image(0)));
+  ASSERT_GE(at0.spots.size(), 30u);
+  for (int dx = 1; dx <= 17; ++dx) {
+    const Segmentation shifted = painted(segment_spots(image(dx)));
+    ASSERT_EQ(shifted.spots.size(), at0.spots.size()) << "shifted by " << dx;
+    for (std::size_t i = 0; i < at0.spots.size(); ++i) {
+      EXPECT_DOUBLE_EQ(shifted.spots[i].u, at0.spots[i].u + dx) << "spot " << i << " shifted by " << dx;
+      EXPECT_DOUBLE_EQ(shifted.spots[i].v, at0.spots[i].v);
+      EXPECT_EQ(shifted.spots[i].area_px, at0.spots[i].area_px);
+      EXPECT_EQ(shifted.spots[i].colour, at0.spots[i].colour);
+    }
+  }
+}
+
+// A disc's search visits every spot within it, in the order the square of cells around it
+// would (its candidates are found in that order, so ties fall the same way), fewer others.
+TEST(SpatialGrid, ADiscVisitsItsSpotsInTheOrderOfTheSquareAroundIt) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> at(0, 300);
+  std::vector<Spot> spots(500);
+  for (Spot& s : spots) s.u = at(rng), s.v = at(rng) * 0.7;
+  const double cell = 17;
+  const decoder_support::SpatialGrid grid(spots, cell);
+  std::size_t square_visits = 0, disc_visits = 0;
+  for (int t = 0; t < 300; ++t) {
+    const double u = at(rng) - 20, v = at(rng) * 0.8 - 20, radius = 0.2 + (t % 7 == 0 ? 400 : at(rng) / 5);
+    const auto within = [&](int j) { return std::hypot(spots[j].u - u, spots[j].v - v) <= radius; };
+    std::vector<int> square, disc;
+    grid.around(u, v, static_cast<int>(std::ceil(radius / cell)) + 1, [&](int j) {
+      ++square_visits;
+      if (within(j)) square.push_back(j);
+    });
+    grid.around_disc(u, v, radius, [&](int j) {
+      ++disc_visits;
+      if (within(j)) disc.push_back(j);
+    });
+    ASSERT_EQ(disc, square) << "disc of " << radius << " at " << u << ", " << v;
+  }
+  EXPECT_LT(disc_visits, square_visits * 3 / 4);
 }
 
 }  // namespace

@@ -15,4 +15,14 @@ grep -q "^| step | " "$tmp/h/decode.md" || fail "the held-out table lacks the st
 one_line_error "an existing output folder" "exists" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2
 one_line_error "an unknown condition" "unknown" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/c" --conditions grey,shiny
 [ ! -e "$tmp/c" ] || fail "an unknown condition made its output folder"
+one_line_error "a pattern that is no file" "not a regular file" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/p" --pattern "$tmp"
+[ ! -e "$tmp/p" ] || fail "a pattern that is no file made its output folder"
+# the paper's pattern in place of the scenes': every case swept with it, the table says so
+out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/q" --poses 1 --set tuning --conditions grey \
+  --pattern "$src/servo/pattern/data/marray_20x20_k3_w3.txt" 2>&1) || fail "decode-heldout --pattern: $out"
+grep -q -- "--pattern servo/pattern/data/marray_20x20_k3_w3.txt" "$tmp/q/decode.md" || fail "the table does not name the pattern"
+# and it reaches every sweep: a file that is no pattern stops the first one, in one line
+one_line_error "a file that is no pattern" "README.md" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/r" \
+  --poses 1 --set tuning --conditions grey --pattern "$src/README.md"
+[ "$(($(wc -l <"$tmp/q/decode.csv") - 1))" -eq 6 ] || fail "not 3 scenes x 1 condition x 2 with the paper's pattern"
 echo "decode-heldout: 96 cases, the tables and the plot"

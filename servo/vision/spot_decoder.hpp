@@ -166,9 +166,11 @@ struct IdVote {
   pattern::SpotId id;
   bool repaired = false;  // from a corrected or completed window
 };
-// Each window reading votes for the id of its centre and of its 8 neighbours.
+// Each window reading votes for the id of its centre and of its 8 neighbours; a corrected one
+// only for the four cells that share neither row nor column with its misread cell (votes_for).
 void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,
                       std::vector<IdVote>& votes);
+bool votes_for(const WindowReading& r, int cell);
 
 // Step 3b, beyond the paper, with the frame's epipolar geometry: a run of `length` spots
 // linked along a row (east-west) or a column (north-south) is read as a 1 x length segment.

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "servo/pattern/marray.hpp"
@@ -169,6 +170,27 @@ inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& gr
   return spots[i].area_px < fraction * median;
 }
 
+
+// Each decoded spot whose blob is under `fraction` of the median area of the spots identified
+// around its id (two or more of the 8): a speck (a far surface's wash, noise) or a spill's
+// sliver that sits where the id's spot should be (DecoderOptions::speck_area).
+inline std::vector<char> specks(const std::vector<Spot>& spots, const std::vector<DecodedSpot>& decoded, double fraction) {
+  std::unordered_map<long long, int> area_at;  // id -> its blob's area
+  const auto key = [](int r, int c) { return (static_cast<long long>(r) << 32) ^ static_cast<unsigned>(c); };
+  for (const DecodedSpot& d : decoded) area_at[key(d.row, d.col)] = spots[d.spot].area_px;
+  std::vector<char> out(decoded.size(), 0);
+  std::vector<double> around;
+  for (std::size_t i = 0; i < decoded.size(); ++i) {
+    around.clear();
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc)
+        if (dr != 0 || dc != 0)
+          if (const auto it = area_at.find(key(decoded[i].row + dr, decoded[i].col + dc)); it != area_at.end())
+            around.push_back(it->second);
+    out[i] = around.size() >= 2 && spots[decoded[i].spot].area_px < fraction * median(around);
+  }
+  return out;
+}
 
 // the blob at least `fraction` of its source's strength and area (GrowthOptions::alike)
 inline bool alike(const Spot& source, const Spot& s, double fraction) {

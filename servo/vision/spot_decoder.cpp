@@ -103,11 +103,17 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   }
   // a spot cut by the image border helps decode its neighbours, but its centroid is not
   // where its centre is: it is not reported. Nor is a fragment, a blob far smaller than the
-  // spots linked to it: a spot cut by a depth edge or the object's silhouette
-  std::erase_if(r.decoded, [&](const DecodedSpot& d) {
+  // spots linked to it (a spot cut by a depth edge or the object's silhouette), nor a speck, far
+  // smaller than the spots identified around its id
+  const std::vector<char> speck = specks(r.detected, r.decoded, options_.speck_area);
+  std::vector<DecodedSpot> reported;
+  for (std::size_t i = 0; i < r.decoded.size(); ++i) {
+    const DecodedSpot& d = r.decoded[i];
     const bool run = d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot];
-    return r.detected[d.spot].truncated || (is_fragment(r.detected, graph, d.spot, options_.fragment_area) && !run);
-  });
+    const bool small = speck[i] || is_fragment(r.detected, graph, d.spot, options_.fragment_area);
+    if (!r.detected[d.spot].truncated && (!small || run)) reported.push_back(d);
+  }
+  r.decoded = std::move(reported);
   r.graph = std::move(graph);
   r.hoods = std::move(hoods);
   return r;

@@ -4,11 +4,11 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
-#include <unordered_map>
 #include <vector>
 
 #include "servo/pattern/marray.hpp"
@@ -175,19 +175,25 @@ inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& gr
 // around its id (two or more of the 8): a speck (a far surface's wash, noise) or a spill's
 // sliver that sits where the id's spot should be (DecoderOptions::speck_area).
 inline std::vector<char> specks(const std::vector<Spot>& spots, const std::vector<DecodedSpot>& decoded, double fraction) {
-  std::unordered_map<long long, int> area_at;  // id -> its blob's area
-  const auto key = [](int r, int c) { return (static_cast<long long>(r) << 32) ^ static_cast<unsigned>(c); };
-  for (const DecodedSpot& d : decoded) area_at[key(d.row, d.col)] = spots[d.spot].area_px;
   std::vector<char> out(decoded.size(), 0);
-  std::vector<double> around;
+  if (decoded.empty()) return out;
+  // each id's blob area on a grid one id wider than the ids on every side (-1: not identified)
+  int rows = 0, cols = 0;
+  for (const DecodedSpot& d : decoded) rows = std::max(rows, d.row + 1), cols = std::max(cols, d.col + 1);
+  const int w = cols + 2;
+  std::vector<int> area_at(static_cast<std::size_t>(rows + 2) * w, -1);
+  const auto at = [&](int r, int c) -> int& { return area_at[static_cast<std::size_t>(r + 1) * w + c + 1]; };
+  for (const DecodedSpot& d : decoded) at(d.row, d.col) = spots[d.spot].area_px;
   for (std::size_t i = 0; i < decoded.size(); ++i) {
-    around.clear();
+    std::array<int, 8> around{};
+    int n = 0;
     for (int dr = -1; dr <= 1; ++dr)
       for (int dc = -1; dc <= 1; ++dc)
-        if (dr != 0 || dc != 0)
-          if (const auto it = area_at.find(key(decoded[i].row + dr, decoded[i].col + dc)); it != area_at.end())
-            around.push_back(it->second);
-    out[i] = around.size() >= 2 && spots[decoded[i].spot].area_px < fraction * median(around);
+        if (const int a = at(decoded[i].row + dr, decoded[i].col + dc); (dr != 0 || dc != 0) && a >= 0) around[n++] = a;
+    if (n < 2) continue;
+    // at most 8, on the stack (a frame has hundreds); the upper middle one, as median()
+    std::nth_element(around.begin(), around.begin() + n / 2, around.begin() + n);
+    out[i] = spots[decoded[i].spot].area_px < fraction * around[n / 2];
   }
   return out;
 }

@@ -764,14 +764,14 @@ TEST(DecodedSpots, ASpeckWhereAnIdsSpotShouldBeIsFlaggedAFewNeighboursJudgeNothi
     spots[i].area_px = 60 + i;
     decoded.push_back({4 + i / 3, 4 + i % 3, 0, 0, i});
   }
-  spots[4].area_px = 11;  // the centre: 11 px against a median of 64.5
+  spots[4].area_px = 11;  // the centre: 11 px against a median of 65 (the upper middle of 8)
   spots[9].area_px = 5;   // (8, 8): no identified spot around it: not judged
   decoded.push_back({8, 8, 0, 0, 9});
   spots[10].area_px = 5;  // (2, 3): none around it either
   decoded.push_back({2, 3, 0, 0, 10});
   std::vector<char> flagged = decoder_support::specks(spots, decoded, 0.2);
   EXPECT_EQ(flagged, (std::vector<char>{0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0}));
-  spots[4].area_px = 13;  // a fifth of 64.5 is 12.9: a small spot, not a speck
+  spots[4].area_px = 13;  // a fifth of 65: a small spot, not a speck
   EXPECT_EQ(decoder_support::specks(spots, decoded, 0.2)[4], 0);
   // (3, 5), above the lattice's first row: (4, 4), (4, 5) and (4, 6) judge it
   spots[11].area_px = 10;

@@ -171,33 +171,6 @@ inline bool is_fragment(const std::vector<Spot>& spots, const AdjacencyGraph& gr
 }
 
 
-// Each decoded spot whose blob is under `fraction` of the median area of the spots identified
-// around its id (two or more of the 8): a speck (a far surface's wash, noise) or a spill's
-// sliver that sits where the id's spot should be (DecoderOptions::speck_area).
-inline std::vector<char> specks(const std::vector<Spot>& spots, const std::vector<DecodedSpot>& decoded, double fraction) {
-  std::vector<char> out(decoded.size(), 0);
-  if (decoded.empty()) return out;
-  // each id's blob area on a grid one id wider than the ids on every side (-1: not identified)
-  int rows = 0, cols = 0;
-  for (const DecodedSpot& d : decoded) rows = std::max(rows, d.row + 1), cols = std::max(cols, d.col + 1);
-  const int w = cols + 2;
-  std::vector<int> area_at(static_cast<std::size_t>(rows + 2) * w, -1);
-  const auto at = [&](int r, int c) -> int& { return area_at[static_cast<std::size_t>(r + 1) * w + c + 1]; };
-  for (const DecodedSpot& d : decoded) at(d.row, d.col) = spots[d.spot].area_px;
-  for (std::size_t i = 0; i < decoded.size(); ++i) {
-    std::array<int, 8> around{};
-    int n = 0;
-    for (int dr = -1; dr <= 1; ++dr)
-      for (int dc = -1; dc <= 1; ++dc)
-        if (const int a = at(decoded[i].row + dr, decoded[i].col + dc); (dr != 0 || dc != 0) && a >= 0) around[n++] = a;
-    if (n < 2) continue;
-    // at most 8, on the stack (a frame has hundreds); the upper middle one, as median()
-    std::nth_element(around.begin(), around.begin() + n / 2, around.begin() + n);
-    out[i] = spots[decoded[i].spot].area_px < fraction * around[n / 2];
-  }
-  return out;
-}
-
 // the blob at least `fraction` of its source's strength and area (GrowthOptions::alike)
 inline bool alike(const Spot& source, const Spot& s, double fraction) {
   return s.strength >= fraction * source.strength && s.area_px >= fraction * source.area_px;
@@ -228,6 +201,27 @@ class IdMap {
   std::vector<int> owner_;  // id -> spot
   std::vector<int> at_;     // spot -> index in decoded
 };
+
+// Each decoded spot whose blob is under `fraction` of the median area of the spots identified
+// around its id (two or more of the 8): a speck (a far surface's wash, noise) or a spill's
+// sliver that sits where the id's spot should be (DecoderOptions::speck_area).
+inline std::vector<char> specks(const std::vector<Spot>& spots, const std::vector<DecodedSpot>& decoded,
+                                const pattern::MArray& pattern, double fraction) {
+  const IdMap ids(pattern, spots.size(), decoded);
+  std::vector<char> out(decoded.size(), 0);
+  for (std::size_t i = 0; i < decoded.size(); ++i) {
+    std::array<int, 8> around{};  // at most 8, on the stack: a frame has hundreds
+    int n = 0;
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc)
+        if (const int j = ids.spot_at(decoded[i].row + dr, decoded[i].col + dc); (dr != 0 || dc != 0) && j >= 0)
+          around[n++] = spots[j].area_px;
+    if (n < 2) continue;
+    std::nth_element(around.begin(), around.begin() + n / 2, around.begin() + n);  // the upper middle, as median()
+    out[i] = spots[decoded[i].spot].area_px < fraction * around[n / 2];
+  }
+  return out;
+}
 
 // Spot j may take id X: the pattern has its colour at X, it lies on X's epipolar line, and no
 // free id around X (`taken(row, col)` false) fits it as well: a step that skipped a missing

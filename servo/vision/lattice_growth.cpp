@@ -111,8 +111,10 @@ class Lattice {
     // every one of them off by a whole step
     const bool pinned = p.sources >= o_.pinned_sources && p.direct >= 2 && p.off <= o_.tight_slack;
     const auto taken = [&](int rr, int cc) { return ids_.taken(rr, cc); };
-    return !ids_.taken(p.id.row, p.id.col) && check_.confirms_grown(static_cast<int>(j), p.id) &&
-           (pinned || only_fitting_id(spots_, static_cast<int>(j), p.id, check_, pattern_, taken)) &&
+    // (only_fitting_id holds the blob to the grown limit; a pinned one is held to it here)
+    return !ids_.taken(p.id.row, p.id.col) &&
+           (pinned ? check_.confirms_grown(static_cast<int>(j), p.id)
+                   : only_fitting_id(spots_, static_cast<int>(j), p.id, check_, pattern_, taken)) &&
            nearest_free_line(spots_, static_cast<int>(j), p.id, check_, pattern_, taken);
   }
 

@@ -105,7 +105,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   // where its centre is: it is not reported. Nor is a fragment, a blob far smaller than the
   // spots linked to it (a spot cut by a depth edge or the object's silhouette), nor a speck, far
   // smaller than the spots identified around its id
-  const std::vector<char> speck = specks(r.detected, r.decoded, options_.speck_area);
+  const std::vector<char> speck = specks(r.detected, r.decoded, table_.array(), options_.speck_area);
   std::vector<DecodedSpot> reported;
   for (std::size_t i = 0; i < r.decoded.size(); ++i) {
     const DecodedSpot& d = r.decoded[i];

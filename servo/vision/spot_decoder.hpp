@@ -386,7 +386,8 @@ struct DecoderOptions {
   // wall's wash speck of the right colour where the ham's next row would lie was named by the
   // row's windows (5 px against their 60-100: 4 wrong ids in 3000 uncalibrated ham poses, each
   // the same place). Under 0.2 on the 72 tuning sweeps of 1000 poses: of the right ids 0 on
-  // the ham, at most 11 of 120 000 on the cylinder; 15-25 % of the ham's spills; the 4 wrong ids.
+  // the ham, at most 11 of 120 000 on the cylinder; 3-23 % of the ham's spills; 3 of the 4
+  // wrong ids (the fourth remains).
   double speck_area = 0.2;
   CellShape cell_shape;
   EpipolarOptions epipolar;  // used when decode() is given the frame's geometry

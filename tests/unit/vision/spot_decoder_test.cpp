@@ -769,14 +769,14 @@ TEST(DecodedSpots, ASpeckWhereAnIdsSpotShouldBeIsFlaggedAFewNeighboursJudgeNothi
   decoded.push_back({8, 8, 0, 0, 9});
   spots[10].area_px = 5;  // (2, 3): none around it either
   decoded.push_back({2, 3, 0, 0, 10});
-  std::vector<char> flagged = decoder_support::specks(spots, decoded, 0.2);
+  std::vector<char> flagged = decoder_support::specks(spots, decoded, paper_pattern(), 0.2);
   EXPECT_EQ(flagged, (std::vector<char>{0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0}));
   spots[4].area_px = 13;  // a fifth of 65: a small spot, not a speck
-  EXPECT_EQ(decoder_support::specks(spots, decoded, 0.2)[4], 0);
+  EXPECT_EQ(decoder_support::specks(spots, decoded, paper_pattern(), 0.2)[4], 0);
   // (3, 5), above the lattice's first row: (4, 4), (4, 5) and (4, 6) judge it
   spots[11].area_px = 10;
   decoded.push_back({3, 5, 0, 0, 11});
-  EXPECT_EQ(decoder_support::specks(spots, decoded, 0.2).back(), 1);
+  EXPECT_EQ(decoder_support::specks(spots, decoded, paper_pattern(), 0.2).back(), 1);
 }
 
 }  // namespace

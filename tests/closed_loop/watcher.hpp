@@ -4,11 +4,15 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
 #include <optional>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -54,10 +58,13 @@ inline int unique_domain(int salt) {
   return 20 + start;
 }
 
+// A fresh folder of the test's own (mkdtemp). Named by the process id, a folder an earlier run
+// left behind came back when the system reused that id: its FIFO made the hostile-loads test
+// fail at once (mkfifo: it exists), 1 run of the suite in several.
 inline std::string tmp_dir(const std::string& name) {
-  const auto d = std::filesystem::temp_directory_path() / ("dds_loop_" + std::to_string(getpid()) + "_" + name);
-  std::filesystem::create_directories(d);
-  return d.string();
+  std::string d = (std::filesystem::temp_directory_path() / ("dds_loop_" + name + "_XXXXXX")).string();
+  if (::mkdtemp(d.data()) == nullptr) throw std::runtime_error("mkdtemp " + d + ": " + std::strerror(errno));
+  return d;
 }
 
 // What the test hears on the cell's topics.

@@ -46,8 +46,8 @@ struct Claim {
 class Lattice {
  public:
   Lattice(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
-          const SpatialGrid& near, const GrowthOptions& options)
-      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), o_(options) {}
+          const SpatialGrid& near, const GrowthOptions& options, std::vector<GrowthOutcome>* outcomes)
+      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), o_(options), outcomes_(outcomes) {}
 
   // The lattice step (dr, dc) at the identified spot (r, c), from identified spots only: ahead
   // of it, behind it, or beside it (the next row or column), the nearest first.
@@ -94,28 +94,30 @@ class Lattice {
       }
   }
 
-  // Whether blob j takes the id most sources claim.
-  bool names(std::size_t j, const Proposal& pr, int min_sources) const {
+  // Whether blob j takes the id most sources claim (kNamed), or why not.
+  GrowthOutcome judge(std::size_t j, const Proposal& pr, int min_sources) const {
+    using G = GrowthOutcome;
     if (pr.third || pr.second.sources > 1 || (pr.second.sources == 1 && pr.first.sources < 1 + o_.majority))
-      return false;
+      return G::kDissent;
     const Claims& p = pr.first;
-    if (p.direct < 1) return false;
+    if (p.direct < 1) return G::kNoDirectSource;
     const bool on_line = p.direct == 1 && p.aside <= o_.on_line_aside && p.along >= o_.on_line_shortest &&
                          p.along <= o_.on_line_longest && p.corner_off <= o_.slack;
     const bool one_short = p.sources >= 2 && p.sources + 1 == min_sources && (p.off <= o_.tight_slack || on_line);
-    if (p.sources < min_sources && !one_short) return false;
-    if ((p.direct == 1 || one_short) && !looks_like_sources(spots_[j], p, one_short)) return false;
+    if (p.sources < min_sources && !one_short) return G::kFewSources;
+    if ((p.direct == 1 || one_short) && !looks_like_sources(spots_[j], p, one_short)) return G::kUnlikeSources;
     // the lattice itself names the blob when three sources, two of them row or column
     // neighbours, all land within o_.tight_slack of it: then an id beside that the blob could
     // also carry (its colour, on the same epipolar line, a row's neighbour mostly) would need
     // every one of them off by a whole step
     const bool pinned = p.sources >= o_.pinned_sources && p.direct >= 2 && p.off <= o_.tight_slack;
     const auto taken = [&](int rr, int cc) { return ids_.taken(rr, cc); };
-    // (only_fitting_id holds the blob to the grown limit; a pinned one is held to it here)
-    return !ids_.taken(p.id.row, p.id.col) &&
-           (pinned ? check_.confirms_grown(static_cast<int>(j), p.id)
-                   : only_fitting_id(spots_, static_cast<int>(j), p.id, check_, pattern_, taken)) &&
-           nearest_free_line(spots_, static_cast<int>(j), p.id, check_, pattern_, taken);
+    const int b = static_cast<int>(j);
+    if (ids_.taken(p.id.row, p.id.col)) return G::kTaken;
+    if (!check_.confirms_grown(b, p.id)) return G::kResidual;
+    if (!pinned && !only_fitting_id(spots_, b, p.id, check_, pattern_, taken)) return G::kNeighbourFits;
+    if (!nearest_free_line(spots_, b, p.id, check_, pattern_, taken)) return G::kNearerLine;
+    return G::kNamed;
   }
 
  private:
@@ -129,16 +131,19 @@ class Lattice {
       if (du * du + dv * dv <= best) best = du * du + dv * dv, found = j;
     });
     const Spot& source = spots_[from.spot];
-    if (found < 0 || ids_.index_of(found) >= 0 || spots_[found].truncated || !alike(source, spots_[found], o_.alike) ||
-        spots_[found].area_px > o_.largest * source.area_px)
-      return;
+    if (found < 0 || ids_.index_of(found) >= 0) return;
     // a claim the blob cannot carry (another colour, off the id's epipolar line) is no claim:
     // across a depth edge a source's steps reach onto the other surface's spots. One it could
     // carry (within the tolerance) counts, as a vote or as a dissent; only the id named must lie
-    // within the frame's grown limit (names). Gated at the limit, a dissent the tolerance allows
+    // within the frame's grown limit (judge). Gated at the limit, a dissent the tolerance allows
     // went unheard: on 72 tuning sweeps of 1000 poses the dark ham's wrong ids from 4 to 1, the
     // same ids elsewhere but 0.1 points fewer in 4 sweeps.
-    if (!(pattern_.at(id.row, id.col) == spots_[found].colour && check_.confirms(found, id))) return;
+    if (spots_[found].truncated || !alike(source, spots_[found], o_.alike) ||
+        spots_[found].area_px > o_.largest * source.area_px ||
+        !(pattern_.at(id.row, id.col) == spots_[found].colour && check_.confirms(found, id))) {
+      if (outcomes_ && (*outcomes_)[found] == GrowthOutcome::kUnclaimed) (*outcomes_)[found] = GrowthOutcome::kUnlikeClaim;
+      return;
+    }
     const double xu = pu - source.u, xv = pv - source.v;
     const double bu = spots_[found].u - source.u, bv = spots_[found].v - source.v;
     const double x2 = xu * xu + xv * xv;
@@ -157,6 +162,7 @@ class Lattice {
   const IdMap& ids_;
   const SpatialGrid& near_;
   const GrowthOptions& o_;
+  std::vector<GrowthOutcome>* const outcomes_;  // where a refused claim is noted (optional)
 };
 
 // A source's claim into the proposals on its blob.
@@ -184,13 +190,18 @@ void tally(const Claim& claim, const Spot& source, std::vector<Proposal>& propos
 
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                       const EpipolarCheck& check, const pattern::MArray& pattern,
-                                      std::vector<DecodedSpot> decoded, int min_sources, const GrowthOptions& options) {
+                                      std::vector<DecodedSpot> decoded, int min_sources, const GrowthOptions& options,
+                                      std::vector<GrowthOutcome>* outcomes) {
   const std::size_t n = spots.size();
+  if (outcomes) {
+    outcomes->assign(n, GrowthOutcome::kUnclaimed);
+    for (const DecodedSpot& d : decoded) (*outcomes)[d.spot] = GrowthOutcome::kNamed;
+  }
   if (decoded.empty() || n < 2) return decoded;
   IdMap ids(pattern, n, decoded);
   const std::optional<SpatialGrid> near = lattice_grid(spots, graph);
   if (!near) return decoded;
-  const Lattice lattice(spots, check, pattern, ids, *near, options);
+  const Lattice lattice(spots, check, pattern, ids, *near, options, outcomes);
   std::vector<Proposal> proposals(n);
   // A source's claims depend only on the ids within one step of it, so they are recomputed
   // only for sources new or next to an id named in the round before (two steps, for margin);
@@ -215,7 +226,10 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
     for (std::size_t j = 0; j < n; ++j) {
       Proposal& pr = proposals[j];
       if (pr.second.sources > pr.first.sources) std::swap(pr.first, pr.second);
-      if (!lattice.names(j, pr, min_sources)) continue;
+      if (pr.first.sources == 0) continue;
+      const GrowthOutcome outcome = lattice.judge(j, pr, min_sources);
+      if (outcomes) (*outcomes)[j] = outcome;
+      if (outcome != GrowthOutcome::kNamed) continue;
       decoded.push_back({pr.first.id.row, pr.first.id.col, spots[j].u, spots[j].v, static_cast<int>(j), NamedBy::kLattice});
       ids.add(decoded.back(), static_cast<int>(decoded.size()) - 1);
       named.push_back(pr.first.id);

@@ -79,10 +79,12 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     epipolar->set_grown_limit(r.decoded, e.grown_limit);
     if (e.propagate) propagate();
     if (e.grow) {
-      r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources, e.growth);
+      r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources, e.growth,
+                               &r.growth);
       islands();
       if (e.edge_runs) {
         join_slivers(slivers, *geometry, r.detected, graph, hoods, *epipolar, n);
+        r.growth.resize(r.detected.size(), GrowthOutcome::kUnclaimed);  // the slivers step 7 never saw
         r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run, e.edge_run,
                                    e.growth);
         islands();

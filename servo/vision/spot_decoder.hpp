@@ -26,6 +26,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <vector>
@@ -286,16 +287,35 @@ struct EdgeRunOptions {
   int gaps = 1;
 };
 
+// What step 7 made of a blob (DecodeResult::growth): named, or, from its last round of claims,
+// why not. decode-sweep counts the readable spots it misses by these.
+enum class GrowthOutcome : std::uint8_t {
+  kUnclaimed = 0,   // no source's prediction landed on it
+  kNamed,           // identified before step 7 or by it
+  kUnlikeClaim,     // a prediction landed on it, but it is unlike the source (`alike`, `largest`),
+                    // cut by the image border, or off the claimed id's colour or line
+  kDissent,         // sources claim another id too (GrowthOptions::majority)
+  kNoDirectSource,  // no row or column neighbour among its sources
+  kFewSources,      // fewer than `min_sources` (and not one short on a tight prediction)
+  kUnlikeSources,   // named from one row or column neighbour, or one short: unlike its sources
+  kTaken,           // another spot has the claimed id
+  kResidual,        // off the claimed id's line by more than the frame's grown limit
+  kNeighbourFits,   // an id around the claimed one fits it too (and the lattice does not pin it)
+  kNearerLine,      // another free id's line runs nearer it
+};
+
 // Step 7, beyond the paper. The lattice grown from the identified region where the graph has
 // no link: from every identified spot, the lattice's steps (from identified neighbours) predict
 // where each of the 8 ids around it lies; the spot found there (within 0.45 of a step) takes
 // the id when `min_sources` identified spots predict it there (one of them a row or column
 // neighbour), none predicts another id, and colour, epipolar line and uniqueness pass as in
 // step 6. The links the grown lattice found are added to `graph` where both ends had none.
+// `outcomes` (optional): each spot's GrowthOutcome.
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                       const EpipolarCheck& check, const pattern::MArray& pattern,
                                       std::vector<DecodedSpot> decoded, int min_sources = 3,
-                                      const GrowthOptions& options = {});
+                                      const GrowthOptions& options = {},
+                                      std::vector<GrowthOutcome>* outcomes = nullptr);
 
 // Step 8, beyond the paper. Runs along an edge: beyond an identified line of spots (a column
 // before the cylinder's silhouette), the next line is foreshortened to slivers, closer than a
@@ -400,6 +420,8 @@ struct DecodeResult {
   AdjacencyGraph graph;
   Neighbourhoods hoods;
   int readings = 0;  // windows read (step 3)
+  // step 7's outcome for each detected spot (empty when step 7 did not run: no calibration)
+  std::vector<GrowthOutcome> growth;
   int rejected_blobs = 0;
 };
 

@@ -204,7 +204,10 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
               "links right, %d with their whole window right after the graph check, %d identified\n",
               s.total_readable_segmented, s.total_readable_linked, s.total_readable_windowed,
               s.total_correct_readable);
-  std::printf("  decode time median %.2f ms, p99 %.2f ms\n", s.median_ms, s.p99_ms);
+  std::printf("  why the segmented readable spots without an id have none:");
+  for (int c = 0; c < experiment::kLossCauses; ++c)
+    if (s.total_lost[c] > 0) std::printf(" %s %d", experiment::kLossCauseNames[c] + 5, s.total_lost[c]);  // less "lost_"
+  std::printf("\n  decode time median %.2f ms, p99 %.2f ms\n", s.median_ms, s.p99_ms);
   if (!o.out_dir.empty()) std::printf("  per-pose table: %s\n", (o.out_dir / "sweep.csv").c_str());
   return s.total_wrong == 0 ? common::exit_code::kDone : common::exit_code::kWrongIds;
 }

@@ -131,10 +131,49 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
   return right;
 }
 
+static_assert(kLostNearerLine - kLostUnlikeClaim ==
+                  static_cast<int>(vision::GrowthOutcome::kNearerLine) - static_cast<int>(vision::GrowthOutcome::kUnlikeClaim),
+              "LossCause lists step 7's refusals in GrowthOutcome's order");
+
+// Why each readable spot segmented as blob `blob_of[i]` has no right id (LossCause).
+void count_losses(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, const std::vector<char>& readable,
+                  const std::vector<char>& right, const std::vector<int>& blob_of) {
+  using vision::GrowthOutcome;
+  std::vector<char> named(r.detected.size(), 0), identified(truth.spots.size(), 0);
+  for (const auto& d : r.decoded) {
+    named[static_cast<std::size_t>(d.spot)] = 1;
+    identified[static_cast<std::size_t>(d.row) * truth.cols + d.col] = 1;
+  }
+  const auto alone = [&](int i) {  // no identified spot among its 8 pattern neighbours
+    const int pr = i / truth.cols, pc = i % truth.cols;
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int rr = pr + dr, cc = pc + dc;
+        if ((dr != 0 || dc != 0) && rr >= 0 && cc >= 0 && rr < truth.rows && cc < truth.cols &&
+            identified[static_cast<std::size_t>(rr) * truth.cols + cc])
+          return false;
+      }
+    return true;
+  };
+  for (std::size_t i = 0; i < truth.spots.size(); ++i) {
+    const int b = blob_of[i];
+    if (!readable[i] || b < 0 || right[i]) continue;
+    LossCause cause = kLostUnclaimed;
+    if (named[b]) cause = kLostOtherId;
+    else if (r.detected[b].truncated) cause = kLostBorder;
+    else if (r.growth.size() != r.detected.size()) cause = kLostNoGrowth;
+    else if (const GrowthOutcome g = r.growth[b]; g == GrowthOutcome::kNamed) cause = kLostDropped;
+    else if (g >= GrowthOutcome::kUnlikeClaim && g <= GrowthOutcome::kNearerLine)  // the refusals, in order
+      cause = static_cast<LossCause>(kLostUnlikeClaim + (static_cast<int>(g) - static_cast<int>(GrowthOutcome::kUnlikeClaim)));
+    else if (alone(static_cast<int>(i))) cause = kLostAlone;
+    ++row.lost[cause];
+  }
+}
+
 // Where the readable spots are lost: segmented as a blob of their colour, all four links
-// right, the whole window right after the graph check.
+// right, the whole window right after the graph check; and why a segmented one has no id.
 void loss_funnel(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, const pattern::MArray& pattern,
-                 const std::vector<char>& readable, double tolerance_px) {
+                 const std::vector<char>& readable, const std::vector<char>& right, double tolerance_px) {
   const int cols = truth.cols, rows_n = truth.rows;
   // each detected blob's true id (the visible spot within the tolerance)
   std::vector<int> blob_of(truth.spots.size(), -1);
@@ -170,6 +209,7 @@ void loss_funnel(SweepRow& row, const vision::DecodeResult& r, const FrameTruth&
     }
     row.readable_windowed += windowed;
   }
+  count_losses(row, r, truth, readable, right, blob_of);
 }
 
 // The rows' totals and mean rates, and the decode time's median and 99th percentile.
@@ -189,6 +229,7 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     s.total_readable_segmented += r.readable_segmented;
     s.total_readable_linked += r.readable_linked;
     s.total_readable_windowed += r.readable_windowed;
+    for (int c = 0; c < kLossCauses; ++c) s.total_lost[c] += r.lost[c];
     if (r.readable > 0) {
       readable_rate_sum += static_cast<double>(r.correct_readable) / r.readable;
       ++rated_readable;
@@ -250,7 +291,9 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
   csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
          "partial,"
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
-         "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart\n";
+         "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart";
+  for (const char* cause : kLossCauseNames) csv << ',' << cause;
+  csv << '\n';
   for (const auto& r : rows) {
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
@@ -258,7 +301,9 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
         << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
         << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
         << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
-        << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart << '\n';
+        << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart;
+    for (const int n : r.lost) csv << ',' << n;
+    csv << '\n';
   }
 }
 
@@ -317,7 +362,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       row.decoded = static_cast<int>(r.decoded.size());
       wrong.clear();
       const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, wrong);
-      loss_funnel(row, r, truth, pattern, readable, o.match_tolerance_px);
+      loss_funnel(row, r, truth, pattern, readable, right, o.match_tolerance_px);
       for (std::size_t i = 0; i < spots.size(); ++i) {
         row.decodable += decodable[i];
         row.correct_decodable += decodable[i] && right[i];

@@ -1,6 +1,7 @@
 // Decoder accuracy against the simulator's ground truth, over random poses and noise levels.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -27,6 +28,23 @@ struct SweepOptions {
   // per axis, at least 2 cm / 2 deg); issue 19 widens it to find rare wrong ids
   std::optional<double> max_translation_cm, max_rotation_deg;
 };
+
+// Why a readable spot segmented as a blob of its colour was not identified (the first that
+// applies): its blob named another id; cut by the image border (never reported); no step 7
+// (no calibration); named, then dropped (step 5's islands after step 7, or the report's
+// fragment and speck tests); step 7's refusal (vision::GrowthOutcome); no identified spot
+// among its 8 pattern neighbours; none of their predictions landed on it.
+enum LossCause {
+  kLostOtherId, kLostBorder, kLostNoGrowth, kLostDropped, kLostUnlikeClaim, kLostDissent, kLostNoDirectSource,
+  kLostFewSources, kLostUnlikeSources, kLostTaken, kLostResidual, kLostNeighbourFits, kLostNearerLine, kLostAlone,
+  kLostUnclaimed, kLossCauses
+};
+// the CSV column of each cause
+inline constexpr std::array<const char*, kLossCauses> kLossCauseNames{
+    "lost_other_id",     "lost_border",      "lost_no_growth",     "lost_dropped",
+    "lost_unlike_claim", "lost_dissent",     "lost_no_direct",     "lost_few_sources",
+    "lost_unlike_sources", "lost_taken",     "lost_residual",      "lost_neighbour_fits",
+    "lost_nearer_line",  "lost_alone",       "lost_unclaimed"};
 
 struct SweepRow {
   int pose = 0;
@@ -59,6 +77,8 @@ struct SweepRow {
   // columns crowd together in the image: the projector's focus leaves them spots, the camera's
   // own sampling merges them (on the cylinder, half the readable spots the decoder misses)
   int readable_apart = 0, correct_readable_apart = 0;
+  // why each readable spot segmented as a blob of its colour has no id (LossCause order)
+  std::array<int, kLossCauses> lost{};
   double decode_ms = 0;
 };
 
@@ -70,6 +90,7 @@ struct SweepSummary {
   int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;
   int total_readable_one_object = 0, total_correct_readable_one_object = 0;
   int total_readable_apart = 0, total_correct_readable_apart = 0;
+  std::array<int, kLossCauses> total_lost{};
   double mean_rate = 0, min_rate = 1;
   double mean_decodable_rate = 0;  // mean over poses of correct_decodable / decodable
   double mean_readable_rate = 0;   // mean over poses of correct_readable / readable

@@ -38,8 +38,8 @@ one_line_error "corrupt mesh" "broken.obj: line 3: face corner '7' refers to no 
 out=$("$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 4 -o "$tmp/sweep") || fail "decode-sweep: $out"
 grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no decodable rate: $out"
-head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart$" ||
-  fail "sweep.csv lacks the decodable columns"
+head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart,lost_other_id,lost_border,lost_no_growth,lost_dropped,lost_unlike_claim,lost_dissent,lost_no_direct,lost_few_sources,lost_unlike_sources,lost_taken,lost_residual,lost_neighbour_fits,lost_nearer_line,lost_alone,lost_unclaimed$" ||
+  fail "sweep.csv lacks the decodable and loss columns"
 grep -q "against the readable spots" <<<"$out" || fail "no readable rate: $out"
 grep -q "against the readable spots apart in the image (.*): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no rate against the readable spots apart in the image: $out"
@@ -52,6 +52,12 @@ cal=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6 --pro
   fail "sweep with calibration (wrong ids?): $cal"
 [ "$(count "$cal")" -gt "$(count "$plain")" ] || fail "calibration decoded $(count "$cal"), without $(count "$plain")"
 grep -q "wrong ids 0," <<<"$cal" || fail "wrong ids with the calibration: $cal"
+# why the segmented readable spots have no id: without the calibration no step 7 ran; with it,
+# its refusals are named
+grep -q "why the segmented readable spots without an id have none:.* no_growth [0-9]" <<<"$plain" ||
+  fail "no loss causes without the calibration: $plain"
+grep -q "why the segmented readable spots without an id have none:" <<<"$cal" &&
+  ! grep -q "no_growth" <<<"$cal" || fail "loss causes with the calibration: $cal"
 printf 'fx: 1500\n' > "$tmp/badcal.yaml"
 one_line_error "sweep calibration" "fy: missing" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 1 --projector "$tmp/badcal.yaml"
 echo "cellsim render: all checks passed"

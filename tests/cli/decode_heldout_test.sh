@@ -12,6 +12,10 @@ rows=$(($(wc -l <"$tmp/h/decode.csv") - 1))
 [ "$rows" -eq 96 ] || fail "$rows cases in decode.csv, not 8 scenes x 6 conditions x 2"
 grep -q "^heldout,box,printed," "$tmp/h/decode.csv" || fail "no printed box: $(head -3 "$tmp/h/decode.csv")"
 grep -q "^| step | " "$tmp/h/decode.md" || fail "the held-out table lacks the step: $(cat "$tmp/h/decode.md")"
+# why the segmented readable spots have no id: the causes in the CSV, both tables in the markdown
+head -1 "$tmp/h/decode.csv" | grep -q ",lost_border,.*,lost_nearer_line" || fail "decode.csv lacks the loss causes"
+grep -q "^| set | shape | no id | border | dropped |" "$tmp/h/decode.md" && grep -q "| nearer line |" "$tmp/h/decode.md" ||
+  fail "decode.md lacks the loss tables: $(cat "$tmp/h/decode.md")"
 one_line_error "an existing output folder" "exists" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2
 one_line_error "an unknown condition" "unknown" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/c" --conditions grey,shiny
 [ ! -e "$tmp/c" ] || fail "an unknown condition made its output folder"

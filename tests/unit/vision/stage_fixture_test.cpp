@@ -183,6 +183,18 @@ TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
   EXPECT_EQ(wrong_ids(f, r.decoded), 0);
   EXPECT_GT(grown, 10);  // the lattice still grows
   EXPECT_GT(r.decoded.size(), 170U);
+  // step 7's word on each blob (what decode-sweep counts its misses by): one per detected blob,
+  // the frame's sliver joined after step 7 too; the named ones named, and the wall's spot
+  // refused for the nearer line
+  ASSERT_EQ(r.growth.size(), r.detected.size());
+  for (const DecodedSpot& d : r.decoded)
+    if (d.by == NamedBy::kWindows || d.by == NamedBy::kLattice)
+      EXPECT_EQ(r.growth[static_cast<std::size_t>(d.spot)], GrowthOutcome::kNamed) << d.row << ',' << d.col;
+  std::size_t wall = r.detected.size();
+  for (std::size_t i = 0; i < r.detected.size(); ++i)
+    if (std::hypot(r.detected[i].u - 313.47, r.detected[i].v - 230.27) < 1) wall = i;
+  ASSERT_LT(wall, r.detected.size());
+  EXPECT_EQ(r.growth[wall], GrowthOutcome::kNearerLine);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // any outside client, domains and folders of the test's own, and the servo's command line.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -14,6 +15,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -58,12 +60,29 @@ inline int unique_domain(int salt) {
   return 20 + start;
 }
 
+// The folders tmp_dir made, removed when every test the program ran passed; a failed run keeps
+// them, with the services' logs (a suite's run left some 30 behind in the temporary directory).
+struct TmpDirs : ::testing::Environment {
+  std::mutex m;
+  std::vector<std::string> made;
+  void TearDown() override {
+    if (!::testing::UnitTest::GetInstance()->Passed()) return;
+    std::lock_guard<std::mutex> l(m);
+    std::error_code ignored;  // a folder already gone is no error
+    for (const std::string& d : made) std::filesystem::remove_all(d, ignored);
+  }
+};
+// registered at namespace scope, as googletest allows: torn down after the last test
+inline TmpDirs* const kTmpDirs = static_cast<TmpDirs*>(::testing::AddGlobalTestEnvironment(new TmpDirs));
+
 // A fresh folder of the test's own (mkdtemp). Named by the process id, a folder an earlier run
 // left behind came back when the system reused that id: its FIFO made the hostile-loads test
 // fail at once (mkfifo: it exists), 1 run of the suite in several.
 inline std::string tmp_dir(const std::string& name) {
   std::string d = (std::filesystem::temp_directory_path() / ("dds_loop_" + name + "_XXXXXX")).string();
   if (::mkdtemp(d.data()) == nullptr) throw std::runtime_error("mkdtemp " + d + ": " + std::strerror(errno));
+  std::lock_guard<std::mutex> l(kTmpDirs->m);
+  kTmpDirs->made.push_back(d);
   return d;
 }
 

@@ -114,8 +114,10 @@ class Lattice {
     const auto taken = [&](int rr, int cc) { return ids_.taken(rr, cc); };
     const int b = static_cast<int>(j);
     if (ids_.taken(p.id.row, p.id.col)) return G::kTaken;
-    if (!check_.confirms_grown(b, p.id)) return G::kResidual;
-    if (!pinned && !only_fitting_id(spots_, b, p.id, check_, pattern_, taken)) return G::kNeighbourFits;
+    // (only_fitting_id holds the blob to the grown limit too: which of the two refused it is
+    // asked only when one did)
+    if (pinned ? !check_.confirms_grown(b, p.id) : !only_fitting_id(spots_, b, p.id, check_, pattern_, taken))
+      return check_.confirms_grown(b, p.id) ? G::kNeighbourFits : G::kResidual;
     if (!nearest_free_line(spots_, b, p.id, check_, pattern_, taken)) return G::kNearerLine;
     return G::kNamed;
   }

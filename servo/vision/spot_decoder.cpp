@@ -36,6 +36,25 @@ void join_slivers(const std::vector<Spot>& slivers, const EpipolarGeometry& geom
   }
 }
 
+// The spots reported of those decoded. A spot cut by the image border helps decode its
+// neighbours, but its centroid is not where its centre is: it is not reported. Nor is a
+// fragment, a blob far smaller than the spots linked to it (a spot cut by a depth edge or the
+// object's silhouette), nor a speck, far smaller than the spots identified around its id, unless
+// an edge run (`edge_run`) named it.
+std::vector<DecodedSpot> reported_spots(const std::vector<Spot>& detected, const std::vector<DecodedSpot>& decoded,
+                                        const AdjacencyGraph& graph, const pattern::MArray& pattern,
+                                        const std::vector<char>& edge_run, const DecoderOptions& o) {
+  const std::vector<char> speck = specks(detected, decoded, pattern, o.speck_area);
+  std::vector<DecodedSpot> reported;
+  for (std::size_t i = 0; i < decoded.size(); ++i) {
+    const DecodedSpot& d = decoded[i];
+    const bool run = d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot];
+    const bool small = speck[i] || is_fragment(detected, graph, d.spot, o.fragment_area);
+    if (!detected[d.spot].truncated && (!small || run)) reported.push_back(d);
+  }
+  return reported;
+}
+
 }  // namespace
 
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
@@ -103,19 +122,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     if (options_.min_island > 0)
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, options_.min_island);
   }
-  // a spot cut by the image border helps decode its neighbours, but its centroid is not
-  // where its centre is: it is not reported. Nor is a fragment, a blob far smaller than the
-  // spots linked to it (a spot cut by a depth edge or the object's silhouette), nor a speck, far
-  // smaller than the spots identified around its id
-  const std::vector<char> speck = specks(r.detected, r.decoded, table_.array(), options_.speck_area);
-  std::vector<DecodedSpot> reported;
-  for (std::size_t i = 0; i < r.decoded.size(); ++i) {
-    const DecodedSpot& d = r.decoded[i];
-    const bool run = d.spot < static_cast<int>(edge_run.size()) && edge_run[d.spot];
-    const bool small = speck[i] || is_fragment(r.detected, graph, d.spot, options_.fragment_area);
-    if (!r.detected[d.spot].truncated && (!small || run)) reported.push_back(d);
-  }
-  r.decoded = std::move(reported);
+  r.decoded = reported_spots(r.detected, r.decoded, graph, table_.array(), edge_run, options_);
   r.graph = std::move(graph);
   r.hoods = std::move(hoods);
   return r;

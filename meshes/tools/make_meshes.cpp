@@ -15,6 +15,12 @@
 //                          and the material `printed.mtl`, whose diffuse texture `label.png` is
 //                          a label (a cream ground, a red band, a blue disc, dark lines of
 //                          text, a green stripe), written here as an uncompressed PNG
+//   compact/egg.obj        an ellipsoid of revolution, radius 0.09 m, 0.26 m long along Z
+//   compact/can.obj        a closed round cylinder, radius 0.08 m, 0.18 m along Z, centred
+//   compact/wedge.obj      a triangular prism: 0.20 m wide (X), its ridge 0.12 m high (Z),
+//                          0.28 m long (Y), standing on z = 0
+//                          (compact tuning shapes: the decoder's numbers may be set on them,
+//                          as on the plane, cylinder and ham; with printed/ as the held-out ones)
 //   printed/               the tuning shapes printed so (the plane's label 0.6 m, repeated; the
 //                          cylinder's twice up its height), and box.obj, 0.30 x 0.22 x 0.12 m:
 //                          the shipped printed object (sim/scenarios/printed_box.yaml)
@@ -216,6 +222,26 @@ Mesh make_step(double size, double rise, int cells) {
   add_grid(m, {0, -h, rise}, {h, 0, 0}, {0, size, 0}, cells);
   add_grid(m, {0, h, 0}, {0, -size, 0}, {0, 0, rise}, cells);
   return m;
+}
+
+// A roof: a triangular prism along Y (length l), its base w wide in X on z = 0, its ridge at
+// height h over x = 0; each sloped face and the floor its own grid, the two ends one triangle.
+Mesh make_wedge(double w, double h, double l, int cells) {
+  Mesh m;
+  add_grid(m, {-w / 2, -l / 2, 0}, {w / 2, 0, h}, {0, l, 0}, cells);  // facing -X, up
+  add_grid(m, {w / 2, -l / 2, 0}, {0, l, 0}, {-w / 2, 0, h}, cells);  // facing +X, up
+  add_grid(m, {-w / 2, -l / 2, 0}, {0, l, 0}, {w, 0, 0}, cells);      // the floor, facing -Z
+  for (const double y : {-l / 2, l / 2}) {
+    const int b = static_cast<int>(m.v.size());
+    m.v.push_back({-w / 2, y, 0}), m.v.push_back({w / 2, y, 0}), m.v.push_back({0, y, h});
+    m.f.push_back(y < 0 ? std::array<int, 3>{b, b + 1, b + 2} : std::array<int, 3>{b, b + 2, b + 1});
+  }
+  return m;
+}
+
+Mesh make_egg() {
+  return revolve([](double t) { return 0.09 * std::sin(kPi * t); }, [](double t) { return -0.13 * std::cos(kPi * t); },
+                 72, 48);
 }
 
 // A closed cylinder of radius r from p to q, appended to m.
@@ -458,6 +484,22 @@ std::vector<Link> puma_links() {
   };
 }
 
+// The compact tuning shapes, plain and printed, into `dir`.
+bool write_compact(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  const Mesh egg = make_egg(), can = make_elliptic_cylinder(0.08, 0.08, 0.18, 96, 8),
+             wedge = make_wedge(0.20, 0.12, 0.28, 8);
+  std::vector<Printed> printed;
+  printed.push_back({"egg", egg, spherical(0.13)});
+  printed.push_back({"can", can, cylindrical(-0.09, 0.18)});
+  printed.push_back({"wedge", wedge, planar(0.20, 0.28, 0.12)});
+  return write_obj(dir / "egg.obj", egg, "egg: radius 0.09 m, 0.26 m along Z, centred") &&
+         write_obj(dir / "can.obj", can, "can: radius 0.08 m, 0.18 m along Z, centred") &&
+         write_obj(dir / "wedge.obj", wedge, "wedge: 0.20 m wide (X), ridge 0.12 m high, 0.28 m long (Y), on z = 0") &&
+         write_printed(dir / "printed", printed);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -501,10 +543,11 @@ int main(int argc, char** argv) {
                                        cylindrical(-0.30, 0.30)},
                                       {"ham", make_ham(0.45, 0.12, 0.035, 72, 60), cylindrical(0.0, 0.45)},
                                       {"box", make_box(0.30, 0.22, 0.12, 8), planar(0.30, 0.22, 0.12)}});
-  if (!heldout_ok) {
+  const bool compact_ok = heldout_ok && write_compact(dir / "compact");
+  if (!compact_ok) {
     std::fprintf(stderr, "make_meshes: cannot write into %s\n", dir.c_str());
     return 1;
   }
-  std::printf("wrote plane.obj, elliptic_cylinder.obj, ham.obj and heldout/ into %s\n", dir.c_str());
+  std::printf("wrote plane.obj, elliptic_cylinder.obj, ham.obj, heldout/ and compact/ into %s\n", dir.c_str());
   return 0;
 }

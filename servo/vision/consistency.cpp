@@ -50,10 +50,11 @@ std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, 
 }
 
 std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
-                                                    const std::vector<WindowReading>& readings, int min_votes) {
+                                                    const std::vector<WindowReading>& readings, int min_votes,
+                                                    const LineContext* lines) {
   std::vector<IdVote> votes;
   votes.reserve(readings.size() * 9);
-  add_window_votes(hoods, readings, votes);
+  add_window_votes(hoods, readings, votes, lines);
   return check_vote_consistency(spots, votes, min_votes);
 }
 

@@ -85,7 +85,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, tolerance, &check, shape);
     r.readings = static_cast<int>(readings.size());
     std::vector<IdVote> votes;
-    add_window_votes(hoods, readings, votes);
+    const LineContext lines{r.detected, graph, table_.array()};
+    add_window_votes(hoods, readings, votes, &lines);
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes, shape);
     const auto islands = [&] { r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true); };
     const auto propagate = [&] {
@@ -118,7 +119,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   } else {
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance, nullptr, shape);
     r.readings = static_cast<int>(readings.size());
-    r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes);
+    const LineContext lines{r.detected, graph, table_.array()};
+    r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes, &lines);
     if (options_.min_island > 0)
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, options_.min_island);
   }

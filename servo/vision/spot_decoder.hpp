@@ -167,10 +167,21 @@ struct IdVote {
   pattern::SpotId id;
   bool repaired = false;  // from a corrected or completed window
 };
+// What tells whether a window's code places each of its lines: the spots, their links, the pattern.
+struct LineContext {
+  const std::vector<Spot>& spots;
+  const AdjacencyGraph& graph;
+  const pattern::MArray& pattern;
+};
+// Whether line k (0-2 the window's rows, 3-5 its columns) of the window `w`, read as centred on
+// `centre`, lies one step along itself: its colours are the pattern's one step over and the spot
+// linked beyond one of its ends shows the shifted line's colour there (window_reading.cpp).
+bool line_shifted(const LineContext& at, const Window& w, const pattern::SpotId& centre, int k);
 // Each window reading votes for the id of its centre and of its 8 neighbours; a corrected one
-// only for the four cells that share neither row nor column with its misread cell (votes_for).
+// only for the four cells that share neither row nor column with its misread cell (votes_for);
+// with `lines`, none for the cells of a line that line_shifted finds shifted.
 void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,
-                      std::vector<IdVote>& votes);
+                      std::vector<IdVote>& votes, const LineContext* lines = nullptr);
 bool votes_for(const WindowReading& r, int cell);
 
 // Step 3b, beyond the paper, with the frame's epipolar geometry: a run of `length` spots
@@ -190,7 +201,8 @@ std::vector<DecodedSpot> check_vote_consistency(const std::vector<Spot>& spots, 
                                                 int min_votes, bool two_exact = false);
 // Step 4 over window readings (the paper's step).
 std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spots, const Neighbourhoods& hoods,
-                                                    const std::vector<WindowReading>& readings, int min_votes);
+                                                    const std::vector<WindowReading>& readings, int min_votes,
+                                                    const LineContext* lines = nullptr);
 
 // Step 5, beyond the paper. Decoded spots linked in the adjacency graph must carry ids one
 // step apart in the link's direction; a decoded spot contradicting a linked one is dropped,

@@ -129,12 +129,52 @@ bool votes_for(const WindowReading& r, int i) {
   return r.wrong < 0 || (i / 3 != r.wrong / 3 && i % 3 != r.wrong % 3);
 }
 
+// A window's code places each of its lines only where the line's colours change along it: a
+// row read within a run of one colour (the paper's pattern has runs of five) reads the same one
+// step over. Across a depth edge the links can reach a row shifted by a step (the can's top,
+// seen past its rim: the row there lies one column over from the side's lattice), and the window
+// then reads exactly as its own and names that row's spots one column off: with the paper's
+// pattern 12 of 12 wrong ids in 1000 can poses. A line is taken as shifted when it reads as the
+// pattern one step along it and the spot linked beyond one of its ends shows the colour the
+// shifted line has there, where that differs from the unshifted line's.
+bool line_shifted(const LineContext& at, const Window& w, const pattern::SpotId& centre, int k) {
+  const bool row = k < 3;
+  const auto colour = [&](int t) {  // the pattern's colour t steps along the line from its middle
+    const int r = row ? centre.row - 1 + k : centre.row + t, c = row ? centre.col + t : centre.col - 1 + (k - 3);
+    return r >= 0 && c >= 0 && r < at.pattern.rows && c < at.pattern.cols ? int{at.pattern.at(r, c)} : -1;
+  };
+  // it reads the same one step along only when its three colours are one (a ninth of the lines)
+  const int one = colour(0);
+  if (colour(-1) != one || colour(1) != one) return false;
+  const int first = row ? w[3 * k] : w[k - 3], last = row ? w[3 * k + 2] : w[k + 3];
+  for (const int d : {-1, 1}) {
+    if (colour(2 * d) != one) continue;  // one step along, the line would show another colour
+    for (const int end : {-2, 2}) {
+      const int spot = end < 0 ? first : last;
+      const int beyond = spot >= 0 ? at.graph.next[spot][row ? (end < 0 ? 2 : 0) : (end < 0 ? 3 : 1)] : -1;
+      if (beyond >= 0 && colour(end) != colour(end + d) && at.spots[beyond].colour == colour(end + d)) return true;
+    }
+  }
+  return false;
+}
+
 void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReading>& readings,
-                      std::vector<IdVote>& votes) {
+                      std::vector<IdVote>& votes, const LineContext* lines) {
   for (const WindowReading& r : readings) {
     const Window& w = hoods.window[r.centre];
+    std::array<bool, 6> shifted{};
+    if (lines) {
+      // only a line of one colour can be shifted (line_shifted): the pattern's window, once
+      const auto at = [&](int i) { return lines->pattern.at(r.id.row + i / 3 - 1, r.id.col + i % 3 - 1); };
+      const std::array<std::uint8_t, 9> c{at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7), at(8)};
+      for (int k = 0; k < 3; ++k) {
+        if (c[3 * k] == c[3 * k + 1] && c[3 * k] == c[3 * k + 2]) shifted[k] = line_shifted(*lines, w, r.id, k);
+        if (c[k] == c[k + 3] && c[k] == c[k + 6]) shifted[3 + k] = line_shifted(*lines, w, r.id, 3 + k);
+      }
+    }
     for (int i = 0; i < 9; ++i)
-      if (w[i] >= 0 && votes_for(r, i)) votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}, r.corrected});
+      if (w[i] >= 0 && votes_for(r, i) && !shifted[i / 3] && !shifted[3 + i % 3])
+        votes.push_back({w[i], {r.id.row + i / 3 - 1, r.id.col + i % 3 - 1}, r.corrected});
   }
 }
 

@@ -462,6 +462,58 @@ TEST(CorrectingDecoder, ACorrectedWindowVotesOnlyOffItsMisreadCellsRowAndColumn)
   EXPECT_EQ(spots, (std::vector<int>{4 * 20 + 4, 4 * 20 + 5, 5 * 20 + 4, 5 * 20 + 5}));
 }
 
+// A surface seen past an edge, one column over from the lattice below (the can's top past its
+// rim, of which one row shows): row 6 of the paper's pattern shifted a step west above rows
+// 7-19. Row 6 holds a run of five red spots (columns 7-11), so the windows centred on (7, 8) and
+// (7, 9) read exactly as their own with their top row one column off, and two exact votes named
+// the spots there (6, 8) and (6, 9) where they are (6, 9) and (6, 10). The spot linked beyond the
+// row's east end, (6, 12) in place of (6, 11), shows the shifted row's colour: a window votes for
+// no line whose place its code does not fix.
+TEST(WindowVotes, AWindowDoesNotNameALineItsCodeDoesNotPlace) {
+  const pattern::MArray& a = paper_pattern();
+  for (int c = 7; c <= 11; ++c) ASSERT_EQ(a.at(6, c), 2) << "the run this test stands on";
+  ASSERT_NE(a.at(6, 12), a.at(6, 11));
+  Lattice l;
+  for (int r = 6; r < a.rows; ++r)
+    for (int c = 0; c < a.cols; ++c) {
+      const int id_col = r == 6 ? c + 1 : c;  // the shifted row: the spot at column c is c + 1's
+      if (id_col >= a.cols) continue;
+      Spot s;
+      s.u = 30 + 20 * c + 0.7 * std::sin(r * 3.1 + c);
+      s.v = 30 + 20 * r + 0.7 * std::cos(r + c * 2.3);
+      s.colour = a.at(r, id_col);
+      s.area_px = 20;
+      l.spots.push_back(s);
+      l.id.push_back({r, id_col});
+    }
+  const AdjacencyGraph g = build_adjacency(l.spots);
+  const Neighbourhoods h = check_graph_consistency(g);
+  const int centre = 19 + 9;  // (7, 9): row 6 has 19 spots
+  ASSERT_EQ(l.id[centre], (std::pair{7, 9}));
+  const WindowReading own{centre, {7, 9}, false, -1};
+  const std::vector<WindowReading> read = read_windows(l.spots, h, table());
+  ASSERT_NE(std::find_if(read.begin(), read.end(), [&](const WindowReading& r) { return r.centre == centre && r.id == own.id; }),
+            read.end()) << "the window reads as its own";
+  const LineContext lines{l.spots, g, a};
+  EXPECT_TRUE(line_shifted(lines, h.window[centre], own.id, 0)) << "its top row";
+  for (int k = 1; k < 6; ++k) EXPECT_FALSE(line_shifted(lines, h.window[centre], own.id, k)) << "line " << k;
+  std::vector<IdVote> one;
+  add_window_votes(h, {own}, one, &lines);
+  EXPECT_EQ(one.size(), 6U);
+  // every window's votes, two exact ones naming a spot (the calibrated decoder's step 4): the
+  // shifted row's spots one column off without the check, none with it
+  const auto wrong = [&](const LineContext* ctx) {
+    std::vector<IdVote> votes;
+    add_window_votes(h, read, votes, ctx);
+    int n = 0;
+    for (const DecodedSpot& d : check_vote_consistency(l.spots, votes, 3, true))
+      n += l.id[d.spot] != std::pair{d.row, d.col};
+    return n;
+  };
+  EXPECT_EQ(wrong(nullptr), 2) << "the case this test stands on";
+  EXPECT_EQ(wrong(&lines), 0);
+}
+
 // One or two missing neighbours: the window is completed by the one code that fits.
 TEST(CorrectingDecoder, CompletesWindowsWithOneOrTwoMissingNeighbours) {
   const pattern::WindowTable t(d3_pattern(), {3, 3});

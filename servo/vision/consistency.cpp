@@ -109,7 +109,10 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   // more: that is two surfaces meeting at a depth edge, the nearest-spot rule linking across
   // it (the ham's silhouette row over the table's lattice), and the link is what is wrong. A
   // misread spot or patch has no such region of its own: its links to the right ids around
-  // it disagree.
+  // it disagree. Where only one end's region is that large, only the other end is condemned:
+  // the large region's spot is not what the link makes doubtful (the egg's silhouette row
+  // linked to a patch of the table: +0.1-0.3 points of the egg's readable spots, no wrong id
+  // added in 204 tuning sweeps of 1000 poses).
   const Islands regions = find_islands(graph, decoded, at, all, [&](int i, int j, int k) {
     return agrees(decoded[i], decoded[j], k);
   });
@@ -119,8 +122,10 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
     for (int k = 0; k < 4; ++k) {
       const int j = graph.next[decoded[i].spot][k];
       if (j < 0 || at[j] < 0 || agrees(decoded[i], decoded[at[j]], k)) continue;
-      if (min_island > 0 && regions.of[i] != regions.of[at[j]] && large(static_cast<int>(i)) && large(at[j])) continue;
-      keep[i] = keep[at[j]] = 0;
+      const bool large_i = min_island > 0 && large(static_cast<int>(i)), large_j = min_island > 0 && large(at[j]);
+      if (regions.of[i] != regions.of[at[j]] && large_i && large_j) continue;
+      if (!large_i || large_j) keep[i] = 0;  // a spot is kept only when its region alone is large
+      if (!large_j || large_i) keep[at[j]] = 0;
     }
   // islands of id-consistent linked spots
   const Islands islands = find_islands(graph, decoded, at, [&](int i) { return keep[i] != 0; },

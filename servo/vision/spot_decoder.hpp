@@ -207,7 +207,9 @@ std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spo
 // Step 5, beyond the paper. Decoded spots linked in the adjacency graph must carry ids one
 // step apart in the link's direction; a decoded spot contradicting a linked one is dropped,
 // except where the link joins two regions of `min_island` or more id-consistent spots (two
-// surfaces meeting at a depth edge, the link drawn across it: the link is what is wrong).
+// surfaces meeting at a depth edge, the link drawn across it: the link is what is wrong), or
+// where its own region is that large and the other spot's is not (a misread spot or a small
+// patch of another surface is what the link makes doubtful).
 // Spots are then grouped into islands (linked, id-consistent); islands smaller than
 // `min_island` are dropped: a misread region (a sheared grid read with the wrong columns, a
 // window that happens to form a valid code) is a small island, a correctly read surface is not.

@@ -74,9 +74,9 @@ RUN = [
     ("build/bin/cellsim experiment sim/scenarios/plane.yaml --z-hat 0.9 --error focal_pct=2 --error "
      "hand_eye_rotation_deg=1 --latency processing_frames=2 -o out/errors", "README.md", 0, [r"converged"],
      ["out/errors/trace.csv"]),
-    # the ham with the surface and L(s, Z): 329 iterations, 0.25 mm, 0.020 deg (docs/results.md's table)
+    # the ham with the surface and L(s, Z): 329 iterations, 0.21 mm, 0.022 deg (docs/results.md's table)
     ("build/bin/cellsim experiment sim/scenarios/ham.yaml --model current --visual-features surface -o out/surface",
-     "README.md", 0, [r"after 329 iterations", ("final error", "0.25", "0.020")], ["out/surface/fig4.png"]),
+     "README.md", 0, [r"after 329 iterations", ("final error", "0.21", "0.022")], ["out/surface/fig4.png"]),
     ("build/bin/cellsim calibration sim/scenarios/ham.yaml -o out/ham_projector.yaml", "README.md", 0, [],
      ["out/ham_projector.yaml"]),
     ("build/bin/cellsim calibration sim/scenarios/plane.yaml -o out/plane_projector.yaml", "README.md", 0, [],

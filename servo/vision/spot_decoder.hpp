@@ -358,11 +358,11 @@ struct EpipolarOptions {
   // The epipolar lines of one frame often run along the pattern's rows: they tell the row, not
   // the column, so a window misread one column over still passes. Votes and islands stay.
   int min_votes = 3;
-  // 5 since 2026-12-02 (was 12, as without the calibration): the small islands' wrong ids were
-  // propagation's; without it, 5 names +0.5 points of the ham's readable spots and +0.3 of the
-  // cylinder's, no wrong id added in 24 sweeps (2 sources for the grown lattice, tried with it,
-  // added 2 wrong ids)
-  int min_island = 5;
+  // 3 (12 without the calibration): the small islands' wrong ids were propagation's; without
+  // it, 5 named +0.5 points of the ham's readable spots and +0.3 of the cylinder's against 12,
+  // and 3 +0.1-0.3 more on the ham and the compact objects (egg, can, wedge), no wrong id added
+  // in 132 calibrated tuning sweeps of 1000 poses (seed 7, seed 11 wide, both patterns)
+  int min_island = 3;
   // Step 3b; 0 turns it off (the default). Segments identify far more spots on curved objects
   // (the ham: 50 -> 70 % of the readable spots) but let rare wrong ids through at depth edges:
   // a spot on the surface behind can sit where the lattice goes on, on the same epipolar line,

@@ -77,6 +77,8 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
       hoods = check_graph_consistency(graph);
     }
   }
+  // what tells whether a window's code places each of its lines (step 3's votes, both ways)
+  const LineContext lines{r.detected, graph, table_.array()};
   if (geometry) {
     const EpipolarOptions& e = options_.epipolar;
     const EpipolarCheck& check = *epipolar;
@@ -85,7 +87,6 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, tolerance, &check, shape);
     r.readings = static_cast<int>(readings.size());
     std::vector<IdVote> votes;
-    const LineContext lines{r.detected, graph, table_.array()};
     add_window_votes(hoods, readings, votes, &lines);
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes, shape);
     const auto islands = [&] { r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true); };
@@ -119,7 +120,6 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   } else {
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance, nullptr, shape);
     r.readings = static_cast<int>(readings.size());
-    const LineContext lines{r.detected, graph, table_.array()};
     r.decoded = check_decoding_consistency(r.detected, hoods, readings, options_.min_votes, &lines);
     if (options_.min_island > 0)
       r.decoded = check_island_consistency(graph, std::move(r.decoded), n, options_.min_island);

@@ -389,6 +389,7 @@ struct ServoConfigFlags {
   std::string config_file, model, projector_file, robust, features;
   double z_hat = 0, gain = 0, divergence_ratio = -1;
   int points = -1;
+  bool interior_points = false;
   bool no_epipolar = false;
   void add(CLI::App* c) {
     c->add_option("--config", config_file, "servo configuration (YAML)");
@@ -408,6 +409,9 @@ struct ServoConfigFlags {
                   "servo on this many points, chosen at teaching for the best-conditioned interaction matrix "
                   "(0: all)")
         ->check(CLI::Range(0, 4096));
+    c->add_flag("--interior-points", interior_points,
+                "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
+                "when they are at least half of them (config key interior_points)");
     c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and propagation");
     c->add_option("--visual-features", features,
@@ -431,6 +435,7 @@ struct ServoConfigFlags {
     if (!projector_file.empty()) config.projector = calibration::load_projector_calibration(projector_file);
     config.decoder.epipolar.enabled = !no_epipolar;
     if (points >= 0) config.points = points;
+    if (interior_points) config.interior_points = true;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
     if (!robust.empty()) config.law.robust = control::parse_robust_estimator(robust);
     if (!features.empty()) config.law.features = control::parse_visual_features(features);

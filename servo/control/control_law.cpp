@@ -9,6 +9,7 @@
 #include <limits>
 #include <stdexcept>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace control {
 
@@ -25,6 +26,21 @@ std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, co
     out.push_back({d.row, d.col, c.x, c.y, d.x, d.y, c.z, d.z, c.ray ? c.ray : d.ray});
   }
   return out;
+}
+
+std::vector<MatchedPoint> interior_points(const std::vector<MatchedPoint>& matched, double min_share, int min_count) {
+  std::unordered_set<long> ids;
+  ids.reserve(matched.size());
+  const auto key = [](int row, int col) { return static_cast<long>(row) * 65536 + col; };
+  for (const MatchedPoint& m : matched) ids.insert(key(m.row, m.col));
+  std::vector<MatchedPoint> inside;
+  for (const MatchedPoint& m : matched)
+    if (ids.count(key(m.row + 1, m.col)) && ids.count(key(m.row - 1, m.col)) && ids.count(key(m.row, m.col + 1)) &&
+        ids.count(key(m.row, m.col - 1)))
+      inside.push_back(m);
+  const bool enough = static_cast<double>(inside.size()) >= min_share * static_cast<double>(matched.size()) &&
+                      inside.size() >= static_cast<std::size_t>(std::max(min_count, 1));
+  return enough ? inside : matched;
 }
 
 double Gain::at(double e) const {

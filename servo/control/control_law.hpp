@@ -40,6 +40,14 @@ struct Feature {
 // s and s* matched by spot id: only spots present in both, in s*'s order.
 std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, const std::vector<Feature>& desired);
 
+// The interior of the matched set: the points whose four pattern neighbours (row +-1, col +-1)
+// are matched too, in `matched`'s order. At the edge of what is matched lie the spots split by a
+// silhouette or a shadow, whose centroid is off their centre and whose neighbours come and go
+// from frame to frame; inside it the spots are whole. Returns `matched` itself when the interior
+// is under `min_share` of it or under `min_count` points: a sparse decoding (a printed object)
+// is mostly edge, and every point is needed there.
+std::vector<MatchedPoint> interior_points(const std::vector<MatchedPoint>& matched, double min_share, int min_count);
+
 // lambda(|e|) = (l0 - linf) exp(-l0' |e| / (l0 - linf)) + linf; constant when l0 == linf.
 struct Gain {
   double lambda_zero = 0.5;      // gain at |e| = 0

@@ -83,6 +83,8 @@ StepResult ServoPipeline::step(const std::vector<ImageSpot>& spots, const std::o
   r.decoded = static_cast<int>(spots.size());
   r.features = features(spots, wTc);
   r.matched = control::match_features(r.features, reference_);
+  if (config_.interior_points)
+    r.matched = control::interior_points(r.matched, config_.interior_min_share, config_.law.min_points);
   if (config_.points > 0 && r.matched.size() > static_cast<std::size_t>(config_.points)) {
     std::vector<control::MatchedPoint> kept;
     for (const auto& m : r.matched)

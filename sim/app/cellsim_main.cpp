@@ -221,6 +221,7 @@ struct LawFlags {
   double converge_deg = control::ControlLawOptions{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
   bool epipolar = false;
   int points = 0;
+  bool interior = false;
   std::string robust = "none";
   std::string features;  // empty: the scenario's (points; plane for a projector on the camera)
 
@@ -231,6 +232,7 @@ struct LawFlags {
                   "(0: all)")
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
+    add_interior(c);
     c->add_flag("--epipolar", epipolar,
                 "decode with the projector's calibration (epipolar check and propagation), as `servo run "
                 "--projector` does");
@@ -259,8 +261,14 @@ struct LawFlags {
     cfg.law.convergence_rotation_rad = converge_deg * 3.14159265358979323846 / 180;
     cfg.decoder.epipolar.enabled = epipolar;
     cfg.points = points;
+    cfg.interior_points = interior;
     cfg.law.robust = control::parse_robust_estimator(robust);
     cfg.law.features = experiment::visual_features_or_default(features, cfg);
+  }
+  void add_interior(CLI::App* c) {
+    c->add_flag("--interior-points", interior,
+                "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
+                "when they are at least half of them (docs/results.md)");
   }
   // campaign and study add the law's flags one by one; this one they share with experiment
   void add_visual_features(CLI::App* c) {
@@ -345,6 +353,7 @@ struct CampaignFlags {
     c->add_option("--points", law.points, "servo on this many best-conditioned points (0: all)")
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
+    law.add_interior(c);
     c->add_flag("--epipolar", law.epipolar, "decode with the projector's calibration");
     c->add_option("--robust", law.robust, "tukey | huber | none: M-estimator weights on the points")->capture_default_str();
     law.add_visual_features(c);

@@ -509,6 +509,7 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
   meta.parameters = {{"gain", {law.gain.lambda_zero, law.gain.lambda_inf, law.gain.slope_zero}},
                      {"z_hat_m", law.z_hat_m},
                      {"points", o.base.points},
+                     {"interior_points", o.base.interior_points},
                      {"divergence_ratio", o.divergence_ratio},
                      {"convergence_translation_m", law.convergence_translation_m},
                      {"convergence_rotation_rad", law.convergence_rotation_rad},

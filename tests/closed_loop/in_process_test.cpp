@@ -175,6 +175,26 @@ TEST(InProcessLoop, PlaneConvergesOnEightBestConditionedPoints) {
   EXPECT_NE(all.trace.front().twist, r.trace.front().twist);
 }
 
+// The interior of the matched set (ServoConfig::interior_points): on the egg, whose silhouette
+// runs all around the pattern, the spots at the edge of what is matched are split by it; without
+// them the loop ends where it should, with them the task function passes its test 1 mm away.
+TEST(InProcessLoop, TheEggEndsCloserOnTheInteriorOfTheMatchedSpots) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + "compact/egg.yaml"));
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
+  o.servo.law.z_hat_m = experiment::desired_depth(*cell);  // as `cellsim experiment` takes it
+  o.max_iterations = 600;
+  const auto all = experiment::run_experiment(*cell, o);
+  o.servo.interior_points = true;
+  const auto inside = experiment::run_experiment(*cell, o);
+  EXPECT_TRUE(inside.converged) << inside.stop_reason;
+  EXPECT_LT(inside.final_translation_error_m, 0.5e-3);
+  EXPECT_LT(inside.final_translation_error_m, 0.5 * all.final_translation_error_m);
+  ASSERT_FALSE(inside.trace.empty());
+  ASSERT_FALSE(all.trace.empty());
+  EXPECT_LT(inside.trace.back().matched, all.trace.back().matched) << "the interior served, not every match";
+}
+
 TEST(InProcessLoop, CylinderConvergesUnder1mmAnd0_1Deg) {
   const auto r = run("cylinder", control::InteractionModel::kDesiredConstantDepth, 0.6, loop::FeatureSource::kDecoded, 900);
   EXPECT_TRUE(r.converged) << r.stop_reason;

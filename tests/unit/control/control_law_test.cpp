@@ -319,6 +319,30 @@ TEST(MatchFeatures, OnlySpotsSeenInBoth) {
   EXPECT_DOUBLE_EQ(*m[1].z, 0.9);
 }
 
+// The interior of the matched set: the points whose four pattern neighbours are matched too.
+// A 7 x 7 block has a 5 x 5 interior (25 of 49, over half): that is what serves. A hole inside
+// takes its four neighbours out of the interior. A 5 x 5 block's 3 x 3 interior is under half:
+// the block is mostly edge, and all of it serves; so too when the interior is under the count.
+TEST(InteriorPoints, TheSpotsWhoseFourNeighboursAreMatchedWhenTheyAreHalfOfThem) {
+  const auto block = [](int n, std::pair<int, int> hole = {-1, -1}) {
+    std::vector<MatchedPoint> m;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c)
+        if (std::pair{r, c} != hole) m.push_back({r + 3, c + 5, 0.01 * c, 0.01 * r, 0.01 * c, 0.01 * r});
+    return m;
+  };
+  const auto seven = interior_points(block(7), 0.5, 4);
+  ASSERT_EQ(seven.size(), 25u);
+  for (const auto& p : seven) {
+    EXPECT_TRUE(p.row >= 4 && p.row <= 8 && p.col >= 6 && p.col <= 10) << p.row << "," << p.col;
+  }
+  EXPECT_EQ(interior_points(block(7, {3, 3}), 0.0, 4).size(), 20u) << "the hole and its four neighbours out";
+  EXPECT_EQ(interior_points(block(5), 0.5, 4).size(), 25u) << "3 x 3 of 25 is under half: all serve";
+  EXPECT_EQ(interior_points(block(5), 0.3, 4).size(), 9u);
+  EXPECT_EQ(interior_points(block(5), 0.3, 10).size(), 25u) << "fewer than the law's count: all serve";
+  EXPECT_TRUE(interior_points({}, 0.5, 4).empty());
+}
+
 TEST(Triangulation, RecoversTheDepthOfALitPoint) {
   calibration::ProjectorModel proj;
   proj.world_T_projector.translation() = Eigen::Vector3d(0.6, -0.2, 0.1);

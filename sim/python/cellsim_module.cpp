@@ -195,10 +195,12 @@ struct Servo {
 };
 
 py::dict run_experiment_dict(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
-                    int max_iterations, const std::string& features, const std::string& visual_features) {
+                    int max_iterations, const std::string& features, const std::string& visual_features,
+                    bool interior_points) {
   if (max_iterations < 1 || max_iterations > 100000) throw py::value_error("max_iterations must be in [1, 100000]");
   experiment::ExperimentOptions o;
   o.servo = servo_config(s, model, z_hat, gain, robust, visual_features);
+  o.servo.interior_points = interior_points;
   o.source = experiment::parse_feature_source(features);
   o.max_iterations = max_iterations;
   // Ctrl-C stops the run at the next round (a signal reaches Python only when it holds the GIL)
@@ -385,10 +387,12 @@ PYBIND11_MODULE(cellsim, m) {
       .def("step", &Servo::step, py::arg("image"), "one iteration: dict of twist (6), error_norm, decoded, matched");
   m.def("experiment", &run_experiment_dict, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
-        py::arg("features") = "decoded", py::arg("visual_features") = "",
+        py::arg("features") = "decoded", py::arg("visual_features") = "", py::arg("interior_points") = false,
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns "
         "(features: where the spots come from, decoded | ideal; visual_features: what the law servoes on, points | "
-        "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera)");
+        "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera; "
+        "interior_points: servo on the matched spots whose four pattern neighbours are matched too, as "
+        "--interior-points)");
   py::class_<Env>(m, "_ServoEnvCore",
                   "the environment's engine (ServoEnv, defined below in Python, is the public face)")
       .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&>(),

@@ -1,6 +1,8 @@
 #!/usr/bin/python3
 """Plots an experiment's trace.csv like the paper's Fig. 4c-d / 5d-i:
 velocities.png (camera velocities vs time) and error_norm.png (norm of the task function);
+pose_error.png, the camera's true distance and angle to the goal (the simulator's truth: the
+task function passing its test says the law is done, this says where the camera is);
 with decoded features, fig4.png: the initial and desired images with their decoded ids beside
 the velocities and |e|, the paper's Fig. 4 in one picture;
 with an arm, occlusion.png from occlusion.csv (spots the arm hides or catches, per frame);
@@ -140,6 +142,24 @@ def plot_fig4(directory, title, t):
     save(fig, os.path.join(directory, "fig4.png"), top=0.95 if title else 1.0)
 
 
+def plot_pose_error(directory, title, t):
+    """The camera's true translation (mm) and rotation (deg) to the goal per frame, log scale."""
+    if "translation_error_m" not in t or "rotation_error_deg" not in t:
+        return
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
+    top.plot(t["t"], [1e3 * v for v in t["translation_error_m"]], color="k")
+    top.set_ylabel("translation (mm)")
+    bottom.plot(t["t"], t["rotation_error_deg"], color="k")
+    bottom.set_ylabel("rotation (deg)")
+    for ax in (top, bottom):
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    bottom.set_xlabel("time (s)")
+    what = "the camera's true pose error to the goal"
+    top.set_title(f"{title}:\n{what}" if title else what, fontsize=10)
+    save(fig, os.path.join(directory, "pose_error.png"))
+
+
 def main():
     args = dir_and_title()
     trace = os.path.join(args.dir, "trace.csv")
@@ -168,6 +188,7 @@ def main():
     ax.grid(True, which="both", alpha=0.3)
     save(fig, os.path.join(args.dir, "error_norm.png"))
     plot_fig4(args.dir, args.title, t)
+    plot_pose_error(args.dir, args.title, t)
     plot_occlusion(args.dir, args.title, t)
     plot_weights(args.dir, args.title)
 

@@ -438,9 +438,12 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
                 r.condition_max);
   if (!out_dir.empty() && ran) {
     // the plots are named only when they were drawn (--no-plot, or no Python: none)
-    const bool plotted = plot && experiment::plot_experiment(out_dir, cell->scenario.name + ", " + law.model);
+    const bool plotted = plot && experiment::plot_experiment(
+                                     out_dir, cell->scenario.name + ", " + law.model + (law.interior ? ", interior points" : ""));
     std::printf("  trace: %s/trace.csv, features: %s/features.jsonl", out_dir.c_str(), out_dir.c_str());
-    if (plotted) std::printf(", plots: %s/velocities.png %s/error_norm.png", out_dir.c_str(), out_dir.c_str());
+    if (plotted)
+      std::printf(", plots: %s/velocities.png %s/error_norm.png %s/pose_error.png", out_dir.c_str(), out_dir.c_str(),
+                  out_dir.c_str());
     if (plotted && std::filesystem::exists(std::filesystem::path(out_dir) / "fig4.png"))
       std::printf(" %s/fig4.png", out_dir.c_str());
     std::printf("\n");

@@ -66,6 +66,14 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
     within(0, 3);
     if (v != std::floor(v)) within(1, 0);  // not an index
     c.base.law.features = static_cast<control::VisualFeatures>(static_cast<int>(v));
+  } else if (name == "interior_points") {
+    // 1: the law on the interior of the matched spots (ServoConfig::interior_points), 0: on all
+    if (v != 0 && v != 1) {
+      char m[120];
+      std::snprintf(m, sizeof m, "study axis interior_points: %.6g is neither 0 (all matched spots) nor 1", v);
+      throw std::invalid_argument(m);
+    }
+    c.base.interior_points = v != 0;
   } else if (name == "losses") {
     // the fraction of the decoded spots dropped at every frame (decoding losses, issue 44)
     within(0, 0.9);
@@ -136,7 +144,8 @@ double depth_spread(const sim::Cell& cell) {
 
 std::vector<std::string> study_axis_names() {
   std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
-                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "losses", "visual_features"};
+                             "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "losses", "visual_features",
+                             "interior_points"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;

@@ -59,4 +59,10 @@ grep -q "^| points | 0.0 | current | 1/1 " <<<"$out" && grep -q "^| surface | 0.
 [ -d "$tmp/features/visual_features=surface" ] || fail "no folder visual_features=surface"
 one_line_error "an unknown feature set" "expected points, moments, surface or plane" \
   "$cellsim" study "$src/sim/scenarios/plane.yaml" --axis visual_features=lines -o "$tmp/y"
+# issue 41: the interior of the matched spots as an axis, 0 or 1
+out=$("$cellsim" study "$src/sim/scenarios/plane.yaml" --axis interior_points=0,1 --models current --runs 1 \
+  --max-iterations 50 --no-plot -o "$tmp/interior" 2>/dev/null) || fail "a study over interior_points: exit $?"
+grep -q "^| 0 | " <<<"$out" && grep -q "^| 1 | " <<<"$out" || fail "a study over interior_points has no row per value: $out"
+one_line_error "interior_points=0.5" "study axis interior_points" \
+  "$cellsim" study "$src/sim/scenarios/plane.yaml" --axis interior_points=0.5 -o "$tmp/z"
 echo "studies: tables and plots written, fig5 search reproducible, errors and delays applied, bad values refused"

@@ -114,7 +114,7 @@ RUN = [
     # the interior of the matched spots (issue 41): the egg from its initial pose, all matched spots
     # (391 iterations, 1.01 mm, 0.115 deg) against their interior (326, 0.099 mm, 0.033 deg)
     ("build/bin/cellsim experiment sim/scenarios/compact/egg.yaml -o out/egg_all", RESULTS, 0,
-     [r"after 391 iterations", ("final error", "1.01", "0.115")], ["out/egg_all/trace.csv"]),
+     [r"after 391 iterations", ("final error", "1.01", "0.115")], ["out/egg_all/trace.csv", "out/egg_all/pose_error.png"]),
     ("build/bin/cellsim experiment sim/scenarios/compact/egg.yaml --interior-points -o out/egg_interior", RESULTS, 0,
      [r"after 326 iterations", ("final error", "0.099", "0.033")], ["out/egg_interior/trace.csv"]),
     # the first table's runs, as its cells and bin/experiments write them

@@ -13,14 +13,19 @@
 
 namespace control {
 
+namespace {
+// one key per spot id (a pattern has at most 4096 columns; a neighbour's -1 keeps its own key)
+long id_key(int row, int col) { return static_cast<long>(row) * 65536 + col; }
+}  // namespace
+
 std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, const std::vector<Feature>& desired) {
   std::unordered_map<long, const Feature*> by_id;
   by_id.reserve(current.size());
-  for (const Feature& f : current) by_id[static_cast<long>(f.row) * 65536 + f.col] = &f;
+  for (const Feature& f : current) by_id[id_key(f.row, f.col)] = &f;
   std::vector<MatchedPoint> out;
   out.reserve(desired.size());
   for (const Feature& d : desired) {
-    const auto it = by_id.find(static_cast<long>(d.row) * 65536 + d.col);
+    const auto it = by_id.find(id_key(d.row, d.col));
     if (it == by_id.end()) continue;
     const Feature& c = *it->second;
     out.push_back({d.row, d.col, c.x, c.y, d.x, d.y, c.z, d.z, c.ray ? c.ray : d.ray});
@@ -31,12 +36,11 @@ std::vector<MatchedPoint> match_features(const std::vector<Feature>& current, co
 std::vector<MatchedPoint> interior_points(const std::vector<MatchedPoint>& matched, double min_share, int min_count) {
   std::unordered_set<long> ids;
   ids.reserve(matched.size());
-  const auto key = [](int row, int col) { return static_cast<long>(row) * 65536 + col; };
-  for (const MatchedPoint& m : matched) ids.insert(key(m.row, m.col));
+  for (const MatchedPoint& m : matched) ids.insert(id_key(m.row, m.col));
   std::vector<MatchedPoint> inside;
   for (const MatchedPoint& m : matched)
-    if (ids.count(key(m.row + 1, m.col)) && ids.count(key(m.row - 1, m.col)) && ids.count(key(m.row, m.col + 1)) &&
-        ids.count(key(m.row, m.col - 1)))
+    if (ids.count(id_key(m.row + 1, m.col)) && ids.count(id_key(m.row - 1, m.col)) &&
+        ids.count(id_key(m.row, m.col + 1)) && ids.count(id_key(m.row, m.col - 1)))
       inside.push_back(m);
   const bool enough = static_cast<double>(inside.size()) >= min_share * static_cast<double>(matched.size()) &&
                       inside.size() >= static_cast<std::size_t>(std::max(min_count, 1));

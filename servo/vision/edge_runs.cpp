@@ -18,13 +18,14 @@ namespace {
 class EdgeRuns {
  public:
   EdgeRuns(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
-           const SpatialGrid& near, int k, const EdgeRunOptions& options, const GrowthOptions& growth)
+           const SpatialGrid& near, int k, const EdgeRunOptions& options, const GrowthOptions& growth, double cell_slack)
       : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), dr_(kIdStep[k][0]), dc_(kIdStep[k][1]),
         candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1), o_(options), faintest_(growth.faintest),
-        alike_(growth.alike) {}
+        alike_(growth.alike), cell_slack_(cell_slack) {}
 
   // each cell's candidate: the blob ahead of an identified spot along its step
   void find_candidates(const std::vector<DecodedSpot>& decoded) {
+    const double middle = (o_.nearest + o_.farthest) / 2;  // where a candidate is looked for
     for (const DecodedSpot& from : decoded) {
       const int r = from.row + dr_, c = from.col + dc_;
       if (!ids_.inside(r, c) || ids_.taken(r, c)) continue;
@@ -35,7 +36,7 @@ class EdgeRuns {
       if (step2 < o_.shortest_step_px * o_.shortest_step_px) continue;
       int found = -1;
       double best = 1e300;
-      near_.around(s.u + o_.search_at * vu, s.v + o_.search_at * vv, 1, [&](int j) {
+      near_.around(s.u + middle * vu, s.v + middle * vv, 1, [&](int j) {
         const double du = spots_[j].u - s.u, dv = spots_[j].v - s.v;
         const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
         if (along < o_.nearest || along > o_.farthest || aside > o_.aside) return;
@@ -83,13 +84,16 @@ class EdgeRuns {
   int cand(int r, int c) const {
     return ids_.inside(r, c) ? candidate_[static_cast<std::size_t>(r) * pattern_.cols + c] : -1;
   }
+  // two neighbouring candidates and their sources form a lattice cell: the candidates' offset
+  // differs from their sources' by at most CellShape::cell_slack of the sources' step (the run
+  // follows the identified line beside it)
   bool follows(const pattern::SpotId& x, const pattern::SpotId& y) const {
     const int a = cand(x.row, x.col), b = cand(y.row, y.col);
     const int sa = ids_.spot_at(x.row - dr_, x.col - dc_), sb = ids_.spot_at(y.row - dr_, y.col - dc_);
     if (a < 0 || b < 0 || sa < 0 || sb < 0) return false;
     const double su = spots_[sb].u - spots_[sa].u, sv = spots_[sb].v - spots_[sa].v;
     const double eu = spots_[b].u - spots_[a].u - su, ev = spots_[b].v - spots_[a].v - sv;
-    return eu * eu + ev * ev <= o_.follow * o_.follow * (su * su + sv * sv);
+    return eu * eu + ev * ev <= cell_slack_ * cell_slack_ * (su * su + sv * sv);
   }
   void take_run(const std::vector<pattern::SpotId>& run, std::vector<int>& claimed_by,
                 std::vector<DecodedSpot>& added) const {
@@ -124,8 +128,9 @@ class EdgeRuns {
   int dr_, dc_;
   std::vector<int> candidate_;
   const EdgeRunOptions& o_;
-  float faintest_;  // GrowthOptions::faintest: a run's blob is no fainter than a grown spot
-  double alike_;    // GrowthOptions::alike
+  float faintest_;     // GrowthOptions::faintest: a run's blob is no fainter than a grown spot
+  double alike_;       // GrowthOptions::alike
+  double cell_slack_;  // CellShape::cell_slack: two neighbours and their sources form a lattice cell
 };
 
 }  // namespace
@@ -133,7 +138,8 @@ class EdgeRuns {
 std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                         const EpipolarCheck& check, const pattern::MArray& pattern,
                                         std::vector<DecodedSpot> decoded, std::vector<char>* named_here,
-                                        const EdgeRunOptions& options, const GrowthOptions& growth) {
+                                        const EdgeRunOptions& options, const GrowthOptions& growth,
+                                        const CellShape& shape) {
   const std::size_t n = spots.size();
   if (named_here) named_here->assign(n, 0);
   if (decoded.empty() || n < 2) return decoded;
@@ -143,7 +149,7 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
   std::vector<int> claimed_by(n, -1);  // blob -> the cell it was found for (-2: two cells)
   std::vector<DecodedSpot> added;
   for (int k = 0; k < 4; ++k) {
-    EdgeRuns runs(spots, check, pattern, ids, *near, k, options, growth);
+    EdgeRuns runs(spots, check, pattern, ids, *near, k, options, growth, shape.cell_slack);
     runs.find_candidates(decoded);
     runs.read_runs(claimed_by, added);
   }

@@ -154,8 +154,8 @@ class Lattice {
   // a spot named from a single row or column neighbour, or one source short, looks like its sources' mean
   bool looks_like_sources(const Spot& x, const Claims& p, bool one_short) const {
     const double strength = p.strength / p.sources, area = p.area / p.sources;
-    return !(x.strength < (one_short ? o_.one_short_dimmest : o_.dimmest) * strength || x.area_px < o_.area_below * area ||
-             x.area_px > o_.area_above * area || x.area_px < o_.smallest_px || x.strength < o_.faintest);
+    return x.strength >= (one_short ? o_.one_short_dimmest : o_.dimmest) * strength && x.area_px >= o_.area_below * area &&
+           x.area_px <= o_.area_above * area && x.strength >= o_.faintest;
   }
 
   const std::vector<Spot>& spots_;

@@ -107,7 +107,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
         join_slivers(slivers, *geometry, r.detected, graph, hoods, *epipolar, n);
         r.growth.resize(r.detected.size(), GrowthOutcome::kUnclaimed);  // the slivers step 7 never saw
         r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run, e.edge_run,
-                                   e.growth);
+                                   e.growth, options_.cell_shape);
         islands();
       }
       // the grown region's new links and sources carry propagation further (once: a second

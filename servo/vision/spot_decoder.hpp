@@ -136,7 +136,7 @@ enum class ShearAxis { kColumns, kRows };
 // mended links let 10 wrong ids through on the ham).
 struct CellShape {
   double bend = 0.4;         // how much a line's step may change from one spot to the next (of the step)
-  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step)
+  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step; step 8's runs too)
   double step_ratio = 1.5;   // step 2b's straight line: its two steps alike within this factor
 };
 AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
@@ -234,16 +234,20 @@ struct GrowthOptions {
   // names fewer (a farther spot wins the place)
   double slack = 0.45;
   // a grown spot no bigger than this many times any source: a wider blob is the colour wash of
-  // a surface far out of focus behind a silhouette, not a spot
+  // a surface far out of focus behind a silhouette, not a spot (without it, the dark egg gave a
+  // wrong id in 1000 poses, seed 7, with either pattern)
   double largest = 2.5;
   // A spot named from a single row or column neighbour (and corners) must look like its
   // sources' mean: at a silhouette the prediction can fall on a speck or a faint wash blob. Set
-  // on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed such wrong ids.
+  // on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed such wrong
+  // ids. A floor of 10 px on the area kept out no wrong id (docs/decoding.md, "What each number
+  // of steps 7 and 8 does").
   double dimmest = 0.6, area_below = 0.6, area_above = 1.7;
-  int smallest_px = 10;
   // nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
   // glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
-  // `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint. Step 8 asks it too.
+  // `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint. Step 8 asks it
+  // too. Without it 0.7 % more of the readable spots are named on the tuning sweeps, but 3 wrong
+  // ids more on the dark and the printed ham (1000 poses at +-6 cm, +-10 deg): it stays.
   float faintest = 5.0F;
   // A single source naming another id is outvoted by this many more sources than it. Until then
   // any dissent left the spot unnamed: in 1000 ham poses, 1 683 spots that colour, epipolar line
@@ -264,7 +268,9 @@ struct GrowthOptions {
   // epipolar line cannot tell a column from another, so the blob of the surface behind can lie
   // on the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the
   // step, 0.45 as strong as its sources. A spot named one short is at least half as strong as
-  // them. +0.2 points of the ham's readable spots, the same wrong ids in 32 calibrated sweeps.
+  // them (without that, no wrong id more on the tuning scenes, but one on the held-out step under
+  // noise with the paper's pattern). +0.2 points of the ham's readable spots, the same wrong ids
+  // in 32 calibrated sweeps.
   double on_line_aside = 0.08, on_line_shortest = 0.85, on_line_longest = 1.2;
   double one_short_dimmest = 0.5;
   // A spot the lattice pins (this many sources or more, two of them row or column neighbours,
@@ -286,15 +292,13 @@ struct EdgeRunOptions {
   // towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
   // most 0.3 of a step aside
   double nearest = 0.3, farthest = 1.15, aside = 0.3;
-  // how much two neighbouring candidates' offset may differ from their sources' (fraction of
-  // the sources' step): the run follows the identified line beside it
-  double follow = 0.35;
   // consecutive candidates a run needs: each has the colour the pattern has there by chance one
   // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
   int length = 4;
-  // the candidate is looked for around this far along the source's step (of the step), from a
-  // step of at least this many pixels
-  double search_at = 0.7, shortest_step_px = 2;
+  // the candidate is looked for around the middle of [nearest, farthest] along the source's step
+  // (the 0.7 that was set here named the same ids in 72 tuning sweeps), from a step of at least
+  // this many pixels
+  double shortest_step_px = 2;
   // a line beyond is foreshortened: its spots no larger than their sources (a larger blob there
   // is the wash of a surface behind, out of focus), and a run bridges one missing id at most
   double largest = 1.2;
@@ -343,7 +347,8 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
 std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                         const EpipolarCheck& check, const pattern::MArray& pattern,
                                         std::vector<DecodedSpot> decoded, std::vector<char>* named_here = nullptr,
-                                        const EdgeRunOptions& options = {}, const GrowthOptions& growth = {});
+                                        const EdgeRunOptions& options = {}, const GrowthOptions& growth = {},
+                                        const CellShape& shape = {});
 
 std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
                                        const Neighbourhoods& hoods, const EpipolarCheck& check,

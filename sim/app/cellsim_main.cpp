@@ -24,6 +24,7 @@
 #include "servo/pattern/window_table.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/decode_sweep.hpp"
+#include "servo/vision/decoder_options.hpp"
 #include "sim/experiment/experiment.hpp"
 #include "common/strict_yaml.hpp"
 #include "dds/topics.hpp"
@@ -484,6 +485,7 @@ struct DecodeSweepCommand {
   std::string dir, projector;
   experiment::SweepOptions sweep;
   bool tolerant = false, propagate = false, no_grow = false, no_two_votes = false, no_edge_runs = false;
+  std::vector<std::string> decoder_options;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
     scenario.add(c);
@@ -525,10 +527,16 @@ struct DecodeSweepCommand {
     c->add_option("--max-rotation-deg", sweep.max_rotation_deg,
                   "draw each rotation component in +-this (default: the scenario's initial offset per axis)")
         ->check(common::finite_in(0, 90));
+    std::string names;
+    for (const std::string& n : vision::decoder_option_names()) names += (names.empty() ? "" : ", ") + n;
+    c->add_option("--decoder-option", decoder_options,
+                  "NAME=VALUE: one of the decoder's numbers for this sweep (repeatable; docs/decoding.md says what "
+                  "each does): " + names);
     c->add_option("-o,--output", dir, "folder for sweep.csv and overlays of poses with wrong ids");
     return c;
   }
   int run() {
+    for (const std::string& a : decoder_options) vision::set_decoder_option(sweep.decoder, a);
     sweep.decoder.tolerance.enabled = tolerant;
     sweep.out_dir = dir;
     sweep.decoder.epipolar.propagate = propagate;

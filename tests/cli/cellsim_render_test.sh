@@ -58,6 +58,15 @@ grep -q "why the segmented readable spots without an id have none:.* no_growth [
   fail "no loss causes without the calibration: $plain"
 grep -q "why the segmented readable spots without an id have none:" <<<"$cal" &&
   ! grep -q "no_growth" <<<"$cal" || fail "loss causes with the calibration: $cal"
+# a decoder number set for one sweep reaches the decoder: step 7 with no slack grows nothing
+tight=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6 --projector "$tmp/cyl.yaml" \
+  --decoder-option growth.slack=0 --decoder-option edge_run.length=1000) || fail "sweep with --decoder-option: $tight"
+[ "$(count "$tight")" -lt "$(count "$cal")" ] || fail "growth.slack=0 decoded $(count "$tight"), by default $(count "$cal")"
+for bad in "growth.nothing=1" "growth.slack=-1" "growth.slack=nan" "growth.slack=1e10" "growth.slack=" "growth.slack" \
+  "edge_run.length=2.5" "growth.slack=1x"; do
+  one_line_error "--decoder-option $bad" "--decoder-option" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" \
+    --poses 1 --decoder-option "$bad"
+done
 printf 'fx: 1500\n' > "$tmp/badcal.yaml"
 one_line_error "sweep calibration" "fy: missing" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 1 --projector "$tmp/badcal.yaml"
 echo "cellsim render: all checks passed"

@@ -30,4 +30,10 @@ grep -q -- "--pattern servo/pattern/data/marray_20x20_k3_w3.txt" "$tmp/q/decode.
 one_line_error "a file that is no pattern" "README.md" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/r" \
   --poses 1 --set tuning --conditions grey --pattern "$src/README.md"
 [ "$(($(wc -l <"$tmp/q/decode.csv") - 1))" -eq 12 ] || fail "not 6 scenes x 1 condition x 2 with the paper's pattern"
+# a decoder number set for every sweep: the table names it; one that is none stops the first sweep in one line
+out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/o" --poses 1 --set tuning --conditions grey \
+  --decoder-option growth.faintest=0 2>&1) || fail "decode-heldout --decoder-option: $out"
+grep -q -- "--decoder-option growth.faintest=0" "$tmp/o/decode.md" || fail "the table does not name the decoder option"
+one_line_error "a decoder option that is none" "growth.nothing" env BUILD_DIR="$build" "$src/bin/decode-heldout" \
+  -o "$tmp/n" --poses 1 --set tuning --conditions grey --decoder-option growth.nothing=1
 echo "decode-heldout: 132 cases, the tables and the plot"

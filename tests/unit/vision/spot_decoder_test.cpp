@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <set>
+#include <stdexcept>
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +12,7 @@
 
 #include "servo/pattern/palette.hpp"
 #include "servo/pattern/pattern_file.hpp"
+#include "servo/vision/decoder_options.hpp"
 #include "servo/vision/decoder_support.hpp"
 
 namespace vision {
@@ -829,6 +832,38 @@ TEST(DecodedSpots, ASpeckWhereAnIdsSpotShouldBeIsFlaggedAFewNeighboursJudgeNothi
   spots[11].area_px = 10;
   decoded.push_back({3, 5, 0, 0, 11});
   EXPECT_EQ(decoder_support::specks(spots, decoded, paper_pattern(), 0.2).back(), 1);
+}
+
+TEST(DecoderOptionNames, SetEachNumberByItsNameAndRefuseWhatIsNotOne) {
+  const std::vector<std::string> names = decoder_option_names();
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size()) << "a name twice";
+  DecoderOptions o;
+  set_decoder_option(o, "growth.slack=0.3");
+  set_decoder_option(o, "growth.faintest=7.5");
+  set_decoder_option(o, "edge_run.length=6");
+  set_decoder_option(o, "segmentation.min_peak=20");
+  set_decoder_option(o, "cell_shape.cell_slack=0.25");
+  EXPECT_DOUBLE_EQ(o.epipolar.growth.slack, 0.3);
+  EXPECT_FLOAT_EQ(o.epipolar.growth.faintest, 7.5F);
+  EXPECT_EQ(o.epipolar.edge_run.length, 6);
+  EXPECT_EQ(o.segmentation.min_peak, 20);
+  EXPECT_DOUBLE_EQ(o.cell_shape.cell_slack, 0.25);
+  // every listed name is settable, and setting one leaves the others as they were
+  for (const std::string& n : names) {
+    DecoderOptions x;
+    EXPECT_NO_THROW(set_decoder_option(x, n + "=0")) << n;
+  }
+  for (const char* bad : {"growth.nothing=1", "growth.slack=-1", "growth.slack=nan", "growth.slack=inf", "growth.slack=1e10",
+                          "growth.slack=", "growth.slack", "=1", "edge_run.length=2.5", "growth.slack=0.3x"}) {
+    DecoderOptions x;
+    try {
+      set_decoder_option(x, bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("'") + bad + "'"), std::string::npos) << e.what();
+    }
+    EXPECT_DOUBLE_EQ(x.epipolar.growth.slack, GrowthOptions{}.slack) << bad;
+  }
 }
 
 }  // namespace

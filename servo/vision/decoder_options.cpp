@@ -1,0 +1,91 @@
+#include "servo/vision/decoder_options.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+#include <variant>
+
+namespace vision {
+namespace {
+
+struct Field {
+  const char* name;
+  std::variant<double*, float*, int*> at;
+};
+
+// (one table for names and setting: a number added to an options struct is added here once)
+std::vector<Field> fields(DecoderOptions& o) {
+  SegmentationOptions& s = o.segmentation;
+  AdjacencyOptions& a = o.adjacency;
+  EpipolarOptions& e = o.epipolar;
+  GrowthOptions& g = e.growth;
+  EdgeRunOptions& r = e.edge_run;
+  return {{"segmentation.min_threshold", &s.min_threshold}, {"segmentation.min_peak", &s.min_peak},
+          {"segmentation.noise_floor_factor", &s.noise_floor_factor}, {"segmentation.local_window_px", &s.local_window_px},
+          {"segmentation.peak_ratio", &s.peak_ratio}, {"segmentation.min_area_px", &s.min_area_px},
+          {"segmentation.max_area_px", &s.max_area_px}, {"segmentation.max_elongation", &s.max_elongation},
+          {"segmentation.max_sliver_elongation", &s.max_sliver_elongation}, {"segmentation.min_fill", &s.min_fill},
+          {"segmentation.min_colour_match", &s.min_colour_match},
+          {"adjacency.row_cone_deg", &a.row_cone_deg}, {"adjacency.column_cone_deg", &a.column_cone_deg},
+          {"adjacency.reach", &a.reach}, {"adjacency.angle_weight", &a.angle_weight},
+          {"adjacency.similar_length", &a.similar_length}, {"adjacency.chain_votes", &a.chain_votes},
+          {"adjacency.chain_share", &a.chain_share}, {"adjacency.completion_slack", &a.completion_slack},
+          {"cell_shape.bend", &o.cell_shape.bend}, {"cell_shape.cell_slack", &o.cell_shape.cell_slack},
+          {"cell_shape.step_ratio", &o.cell_shape.step_ratio},
+          {"min_votes", &o.min_votes}, {"min_island", &o.min_island}, {"fragment_area", &o.fragment_area},
+          {"speck_area", &o.speck_area},
+          {"epipolar.tolerance_px", &e.tolerance_px}, {"epipolar.min_votes", &e.min_votes},
+          {"epipolar.min_island", &e.min_island}, {"epipolar.propagate_slack", &e.propagate_slack},
+          {"epipolar.min_sources", &e.min_sources},
+          {"grown_limit.times_median", &e.grown_limit.times_median}, {"grown_limit.floor_px", &e.grown_limit.floor_px},
+          {"grown_limit.sample", &e.grown_limit.sample},
+          {"growth.slack", &g.slack}, {"growth.largest", &g.largest}, {"growth.dimmest", &g.dimmest},
+          {"growth.area_below", &g.area_below}, {"growth.area_above", &g.area_above}, {"growth.faintest", &g.faintest},
+          {"growth.majority", &g.majority}, {"growth.tight_slack", &g.tight_slack},
+          {"growth.on_line_aside", &g.on_line_aside}, {"growth.on_line_shortest", &g.on_line_shortest},
+          {"growth.on_line_longest", &g.on_line_longest}, {"growth.one_short_dimmest", &g.one_short_dimmest},
+          {"growth.pinned_sources", &g.pinned_sources},
+          {"growth.alike", &g.alike},
+          {"edge_run.nearest", &r.nearest}, {"edge_run.farthest", &r.farthest}, {"edge_run.aside", &r.aside},
+          {"edge_run.length", &r.length}, {"edge_run.shortest_step_px", &r.shortest_step_px},
+          {"edge_run.largest", &r.largest}, {"edge_run.gaps", &r.gaps}};
+}
+
+}  // namespace
+
+std::vector<std::string> decoder_option_names() {
+  DecoderOptions scratch;
+  std::vector<std::string> names;
+  for (const Field& f : fields(scratch)) names.emplace_back(f.name);
+  return names;
+}
+
+void set_decoder_option(DecoderOptions& options, const std::string& assignment) {
+  const auto fail = [&](const std::string& why) {
+    throw std::invalid_argument("--decoder-option '" + assignment.substr(0, 80) + "': " + why);
+  };
+  const std::size_t eq = assignment.find('=');
+  if (eq == std::string::npos) fail("expected NAME=VALUE");
+  const std::string name = assignment.substr(0, eq), text = assignment.substr(eq + 1);
+  char* end = nullptr;
+  errno = 0;
+  const double value = text.empty() ? NAN : std::strtod(text.c_str(), &end);
+  if (text.empty() || errno != 0 || *end != '\0' || !std::isfinite(value) || value < 0 || value > 1e9)
+    fail("the value must be a number in [0, 1e9]");
+  for (const Field& f : fields(options)) {
+    if (name != f.name) continue;
+    if (int* const* i = std::get_if<int*>(&f.at)) {
+      if (value != std::floor(value)) fail("the value of a count must be a whole number");
+      **i = static_cast<int>(value);
+    } else if (float* const* x = std::get_if<float*>(&f.at)) {
+      **x = static_cast<float>(value);
+    } else {
+      *std::get<double*>(f.at) = value;
+    }
+    return;
+  }
+  fail("no such decoder option (cellsim decode-sweep --help lists them)");
+}
+
+}  // namespace vision

@@ -12,6 +12,10 @@ namespace {
 struct Field {
   const char* name;
   std::variant<double*, float*, int*> at;
+  // the values it takes: [0, 1e9] but where a number sizes a buffer (the side of the window a
+  // pixel's level is read in: 0 or 1e9 px would stop the segmentation) or is an 8-bit level
+  // (a chroma floor past 255 would wrap)
+  double least = 0, most = 1e9;
 };
 
 // (one table for names and setting: a number added to an options struct is added here once)
@@ -21,8 +25,8 @@ std::vector<Field> fields(DecoderOptions& o) {
   EpipolarOptions& e = o.epipolar;
   GrowthOptions& g = e.growth;
   EdgeRunOptions& r = e.edge_run;
-  return {{"segmentation.min_threshold", &s.min_threshold}, {"segmentation.min_peak", &s.min_peak},
-          {"segmentation.noise_floor_factor", &s.noise_floor_factor}, {"segmentation.local_window_px", &s.local_window_px},
+  return {{"segmentation.min_threshold", &s.min_threshold, 0, 255}, {"segmentation.min_peak", &s.min_peak, 0, 255},
+          {"segmentation.noise_floor_factor", &s.noise_floor_factor, 0, 255}, {"segmentation.local_window_px", &s.local_window_px, 1, 255},
           {"segmentation.peak_ratio", &s.peak_ratio}, {"segmentation.min_area_px", &s.min_area_px},
           {"segmentation.max_area_px", &s.max_area_px}, {"segmentation.max_elongation", &s.max_elongation},
           {"segmentation.max_sliver_elongation", &s.max_sliver_elongation}, {"segmentation.min_fill", &s.min_fill},
@@ -75,6 +79,9 @@ void set_decoder_option(DecoderOptions& options, const std::string& assignment) 
     fail("the value must be a number in [0, 1e9]");
   for (const Field& f : fields(options)) {
     if (name != f.name) continue;
+    if (value < f.least || value > f.most)
+      fail("the value must be in [" + std::to_string(static_cast<int>(f.least)) + ", " +
+           std::to_string(static_cast<int>(f.most)) + "] for this one");
     if (int* const* i = std::get_if<int*>(&f.at)) {
       if (value != std::floor(value)) fail("the value of a count must be a whole number");
       **i = static_cast<int>(value);

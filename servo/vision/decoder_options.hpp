@@ -15,7 +15,8 @@ namespace vision {
 std::vector<std::string> decoder_option_names();
 
 // Sets one number from "NAME=VALUE". Throws std::invalid_argument, naming the assignment, when
-// NAME is unknown, VALUE is not a finite number in [0, 1e9], or a count's VALUE is not whole.
+// NAME is unknown, VALUE is not a finite number in the range NAME takes ([0, 1e9]; the
+// segmentation's window [1, 255], its 8-bit levels and noise factor [0, 255]), or a count's VALUE is not whole.
 void set_decoder_option(DecoderOptions& options, const std::string& assignment);
 
 }  // namespace vision

@@ -63,7 +63,7 @@ tight=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6 --p
   --decoder-option growth.slack=0 --decoder-option edge_run.length=1000) || fail "sweep with --decoder-option: $tight"
 [ "$(count "$tight")" -lt "$(count "$cal")" ] || fail "growth.slack=0 decoded $(count "$tight"), by default $(count "$cal")"
 for bad in "growth.nothing=1" "growth.slack=-1" "growth.slack=nan" "growth.slack=1e10" "growth.slack=" "growth.slack" \
-  "edge_run.length=2.5" "growth.slack=1x"; do
+  "edge_run.length=2.5" "growth.slack=1x" "segmentation.local_window_px=0"; do
   one_line_error "--decoder-option $bad" "--decoder-option" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" \
     --poses 1 --decoder-option "$bad"
 done

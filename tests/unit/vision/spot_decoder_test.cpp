@@ -851,10 +851,11 @@ TEST(DecoderOptionNames, SetEachNumberByItsNameAndRefuseWhatIsNotOne) {
   // every listed name is settable, and setting one leaves the others as they were
   for (const std::string& n : names) {
     DecoderOptions x;
-    EXPECT_NO_THROW(set_decoder_option(x, n + "=0")) << n;
+    EXPECT_NO_THROW(set_decoder_option(x, n + "=1")) << n;
   }
   for (const char* bad : {"growth.nothing=1", "growth.slack=-1", "growth.slack=nan", "growth.slack=inf", "growth.slack=1e10",
-                          "growth.slack=", "growth.slack", "=1", "edge_run.length=2.5", "growth.slack=0.3x"}) {
+                          "growth.slack=", "growth.slack", "=1", "edge_run.length=2.5", "growth.slack=0.3x",
+                          "segmentation.local_window_px=0", "segmentation.local_window_px=256"}) {
     DecoderOptions x;
     try {
       set_decoder_option(x, bad);

@@ -296,8 +296,8 @@ struct EdgeRunOptions {
   // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
   int length = 4;
   // the candidate is looked for around the middle of [nearest, farthest] along the source's step
-  // (the 0.7 that was set here named the same ids in 72 tuning sweeps), from a step of at least
-  // this many pixels
+  // (no number of its own: a fixed 0.7 names the same ids in the 72 tuning sweeps), from a step
+  // of at least this many pixels
   double shortest_step_px = 2;
   // a line beyond is foreshortened: its spots no larger than their sources (a larger blob there
   // is the wash of a surface behind, out of focus), and a run bridges one missing id at most

@@ -348,7 +348,8 @@ void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::a
 
 }  // namespace
 
-AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend, const AdjacencyOptions& o) {
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend, const AdjacencyOptions& o,
+                               const CellShape& shape) {
   AdjacencyGraph g;
   const std::size_t n = spots.size();
   g.next.assign(n, {-1, -1, -1, -1});
@@ -356,7 +357,7 @@ AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend, const 
   const std::vector<double> nn_dist = nearest_distances(spots, g.grid_angle_rad);
   const double spacing = median(nn_dist);
   const SpatialGrid near(spots, std::max(2.0, spacing));
-  keep_regular_links(spots, link_candidates(spots, near, nn_dist, spacing, g.grid_angle_rad, o), o.similar_length, g);
+  keep_regular_links(spots, link_candidates(spots, near, nn_dist, spacing, g.grid_angle_rad, o), shape.step_ratio, g);
   if (!mend) return g;
   align_chains(g, kEast, kSouth, o);  // columns between row chains
   complete_links(g, spots, near, o.completion_slack);

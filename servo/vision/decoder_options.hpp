@@ -1,7 +1,7 @@
 // Every number of the decoder's options by name ("growth.faintest"), so that one can be set for a
 // run without a build (`cellsim decode-sweep --decoder-option NAME=VALUE`): what each number does
-// is measured by setting it and sweeping (docs/decoding.md, "What each number of steps 7 and 8
-// does"). The switches (which steps run) have their own flags.
+// is measured by setting it and sweeping (docs/decoding.md, "What each number does"). The
+// switches (which steps run) have their own flags.
 #pragma once
 
 #include <string>

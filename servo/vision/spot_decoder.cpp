@@ -65,7 +65,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   std::vector<Spot> slivers(first_sliver, r.detected.end());
   r.detected.erase(first_sliver, r.detected.end());
   const CellShape& shape = options_.cell_shape;
-  AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links, options_.adjacency);
+  AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links, options_.adjacency, shape);
   Neighbourhoods hoods = check_graph_consistency(graph);
   int n = static_cast<int>(r.detected.size());
   std::vector<char> edge_run;  // the spots an edge run named (step 8)
@@ -95,7 +95,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
                                 e.propagate_slack, e.growth.alike);
       islands();
     };
-    r.decoded = check_vote_consistency(r.detected, votes, e.min_votes, e.two_exact_votes);
+    r.decoded = check_vote_consistency(r.detected, votes, options_.min_votes, e.two_exact_votes);
     islands();
     epipolar->set_grown_limit(r.decoded, e.grown_limit);
     if (e.propagate) propagate();

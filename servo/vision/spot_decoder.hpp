@@ -38,6 +38,18 @@
 
 namespace vision {
 
+// What a smooth lattice cell is (steps 1, 2b and 3): on one smooth surface each row and column of a
+// window bends little and each of its four cells is near a parallelogram; across a depth edge,
+// with a spot from the surface behind shifted along its row, they are not (without the test the
+// mended links let 10 wrong ids through on the ham).
+struct CellShape {
+  double bend = 0.4;         // how much a line's step may change from one spot to the next (of the step)
+  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step; step 8's runs too)
+  // two steps along a line alike within this factor: step 2b's straight line, and step 1's
+  // regular link (a link across a missing spot is twice as long as those continuing it)
+  double step_ratio = 1.5;
+};
+
 // Step 1. The pattern's grid direction is estimated from the nearest-neighbour vectors (their
 // angles modulo 90 deg); for each spot and each direction, the closest spot within +-40 deg of
 // it is the candidate; only mutual links are kept (B east of A and A west of B).
@@ -55,9 +67,6 @@ struct AdjacencyOptions {
   // a column candidate's rank: distance x (1 + this x its angle to the perpendicular), so a
   // nearer diagonal neighbour does not beat the true one straight below
   double angle_weight = 2;
-  // a link is regular when a continuing link's length is within this factor of its own: a link
-  // across a missing spot is twice as long as those continuing it
-  double similar_length = 1.5;
   // step 1b: two row chains are joined by the column offset at least this many of their links
   // take, and at least this share of them
   int chain_votes = 3;
@@ -66,7 +75,8 @@ struct AdjacencyOptions {
   // links put it
   double completion_slack = 0.3;
 };
-AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend = true, const AdjacencyOptions& options = {});
+AdjacencyGraph build_adjacency(const std::vector<Spot>& spots, bool mend = true, const AdjacencyOptions& options = {},
+                               const CellShape& shape = {});
 
 // Step 2. A corner neighbour is kept only when both paths to it exist and agree.
 Neighbourhoods check_graph_consistency(const AdjacencyGraph& graph);
@@ -82,12 +92,13 @@ struct WindowReading {
 
 // The detected spots against the frame's epipolar geometry (see epipolar.hpp).
 // EpipolarCheck::set_grown_limit's numbers: this many times the median residual of the
-// window-read spots, at least the floor, the median taken from at least `sample` of them (fewer:
-// the tolerance alone). The dark ham went from 5 wrong ids in 100 poses to none, for 0.4 points.
+// window-read spots, at least the floor, the median taken from at least one window's spots (9;
+// fewer: the tolerance alone; 3 named 9 ids more of 5.6 million on the calibrated tuning sweeps,
+// so it is no number of its own). The dark ham went from 5 wrong ids in 100 poses to none, for
+// 0.4 points.
 struct GrownLimit {
   double times_median = 4.0;
   double floor_px = 1.0;
-  int sample = 9;
 };
 
 struct EpipolarCheck {
@@ -130,15 +141,6 @@ struct EpipolarCheck {
 // kRows: the same with rows and columns exchanged (rows slanted against trusted columns: the
 // cylinder towards its silhouette), run after the columns.
 enum class ShearAxis { kColumns, kRows };
-// What a smooth lattice cell is (steps 2b and 3): on one smooth surface each row and column of a
-// window bends little and each of its four cells is near a parallelogram; across a depth edge,
-// with a spot from the surface behind shifted along its row, they are not (without the test the
-// mended links let 10 wrong ids through on the ham).
-struct CellShape {
-  double bend = 0.4;         // how much a line's step may change from one spot to the next (of the step)
-  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step; step 8's runs too)
-  double step_ratio = 1.5;   // step 2b's straight line: its two steps alike within this factor
-};
 AdjacencyGraph resolve_shear(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const Neighbourhoods& hoods,
                              const pattern::WindowTable& table, const EpipolarCheck* check = nullptr,
                              ShearAxis axis = ShearAxis::kColumns, const CellShape& shape = {});
@@ -238,11 +240,14 @@ struct GrowthOptions {
   // wrong id in 1000 poses, seed 7, with either pattern)
   double largest = 2.5;
   // A spot named from a single row or column neighbour (and corners) must look like its
-  // sources' mean: at a silhouette the prediction can fall on a speck or a faint wash blob. Set
-  // on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed such wrong
-  // ids. A floor of 10 px on the area kept out no wrong id (docs/decoding.md, "What each number
-  // of steps 7 and 8 does").
-  double dimmest = 0.6, area_below = 0.6, area_above = 1.7;
+  // sources' mean: at least this fraction of their strength and of their area, at most its
+  // inverse of their area. At a silhouette the prediction can fall on a speck or a faint wash
+  // blob. Set on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed
+  // such wrong ids. One number for the three bounds (the strength's and the area's floor were
+  // both 0.6, the area's ceiling 1.7 for 1/0.6: the same wrong ids, 19 ids fewer of 5.6 million
+  // on the calibrated tuning sweeps); a floor of 10 px on the area kept out no wrong id
+  // (docs/decoding.md, "What each number does").
+  double unlike = 0.6;
   // nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
   // glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
   // `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint. Step 8 asks it
@@ -261,25 +266,20 @@ struct GrowthOptions {
   // the surface behind's spot, never one within 0.12. +0.3 points of the ham's readable spots,
   // +0.5 of the cylinder's, the same wrong ids in 32 calibrated sweeps of 1000 poses.
   double tight_slack = 0.12;
-  // Or when the row or column neighbour's step lands on the blob's line (within 0.08 of a step
-  // aside) at 0.85-1.2 of its length, the corner's within `slack`: towards a silhouette the
-  // surface turns away and the last step shrinks or stretches along itself (the ham's first and
+  // Or when the row or column neighbour's step lands on the blob's line (within `tight_slack` of a
+  // step aside: 0.08 of its own named 0.03 % fewer of the tuning sweeps' ids, the same wrong ids) at
+  // 1/1.2-1.2 of its length (`on_line_stretch`), the corner's within `slack`: towards a silhouette
+  // the surface turns away and the last step shrinks or stretches along itself (the ham's first and
   // last columns), and the corner's prediction, two steps, drifts by 0.2-0.4. Along a row the
-  // epipolar line cannot tell a column from another, so the blob of the surface behind can lie
-  // on the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the
-  // step, 0.45 as strong as its sources. A spot named one short is at least half as strong as
-  // them (without that, no wrong id more on the tuning scenes, but one on the held-out step under
-  // noise with the paper's pattern). +0.2 points of the ham's readable spots, the same wrong ids
-  // in 32 calibrated sweeps.
-  double on_line_aside = 0.08, on_line_shortest = 0.85, on_line_longest = 1.2;
-  double one_short_dimmest = 0.5;
-  // A spot the lattice pins (this many sources or more, two of them row or column neighbours,
-  // each within `tight_slack`) needs no uniqueness among the ids around it: along a row the
-  // epipolar lines coincide, so a row's neighbour of the same colour fits as well as the id
-  // itself one time in three, and such spots were refused however many sources agreed (the
-  // table at the pattern's corner, the ham's flanks). Ham 89.7 -> 90.3 % of its readable spots,
-  // 64.8 -> 65.4 % of its visible ones; the same wrong ids in 32 calibrated sweeps of 1000 poses.
-  int pinned_sources = 3;
+  // epipolar line cannot tell a column from another, so the blob of the surface behind can lie on
+  // the step's line: the one such wrong id seen (1000 cylinder poses) lay at 0.75 of the step, 0.45
+  // as strong as its sources. A spot named one short looks like its sources as one named from a
+  // single neighbour does (`unlike`; without that, no wrong id more on the tuning scenes, but one on
+  // the held-out step under noise with the paper's pattern). +0.2 points of the ham's readable
+  // spots, the same wrong ids in 32 calibrated sweeps. (Its own floor of 0.5 on the strength, and
+  // 0.85 for the shortest step, named 0.05 % more of the tuning sweeps' ids than `unlike` and 1/1.2,
+  // the same wrong ids: not worth a number each.)
+  double on_line_stretch = 1.2;
   // a propagated, grown or run blob at least this fraction of its source's strength and area
   // (steps 6-8): a faint speck of noise, or the dim light of a surface behind an edge
   // (defocused, oblique), is not a spot of the source's surface
@@ -290,7 +290,8 @@ struct GrowthOptions {
 struct EdgeRunOptions {
   // where a run's candidate may lie from its source, along the source's step: the steps shrink
   // towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
-  // most 0.3 of a step aside
+  // most 0.3 of a step aside (a cell's slack, 0.35, named a wrong id on the printed cylinder in
+  // 1000 poses, seed 7)
   double nearest = 0.3, farthest = 1.15, aside = 0.3;
   // consecutive candidates a run needs: each has the colour the pattern has there by chance one
   // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
@@ -361,8 +362,8 @@ struct EpipolarOptions {
   bool enabled = true;
   double tolerance_px = 3.0;  // centroid error on curved surfaces is ~1 px; calibration adds to it
   // The epipolar lines of one frame often run along the pattern's rows: they tell the row, not
-  // the column, so a window misread one column over still passes. Votes and islands stay.
-  int min_votes = 3;
+  // the column, so a window misread one column over still passes: DecoderOptions::min_votes
+  // holds with the calibration too, and islands stay.
   // 3 (12 without the calibration): the small islands' wrong ids were propagation's; without
   // it, 5 named +0.5 points of the ham's readable spots and +0.3 of the cylinder's against 12,
   // and 3 +0.1-0.3 more on the ham and the compact objects (egg, can, wedge), no wrong id added

@@ -23,8 +23,8 @@ void EpipolarCheck::set_grown_limit(const std::vector<DecodedSpot>& decoded, con
     const double r = geometry.residual_px(xy[static_cast<std::size_t>(d.spot)], {d.row, d.col});
     if (std::isfinite(r)) residuals.push_back(r);
   }
-  // too few to say what the frame's residuals are: the tolerance alone
-  if (residuals.size() < static_cast<std::size_t>(limit.sample)) {
+  // too few (fewer than one window's spots) to say what the frame's residuals are: the tolerance alone
+  if (residuals.size() < std::tuple_size_v<Window>) {
     grown_limit_px = geometry.tolerance_px();
     return;
   }

@@ -196,7 +196,7 @@ TEST(EpipolarDecoding, AWindowThatReadsAValidButWrongCodeComesOutUnidentifiedOrR
   // ... and every spot the full decoder names (with votes as low as 1) is named right
   for (int min_votes : {1, 3}) {
     vision::DecoderOptions o;
-    o.epipolar.min_votes = min_votes;
+    o.min_votes = min_votes;
     o.epipolar.min_island = 1;
     o.epipolar.tolerant = true;
     const vision::SpotDecoder d(table, o);
@@ -326,7 +326,7 @@ TEST(EpipolarDecoding, TheGrownLatticeNamesSpotsWhoseLinksAreMissingAndNoneWrong
 
 // At a silhouette only two identified spots may touch the next one: a row or column neighbour
 // and a corner. One source fewer than asked names it when both predictions land within 0.12 of
-// a step of the blob, or when it lies on the neighbour's step line at 0.85-1.2 of the step (the
+// a step of the blob, or when it lies on the neighbour's step line at 1/1.2-1.2 of the step (the
 // last step foreshortened or stretched), and it looks like them. Farther along or aside (still within the
 // three-source slack), half their size or 0.45 as strong, it stays unnamed. From a 2 x 2 block
 // the plane then grows whole.
@@ -364,7 +364,7 @@ TEST(EpipolarDecoding, TwoSourcesNameASpotOnlyWhereBothPredictionsLandOnIt) {
   EXPECT_TRUE(grow_alone([](vision::Spot&) {}));
   const vision::Spot& east = spots[static_cast<std::size_t>(spot_of.at({10, 10}))];
   const double step_u = east.u - spots[static_cast<std::size_t>(spot_of.at({10, 9}))].u;
-  // on the step's line, 1.16 of the step: beyond the tight slack, within 0.85-1.2 (the middle
+  // on the step's line, 1.16 of the step: beyond the tight slack, within 1/1.2-1.2 (the middle
   // of the band this frame names, -0.19 to +0.15 of a step, with the same margin either side)
   EXPECT_TRUE(grow_alone([&](vision::Spot& x) { x.u -= 0.16 * step_u; }));
   EXPECT_FALSE(grow_alone([&](vision::Spot& x) { x.u -= 0.3 * step_u; }));  // stretched too far

@@ -310,7 +310,7 @@ std::vector<std::array<int, 4>> link_candidates(const std::vector<Spot>& spots, 
 
 // The links kept: mutual candidates, regularly spaced, symmetric.
 void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::array<int, 4>>& cand,
-                        double similar_length, AdjacencyGraph& g) {
+                        double step_ratio, AdjacencyGraph& g) {
   const std::size_t n = spots.size();
   std::vector<std::array<int, 4>> mutual(n, {-1, -1, -1, -1});
   for (std::size_t i = 0; i < n; ++i)
@@ -325,7 +325,7 @@ void keep_regular_links(const std::vector<Spot>& spots, const std::vector<std::a
     const double du = spots[b].u - spots[a].u, dv = spots[b].v - spots[a].v;
     return std::sqrt(du * du + dv * dv);
   };
-  const auto similar = [&](double a, double b) { return a < similar_length * b && b < similar_length * a; };
+  const auto similar = [&](double a, double b) { return a < step_ratio * b && b < step_ratio * a; };
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 4; ++k) {
       const int j = mutual[i][k];

@@ -371,6 +371,10 @@ TEST(EpipolarDecoding, TwoSourcesNameASpotOnlyWhereBothPredictionsLandOnIt) {
   EXPECT_FALSE(grow_alone([&](vision::Spot& x) { x.v += 0.2 * step_u; }));  // aside
   EXPECT_FALSE(grow_alone([](vision::Spot& x) { x.area_px /= 2; }));
   EXPECT_FALSE(grow_alone([](vision::Spot& x) { x.strength *= 0.45F; }));
+  // and no larger than 1/0.6 of them (GrowthOptions::unlike): 1.4 times is a spot, 1.8 a blob
+  // that is not one of theirs
+  EXPECT_TRUE(grow_alone([](vision::Spot& x) { x.area_px = static_cast<int>(x.area_px * 1.4); }));
+  EXPECT_FALSE(grow_alone([](vision::Spot& x) { x.area_px = static_cast<int>(x.area_px * 1.8); }));
   // all the spots: from the block over the plane, none wrong
   std::vector<vision::DecodedSpot> seeds;
   for (const auto& rc : block) {

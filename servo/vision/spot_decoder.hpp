@@ -239,14 +239,14 @@ struct GrowthOptions {
   // a surface far out of focus behind a silhouette, not a spot (without it, the dark egg gave a
   // wrong id in 1000 poses, seed 7, with either pattern)
   double largest = 2.5;
-  // A spot named from a single row or column neighbour (and corners) must look like its
-  // sources' mean: at least this fraction of their strength and of their area, at most its
-  // inverse of their area. At a silhouette the prediction can fall on a speck or a faint wash
-  // blob. Set on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed
-  // such wrong ids. One number for the three bounds (the strength's and the area's floor were
-  // both 0.6, the area's ceiling 1.7 for 1/0.6: the same wrong ids, 19 ids fewer of 5.6 million
-  // on the calibrated tuning sweeps); a floor of 10 px on the area kept out no wrong id
-  // (docs/decoding.md, "What each number does").
+  // A spot named from a single row or column neighbour (and corners), or one source short, must look
+  // like its sources' mean: at least this fraction of their strength and of their area, at most its
+  // inverse of their area. At a silhouette the prediction can fall on a speck or a faint wash blob.
+  // Set on 1000-pose sweeps of the cylinder behind an occluder, the scenario that showed such wrong
+  // ids. One number for the three bounds (the strength's and the area's floor were both 0.6; the
+  // area's ceiling 1.7 for 1/0.6 named 19 ids fewer of 5.6 million on the calibrated tuning sweeps,
+  // the same wrong ids; one source short, see below); a floor of 10 px on the area kept out no wrong
+  // id (docs/decoding.md, "What each number does").
   double unlike = 0.6;
   // nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
   // glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
@@ -276,9 +276,9 @@ struct GrowthOptions {
   // as strong as its sources. A spot named one short looks like its sources as one named from a
   // single neighbour does (`unlike`; without that, no wrong id more on the tuning scenes, but one on
   // the held-out step under noise with the paper's pattern). +0.2 points of the ham's readable
-  // spots, the same wrong ids in 32 calibrated sweeps. (Its own floor of 0.5 on the strength, and
-  // 0.85 for the shortest step, named 0.05 % more of the tuning sweeps' ids than `unlike` and 1/1.2,
-  // the same wrong ids: not worth a number each.)
+  // spots, the same wrong ids in 32 calibrated sweeps. (Its own floor of 0.5 on the strength named
+  // 0.05 % more of the tuning sweeps' ids than `unlike`, and 0.85 for the shortest step 244 fewer
+  // of 5.6 million than 1/1.2, the same wrong ids: not worth a number each.)
   double on_line_stretch = 1.2;
   // a propagated, grown or run blob at least this fraction of its source's strength and area
   // (steps 6-8): a faint speck of noise, or the dim light of a surface behind an edge

@@ -1,10 +1,10 @@
 #include "servo/vision/decoder_options.hpp"
 
-#include <cerrno>
 #include <cmath>
-#include <cstdlib>
 #include <stdexcept>
 #include <variant>
+
+#include "common/decimal_number.hpp"
 
 namespace vision {
 namespace {
@@ -66,11 +66,10 @@ void set_decoder_option(DecoderOptions& options, const std::string& assignment) 
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos) fail("expected NAME=VALUE");
   const std::string name = assignment.substr(0, eq), text = assignment.substr(eq + 1);
-  char* end = nullptr;
-  errno = 0;
-  const double value = text.empty() ? NAN : std::strtod(text.c_str(), &end);
-  if (text.empty() || errno != 0 || *end != '\0' || !std::isfinite(value) || value < 0 || value > 1e9)
-    fail("the value must be a number in [0, 1e9]");
+  // a number as the command line reads every other (not strtod's "0x10", "inf" or " 1")
+  const std::optional<double> parsed = common::decimal_number(text);
+  if (!parsed || *parsed < 0 || *parsed > 1e9) fail("the value must be a decimal number in [0, 1e9]");
+  const double value = *parsed;
   for (const Field& f : fields(options)) {
     if (name != f.name) continue;
     if (value < f.least || value > f.most)

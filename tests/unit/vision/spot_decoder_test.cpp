@@ -854,7 +854,8 @@ TEST(DecoderOptionNames, SetEachNumberByItsNameAndRefuseWhatIsNotOne) {
     EXPECT_NO_THROW(set_decoder_option(x, n + "=1")) << n;
   }
   for (const char* bad : {"growth.nothing=1", "growth.slack=-1", "growth.slack=nan", "growth.slack=inf", "growth.slack=1e10",
-                          "growth.slack=", "growth.slack", "=1", "edge_run.length=2.5", "growth.slack=0.3x",
+                          "growth.slack=", "growth.slack", "=1", "edge_run.length=2.5", "growth.slack=0.3x", "growth.slack=0x1",
+                          "growth.slack= 0.3",
                           "segmentation.local_window_px=0", "segmentation.local_window_px=256"}) {
     DecoderOptions x;
     try {

@@ -350,8 +350,8 @@ struct DecodeCommand {
         ->check(CLI::Range(0, 15))
         ->capture_default_str();
     c->add_option("--projector", projector,
-                  "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
-                  "epipolar lines; needs --camera and a camera pose");
+                  "projector calibration (YAML, from `cellsim calibration`): check ids along the epipolar lines "
+                  "and grow the identified lattice; needs --camera and a camera pose");
     c->add_option("--camera", camera, "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]")->expected(4, 9);
     c->add_option("--camera-pose", pose,
                   "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
@@ -413,7 +413,7 @@ struct ServoConfigFlags {
                 "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
                 "when they are at least half of them (config key interior_points)");
     c->add_flag("--no-epipolar", no_epipolar,
-                "with --projector: triangulate only; decode without the epipolar check and propagation");
+                "with --projector: triangulate only; decode without the epipolar check and the grown lattice");
     c->add_option("--visual-features", features,
                   "points (every decoded spot's x, y) | moments (the six image moments of the matched spots) | "
                   "surface (the plane of the triangulated spots and three moments: needs --projector) | plane (its "

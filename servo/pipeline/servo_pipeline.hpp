@@ -60,7 +60,8 @@ class ServoPipeline {
   ServoPipeline(pattern::WindowTable table, ServoConfig config);
 
   // Decodes an image into identified spots. With a camera pose and the projector's
-  // calibration, the decoder also checks and propagates ids along the epipolar lines.
+  // calibration, the decoder also checks ids along the epipolar lines and grows the
+  // identified lattice.
   // Throws std::invalid_argument for a bad image.
   std::vector<ImageSpot> locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& world_T_camera,
                                 int* detected = nullptr) const;

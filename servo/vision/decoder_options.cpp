@@ -40,14 +40,13 @@ std::vector<Field> fields(DecoderOptions& o) {
           {"min_votes", &o.min_votes}, {"min_island", &o.min_island}, {"fragment_area", &o.fragment_area},
           {"speck_area", &o.speck_area},
           {"epipolar.tolerance_px", &e.tolerance_px}, {"epipolar.min_island", &e.min_island},
-          {"epipolar.propagate_slack", &e.propagate_slack}, {"epipolar.min_sources", &e.min_sources},
+          {"epipolar.min_sources", &e.min_sources},
           {"grown_limit.times_median", &e.grown_limit.times_median}, {"grown_limit.floor_px", &e.grown_limit.floor_px},
           {"growth.slack", &g.slack}, {"growth.largest", &g.largest}, {"growth.unlike", &g.unlike},
-          {"growth.faintest", &g.faintest}, {"growth.majority", &g.majority}, {"growth.tight_slack", &g.tight_slack},
+          {"growth.faintest", &g.faintest}, {"growth.tight_slack", &g.tight_slack},
           {"growth.on_line_stretch", &g.on_line_stretch}, {"growth.alike", &g.alike},
           {"edge_run.nearest", &r.nearest}, {"edge_run.farthest", &r.farthest}, {"edge_run.aside", &r.aside},
-          {"edge_run.length", &r.length}, {"edge_run.shortest_step_px", &r.shortest_step_px},
-          {"edge_run.largest", &r.largest}, {"edge_run.gaps", &r.gaps}};
+          {"edge_run.length", &r.length}, {"edge_run.largest", &r.largest}, {"edge_run.gaps", &r.gaps}};
 }
 
 }  // namespace

@@ -177,7 +177,7 @@ inline bool alike(const Spot& source, const Spot& s, double fraction) {
 }
 
 // Which spot carries each id, and where each identified spot is in the decoded list: the
-// bookkeeping of the steps that name spots one at a time (propagation, growth).
+// bookkeeping of the steps that name spots one at a time (the grown lattice, the edge runs).
 class IdMap {
  public:
   IdMap(const pattern::MArray& pattern, std::size_t spot_count, const std::vector<DecodedSpot>& decoded)
@@ -245,7 +245,7 @@ inline bool only_fitting_id(const std::vector<Spot>& spots, int j, const pattern
 // prediction and a spot of another surface can coincide: at a depth edge the surface behind
 // shows a spot where the front lattice goes on, of the right colour, within the grown limit of
 // X's line, and only its own id's line runs nearer. Over 1000 dark-ham poses (the tuning set)
-// it kept 5 of the 9 wrong ids from step 7 for 0.8 % of the right ids (a rival line nearer by
+// it kept 5 of the 9 wrong ids from step 6 for 0.8 % of the right ids (a rival line nearer by
 // chance); the 4 it lets through lie nearer X's line than their own (a centroid pulled by an edge).
 template <typename Taken>
 bool nearest_free_line(const std::vector<Spot>& spots, int j, const pattern::SpotId& x, const EpipolarCheck& check,

@@ -1,4 +1,4 @@
-// M-array decoding, step 8: the foreshortened line beyond an identified one, named as a run (name_edge_runs).
+// M-array decoding, step 7: the foreshortened line beyond an identified one, named as a run (name_edge_runs).
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -33,7 +33,7 @@ class EdgeRuns {
       if (back < 0) continue;
       const Spot& s = spots_[from.spot];
       const double vu = s.u - spots_[back].u, vv = s.v - spots_[back].v, step2 = vu * vu + vv * vv;
-      if (step2 < o_.shortest_step_px * o_.shortest_step_px) continue;
+      if (step2 <= 0) continue;  // two blobs at one place: no step
       int found = -1;
       double best = 1e300;
       near_.around(s.u + middle * vu, s.v + middle * vv, 1, [&](int j) {

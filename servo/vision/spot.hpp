@@ -16,13 +16,13 @@ struct Spot {
   float strength = 0;    // mean chroma above the threshold
   bool truncated = false;  // cut by the image border: its centroid is biased
   // narrower than a spot may be (SegmentationOptions::max_elongation): a spot seen edge-on
-  // beside a silhouette. Only the edge runs (decoder step 8) use slivers.
+  // beside a silhouette. Only the edge runs (decoder step 7) use slivers.
   bool sliver = false;
 };
 
 // Which decoder step named a spot (spot_decoder.hpp numbers the steps): the evidence behind
 // an id, from the strongest (the windows of the paper) to the weakest (a run along an edge).
-enum class NamedBy : unsigned char { kWindows = 0, kPropagation = 6, kLattice = 7, kEdgeRun = 8 };
+enum class NamedBy : unsigned char { kWindows = 0, kLattice = 6, kEdgeRun = 7 };
 
 // A decoded spot: its identity in the pattern and where it is in the image.
 struct DecodedSpot {

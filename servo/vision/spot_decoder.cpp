@@ -23,7 +23,7 @@ SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
 
 namespace {
 
-// Step 8's slivers join the spots, unlinked (no window, their normalised coordinates checked).
+// Step 7's slivers join the spots, unlinked (no window, their normalised coordinates checked).
 void join_slivers(const std::vector<Spot>& slivers, const EpipolarGeometry& geometry, std::vector<Spot>& detected,
                   AdjacencyGraph& graph, Neighbourhoods& hoods, EpipolarCheck& check, int& n) {
   for (const Spot& x : slivers) {
@@ -60,7 +60,7 @@ std::vector<DecodedSpot> reported_spots(const std::vector<Spot>& detected, const
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;
   r.detected = std::move(spots);
-  // the slivers wait for step 8: the steps before see the spots only
+  // the slivers wait for step 7: the steps before see the spots only
   const auto first_sliver = std::stable_partition(r.detected.begin(), r.detected.end(), [](const Spot& s) { return !s.sliver; });
   std::vector<Spot> slivers(first_sliver, r.detected.end());
   r.detected.erase(first_sliver, r.detected.end());
@@ -68,7 +68,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   AdjacencyGraph graph = build_adjacency(r.detected, options_.mend_links, options_.adjacency, shape);
   Neighbourhoods hoods = check_graph_consistency(graph);
   int n = static_cast<int>(r.detected.size());
-  std::vector<char> edge_run;  // the spots an edge run named (step 8)
+  std::vector<char> edge_run;  // the spots an edge run named (step 7)
   std::optional<EpipolarCheck> epipolar;
   if (geometry) epipolar.emplace(*geometry, r.detected);
   if (options_.mend_links) {
@@ -90,31 +90,19 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     add_window_votes(hoods, readings, votes, &lines);
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes, shape);
     const auto islands = [&] { r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true); };
-    const auto propagate = [&] {
-      r.decoded = propagate_ids(r.detected, graph, hoods, check, table_.array(), std::move(r.decoded), e.min_sources,
-                                e.propagate_slack, e.growth.alike);
-      islands();
-    };
     r.decoded = check_vote_consistency(r.detected, votes, options_.min_votes, e.two_exact_votes);
     islands();
     epipolar->set_grown_limit(r.decoded, e.grown_limit);
-    if (e.propagate) propagate();
     if (e.grow) {
       r.decoded = grow_lattice(r.detected, graph, check, table_.array(), std::move(r.decoded), e.min_sources, e.growth,
                                &r.growth);
       islands();
       if (e.edge_runs) {
         join_slivers(slivers, *geometry, r.detected, graph, hoods, *epipolar, n);
-        r.growth.resize(r.detected.size(), GrowthOutcome::kUnclaimed);  // the slivers step 7 never saw
+        r.growth.resize(r.detected.size(), GrowthOutcome::kUnclaimed);  // the slivers step 6 never saw
         r.decoded = name_edge_runs(r.detected, graph, check, table_.array(), std::move(r.decoded), &edge_run, e.edge_run,
                                    e.growth, options_.cell_shape);
         islands();
-      }
-      // the grown region's new links and sources carry propagation further (once: a second
-      // growth named spots whose links then condemned right ones, 1.2 points fewer on the ham)
-      if (e.propagate) {
-        hoods = check_graph_consistency(graph);
-        propagate();
       }
     }
   } else {

@@ -13,13 +13,10 @@
 // and, beyond the paper:
 //   5. check_island_consistency:   linked decoded spots must carry ids one    consistency.cpp
 //                                  step apart
-//   6. propagate_ids:              with the frame's epipolar geometry, ids    propagation.cpp
-//                                  spread to linked neighbours whose colour
-//                                  and epipolar line agree (off by default:
-//                                  EpipolarOptions::propagate)
-//   7. grow_lattice:               and to the spots where the identified      lattice_growth.cpp
-//                                  lattice predicts them, links or none
-//   8. name_edge_runs:             the foreshortened line beyond an           edge_runs.cpp
+//   6. grow_lattice:               with the frame's epipolar geometry, ids    lattice_growth.cpp
+//                                  given where the identified lattice
+//                                  predicts them, links or none
+//   7. name_edge_runs:             the foreshortened line beyond an           edge_runs.cpp
 //                                  identified one (slivers at a silhouette),
 //                                  named as a run
 // SpotDecoder runs them in order (spot_decoder.cpp).
@@ -44,7 +41,7 @@ namespace vision {
 // mended links let 10 wrong ids through on the ham).
 struct CellShape {
   double bend = 0.4;         // how much a line's step may change from one spot to the next (of the step)
-  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step; step 8's runs too)
+  double cell_slack = 0.35;  // how unlike a cell's opposite sides may be (of the step; step 7's runs too)
   // two steps along a line alike within this factor: step 2b's straight line, and step 1's
   // regular link (a link across a missing spot is twice as long as those continuing it)
   double step_ratio = 1.5;
@@ -105,7 +102,7 @@ struct EpipolarCheck {
   EpipolarCheck(const EpipolarGeometry& geometry, const std::vector<Spot>& spots);
   // spot `spot` may carry `id`
   bool confirms(int spot, const pattern::SpotId& id) const { return geometry.consistent(xy[spot], id); }
-  // Steps 6-8 name a spot on weaker evidence than a window: there it must lie on its id's line
+  // Steps 6 and 7 name a spot on weaker evidence than a window: there it must lie on its id's line
   // as closely as the frame's window-read spots lie on theirs. A blob of another surface that
   // sits where the lattice goes on passes the tolerance by chance, typically 1-3 px off, where
   // a frame's right ids lie a few tenths of a pixel off, and more with a calibration error,
@@ -220,17 +217,10 @@ std::vector<DecodedSpot> check_decoding_consistency(const std::vector<Spot>& spo
 std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
                                                   int spot_count, int min_island, bool sheared_links = false);
 
-// Step 6, beyond the paper. From every identified spot, an undecoded spot linked to it in
-// direction k takes the id X one step away in k when the pattern has the spot's colour at X,
-// the spot lies on X's epipolar line, no other spot has X, and no other neighbour of the
-// source's id would fit the spot as well (colour and epipolar line): a link that skipped a
-// missing spot or crossed a sheared column would otherwise pass an id on shifted by one.
-// Breadth first from the decoded spots. This names spots whose windows are cut by the
-// object's edge, a shadow or a missed neighbour: a window needs 9 good spots, a step needs 2.
-// Step 7's numbers (the grown lattice), each set on the tuning scenes with what it did there.
+// Step 6's numbers (the grown lattice), each set on the tuning scenes with what it did there.
 struct GrowthOptions {
   // how far (fraction of a lattice step) a grown spot may be from where the lattice puts it:
-  // wider than a propagated link's (0.25), as the prediction may reach across a missing link
+  // wide, as the prediction may reach across a missing link
   // and the step changes fast on the oblique flanks. 0.45 (was 0.35): +0.4 points of the ham's
   // readable spots, +0.6 of the cylinder's, the same wrong ids in 24 sweeps of 1000 poses; 0.55
   // names fewer (a farther spot wins the place)
@@ -250,15 +240,10 @@ struct GrowthOptions {
   double unlike = 0.6;
   // nor barely above the segmentation's threshold (mean chroma above it, 8-bit levels): the dim
   // glow at a silhouette, a spot of another row compressed there (1 wrong id in 1000 poses of
-  // `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint. Step 8 asks it
+  // `cylinder_occlusion`'s widened draw); 0.2 % of the right ones are as faint. Step 7 asks it
   // too. Without it 0.7 % more of the readable spots are named on the tuning sweeps, but 3 wrong
   // ids more on the dark and the printed ham (1000 poses at +-6 cm, +-10 deg): it stays.
   float faintest = 5.0F;
-  // A single source naming another id is outvoted by this many more sources than it. Until then
-  // any dissent left the spot unnamed: in 1000 ham poses, 1 683 spots that colour, epipolar line
-  // and uniqueness would have named right. Outvoting one dissent by 2: +0.6 points of the ham's
-  // readable spots, the same wrong ids in 24 calibrated sweeps; two dissents by 1: +0.1 more.
-  int majority = 2;
   // One source fewer than asked names a spot when every source's step lands within this
   // fraction of a step of the blob (the prediction a quarter as loose as `slack`) and the blob
   // looks like its sources. At a silhouette only two identified spots may touch the next one (a
@@ -280,13 +265,13 @@ struct GrowthOptions {
   // 0.05 % more of the tuning sweeps' ids than `unlike`, and 0.85 for the shortest step 244 fewer
   // of 5.6 million than 1/1.2, the same wrong ids: not worth a number each.)
   double on_line_stretch = 1.2;
-  // a propagated, grown or run blob at least this fraction of its source's strength and area
-  // (steps 6-8): a faint speck of noise, or the dim light of a surface behind an edge
+  // a grown or run blob at least this fraction of its source's strength and area
+  // (steps 6 and 7): a faint speck of noise, or the dim light of a surface behind an edge
   // (defocused, oblique), is not a spot of the source's surface
   double alike = 0.4;
 };
 
-// Step 8's numbers (edge runs).
+// Step 7's numbers (edge runs).
 struct EdgeRunOptions {
   // where a run's candidate may lie from its source, along the source's step: the steps shrink
   // towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
@@ -297,23 +282,22 @@ struct EdgeRunOptions {
   // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
   int length = 4;
   // the candidate is looked for around the middle of [nearest, farthest] along the source's step
-  // (no number of its own: a fixed 0.7 names the same ids in the 72 tuning sweeps), from a step
-  // of at least this many pixels
-  double shortest_step_px = 2;
+  // (no number of its own: a fixed 0.7 names the same ids in the 72 tuning sweeps); a shortest
+  // step of 2 px bounded nothing (the same ids without it)
   // a line beyond is foreshortened: its spots no larger than their sources (a larger blob there
   // is the wash of a surface behind, out of focus), and a run bridges one missing id at most
   double largest = 1.2;
   int gaps = 1;
 };
 
-// What step 7 made of a blob (DecodeResult::growth): named, or, from its last round of claims,
+// What step 6 made of a blob (DecodeResult::growth): named, or, from its last round of claims,
 // why not. decode-sweep counts the readable spots it misses by these.
 enum class GrowthOutcome : std::uint8_t {
   kUnclaimed = 0,   // no source's prediction landed on it
-  kNamed,           // identified before step 7 or by it
+  kNamed,           // identified before step 6 or by it
   kUnlikeClaim,     // a prediction landed on it, but it is unlike the source (`alike`, `largest`),
                     // cut by the image border, or off the claimed id's colour or line
-  kDissent,         // sources claim another id too (GrowthOptions::majority)
+  kDissent,         // two sources claim another id, or a third id is claimed
   kNoDirectSource,  // no row or column neighbour among its sources
   kFewSources,      // fewer than `min_sources` (and not one short on a tight prediction)
   kUnlikeSources,   // named from one row or column neighbour, or one short: unlike its sources
@@ -323,12 +307,12 @@ enum class GrowthOutcome : std::uint8_t {
   kNearerLine,      // another free id's line runs nearer it
 };
 
-// Step 7, beyond the paper. The lattice grown from the identified region where the graph has
+// Step 6, beyond the paper. The lattice grown from the identified region where the graph has
 // no link: from every identified spot, the lattice's steps (from identified neighbours) predict
 // where each of the 8 ids around it lies; the spot found there (within 0.45 of a step) takes
 // the id when `min_sources` identified spots predict it there (one of them a row or column
-// neighbour), none predicts another id, and colour, epipolar line and uniqueness pass as in
-// step 6. The links the grown lattice found are added to `graph` where both ends had none.
+// neighbour), none predicts another id, and colour, epipolar line and uniqueness pass (no other
+// spot has the id, no other id around fits the spot as well). The links the grown lattice found are added to `graph` where both ends had none.
 // `outcomes` (optional): each spot's GrowthOutcome.
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                       const EpipolarCheck& check, const pattern::MArray& pattern,
@@ -336,9 +320,9 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
                                       const GrowthOptions& options = {},
                                       std::vector<GrowthOutcome>* outcomes = nullptr);
 
-// Step 8, beyond the paper. Runs along an edge: beyond an identified line of spots (a column
+// Step 7, beyond the paper. Runs along an edge: beyond an identified line of spots (a column
 // before the cylinder's silhouette), the next line is foreshortened to slivers, closer than a
-// step and a third of a spot's area, which step 7 refuses one at a time (a speck or the wash of
+// step and a third of a spot's area, which step 6 refuses one at a time (a speck or the wash of
 // the surface behind looks alike). Here they are taken as a run: from each identified spot, the
 // blob ahead along its step (0.3 to 1.15 of it, 0.3 aside) with the pattern's colour there, on
 // its epipolar line, not fainter than 0.4 of it; 4 or more such blobs for consecutive ids along
@@ -351,11 +335,6 @@ std::vector<DecodedSpot> name_edge_runs(const std::vector<Spot>& spots, Adjacenc
                                         const EdgeRunOptions& options = {}, const GrowthOptions& growth = {},
                                         const CellShape& shape = {});
 
-std::vector<DecodedSpot> propagate_ids(const std::vector<Spot>& spots, const AdjacencyGraph& graph,
-                                       const Neighbourhoods& hoods, const EpipolarCheck& check,
-                                       const pattern::MArray& pattern, std::vector<DecodedSpot> decoded,
-                                       int min_sources = 3, double slack = 0.25, double alike = 0.4);
-
 // How the decoder uses a frame's epipolar geometry, when it is given one.
 struct EpipolarOptions {
   // false: the decoder ignores the calibration (it still serves triangulation)
@@ -364,10 +343,10 @@ struct EpipolarOptions {
   // The epipolar lines of one frame often run along the pattern's rows: they tell the row, not
   // the column, so a window misread one column over still passes: DecoderOptions::min_votes
   // holds with the calibration too, and islands stay.
-  // 3 (12 without the calibration): the small islands' wrong ids were propagation's; without
-  // it, 5 named +0.5 points of the ham's readable spots and +0.3 of the cylinder's against 12,
-  // and 3 +0.1-0.3 more on the ham and the compact objects (egg, can, wedge), no wrong id added
-  // in 132 calibrated tuning sweeps of 1000 poses (seed 7, seed 11 wide, both patterns)
+  // 3 (12 without the calibration: the epipolar line checks each id of an island): 5 named
+  // +0.5 points of the ham's readable spots and +0.3 of the cylinder's against 12, and 3
+  // +0.1-0.3 more on the ham and the compact objects (egg, can, wedge), no wrong id added in 132
+  // calibrated tuning sweeps of 1000 poses (seed 7, seed 11 wide, both patterns)
   int min_island = 3;
   // Step 3b; 0 turns it off (the default). Segments identify far more spots on curved objects
   // (the ham: 50 -> 70 % of the readable spots) but let rare wrong ids through at depth edges:
@@ -377,22 +356,14 @@ struct EpipolarOptions {
   // Error-tolerant windows, confirmed epipolarly. Off: on the ham the confirmation still lets
   // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.
   bool tolerant = false;
-  // Step 6, off by default (2026-12-02): every wrong id the calibrated decoder still named in
-  // 24 sweeps of 1000 poses outside the sweep's draw came from it (10 of 14, at an occluder's
-  // edge: the wash of the wall behind continues the lattice on the epipolar line), and the grown
-  // lattice names nearly all it named (-0.4 points on the cylinder, -0.1 on the ham).
-  bool propagate = false;
-  // how far (of a lattice step) a propagated spot may be from where the lattice puts it
-  double propagate_slack = 0.25;
-  GrownLimit grown_limit;  // steps 6-8's epipolar residual limit
-  bool grow = true;        // step 7
-  bool edge_runs = true;   // step 8 (after step 7)
+  GrownLimit grown_limit;  // steps 6 and 7's epipolar residual limit
+  bool grow = true;        // step 6
+  bool edge_runs = true;   // step 7 (after step 6)
   GrowthOptions growth;
   EdgeRunOptions edge_run;
   // A spot with exactly two votes, both from exact windows (no repaired reading among its
   // votes), is named too, where `min_votes` asks for three: a spot next to a window cut by a
-  // missing link, the image border or an edge has only two. With the epipolar check and without
-  // propagation: +1.0 points of the cylinder's readable spots, +1.7 with the paper's pattern,
+  // missing link, the image border or an edge has only two. With the epipolar check: +1.0 points of the cylinder's readable spots, +1.7 with the paper's pattern,
   // no wrong id added in 24 sweeps (docs/decoding.md).
   bool two_exact_votes = true;
   // decoded neighbours (linked, or corners of its window) that must propose the same id: at an
@@ -440,7 +411,7 @@ struct DecodeResult {
   AdjacencyGraph graph;
   Neighbourhoods hoods;
   int readings = 0;  // windows read (step 3)
-  // step 7's outcome for each detected spot (empty when step 7 did not run: no calibration)
+  // step 6's outcome for each detected spot (empty when step 6 did not run: no calibration)
   std::vector<GrowthOutcome> growth;
   int rejected_blobs = 0;
 };

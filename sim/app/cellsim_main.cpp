@@ -235,7 +235,7 @@ struct LawFlags {
         ->capture_default_str();
     add_interior(c);
     c->add_flag("--epipolar", epipolar,
-                "decode with the projector's calibration (epipolar check and propagation), as `servo run "
+                "decode with the projector's calibration (epipolar check and the grown lattice), as `servo run "
                 "--projector` does");
     c->add_option("--model", model, "desired-constant-depth | desired | current | mean")->capture_default_str();
     c->add_option("--robust", robust, "tukey | huber | none: M-estimator weights on the points against wrong matches")
@@ -484,7 +484,7 @@ struct DecodeSweepCommand {
   ScenarioArg scenario;
   std::string dir, projector;
   experiment::SweepOptions sweep;
-  bool tolerant = false, propagate = false, no_grow = false, no_two_votes = false, no_edge_runs = false;
+  bool tolerant = false, no_grow = false, no_two_votes = false, no_edge_runs = false;
   std::vector<std::string> decoder_options;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode-sweep", "decoder accuracy against the ground truth over random poses");
@@ -497,8 +497,8 @@ struct DecodeSweepCommand {
         ->capture_default_str();
     c->add_flag("--tolerant", tolerant, "error-tolerant window reading");
     c->add_option("--projector", projector,
-                  "projector calibration (YAML, from `cellsim calibration`): check and propagate ids along the "
-                  "epipolar lines");
+                  "projector calibration (YAML, from `cellsim calibration`): check ids along the epipolar lines "
+                  "and grow the identified lattice");
     c->add_option("--epipolar-px", sweep.decoder.epipolar.tolerance_px,
                   "with --projector: how far (px) a spot may lie from its id's epipolar line")
         ->capture_default_str()
@@ -508,18 +508,14 @@ struct DecodeSweepCommand {
         ->capture_default_str()
         ->check(CLI::Range(0, 15));
     c->add_option("--propagate-sources", sweep.decoder.epipolar.min_sources,
-                  "with --projector: decoded neighbours that must propose the same id")
+                  "with --projector: identified spots that must predict a grown spot's id (step 6)")
         ->capture_default_str()
         ->check(CLI::Range(1, 4));
-    // `--no-propagate` (the default now) stays accepted: scripts written when it was on use it
-    c->add_flag("--propagate,!--no-propagate", propagate,
-                "with --projector: propagate ids to linked neighbours (step 6, off since 2026-12-02: its wrong ids at "
-                "an occluder's edge, docs/decoding.md)");
     c->add_flag("--no-two-votes", no_two_votes,
                 "with --projector: a spot needs --min-votes windows even when its two votes are both exact");
-    c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing");
+    c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing (step 6)");
     c->add_flag("--no-edge-runs", no_edge_runs,
-                "with --projector: do not name the runs of foreshortened spots beyond an identified line (step 8)");
+                "with --projector: do not name the runs of foreshortened spots beyond an identified line (step 7)");
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")
@@ -539,7 +535,6 @@ struct DecodeSweepCommand {
     for (const std::string& a : decoder_options) vision::set_decoder_option(sweep.decoder, a);
     sweep.decoder.tolerance.enabled = tolerant;
     sweep.out_dir = dir;
-    sweep.decoder.epipolar.propagate = propagate;
     sweep.decoder.epipolar.two_exact_votes = !no_two_votes;
     sweep.decoder.epipolar.grow = !no_grow;
     sweep.decoder.epipolar.edge_runs = !no_edge_runs;

@@ -133,7 +133,7 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
 
 static_assert(kLostNearerLine - kLostUnlikeClaim ==
                   static_cast<int>(vision::GrowthOutcome::kNearerLine) - static_cast<int>(vision::GrowthOutcome::kUnlikeClaim),
-              "LossCause lists step 7's refusals in GrowthOutcome's order");
+              "LossCause lists step 6's refusals in GrowthOutcome's order");
 
 // Why each readable spot segmented as blob `blob_of[i]` has no right id (LossCause).
 void count_losses(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, const std::vector<char>& readable,

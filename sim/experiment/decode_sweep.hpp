@@ -30,9 +30,9 @@ struct SweepOptions {
 };
 
 // Why a readable spot segmented as a blob of its colour was not identified (the first that
-// applies): its blob named another id; cut by the image border (never reported); no step 7
-// (no calibration); named, then dropped (step 5's islands after step 7, or the report's
-// fragment and speck tests); step 7's refusal (vision::GrowthOutcome); no identified spot
+// applies): its blob named another id; cut by the image border (never reported); no step 6
+// (no calibration); named, then dropped (step 5's islands after step 6, or the report's
+// fragment and speck tests); step 6's refusal (vision::GrowthOutcome); no identified spot
 // among its 8 pattern neighbours; none of their predictions landed on it.
 enum LossCause {
   kLostOtherId, kLostBorder, kLostNoGrowth, kLostDropped, kLostUnlikeClaim, kLostDissent, kLostNoDirectSource,

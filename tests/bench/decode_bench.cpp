@@ -59,7 +59,7 @@ void decode(benchmark::State& state, const Frame& f, const vision::DecoderOption
 void BM_Decode(benchmark::State& state, const char* scenario) { decode(state, frame(scenario)); }
 
 // With the projector's calibration: the frame's epipolar geometry is built each frame (the
-// camera moves), then the epipolar check and propagation (what `servo run --projector` does).
+// camera moves), then the epipolar check and the grown lattice (what `servo run --projector` does).
 void decode_calibrated(benchmark::State& state, const Frame& f, const vision::DecoderOptions& options = {}) {
   const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), options);
   std::size_t decoded = 0;
@@ -74,7 +74,7 @@ void decode_calibrated(benchmark::State& state, const Frame& f, const vision::De
 
 void BM_DecodeCalibrated(benchmark::State& state, const char* scenario) { decode_calibrated(state, frame(scenario)); }
 
-// Step 7 (the grown lattice, and propagation once more from it) against the calibrated
+// Step 6 (the grown lattice) against the calibrated
 // decoder without it, at the scene's desired pose.
 void BM_DecodeCalibratedGrow(benchmark::State& state, const char* scenario, bool grow) {
   vision::DecoderOptions o;

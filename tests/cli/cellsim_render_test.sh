@@ -52,13 +52,13 @@ cal=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6 --pro
   fail "sweep with calibration (wrong ids?): $cal"
 [ "$(count "$cal")" -gt "$(count "$plain")" ] || fail "calibration decoded $(count "$cal"), without $(count "$plain")"
 grep -q "wrong ids 0," <<<"$cal" || fail "wrong ids with the calibration: $cal"
-# why the segmented readable spots have no id: without the calibration no step 7 ran; with it,
+# why the segmented readable spots have no id: without the calibration no step 6 ran; with it,
 # its refusals are named
 grep -q "why the segmented readable spots without an id have none:.* no_growth [0-9]" <<<"$plain" ||
   fail "no loss causes without the calibration: $plain"
 grep -q "why the segmented readable spots without an id have none:" <<<"$cal" &&
   ! grep -q "no_growth" <<<"$cal" || fail "loss causes with the calibration: $cal"
-# a decoder number set for one sweep reaches the decoder: step 7 with no slack grows nothing
+# a decoder number set for one sweep reaches the decoder: step 6 with no slack grows nothing
 tight=$("$cellsim" decode-sweep "$src/sim/scenarios/cylinder.yaml" --poses 6 --projector "$tmp/cyl.yaml" \
   --decoder-option growth.slack=0 --decoder-option edge_run.length=1000) || fail "sweep with --decoder-option: $tight"
 [ "$(count "$tight")" -lt "$(count "$cal")" ] || fail "growth.slack=0 decoded $(count "$tight"), by default $(count "$cal")"

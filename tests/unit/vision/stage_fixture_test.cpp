@@ -153,7 +153,7 @@ TEST(Stages, TheDecoderNamesNoBlobWronglyAndNoFewerThanBefore) {
   }
 }
 
-// step 7 with the calibration, on a frame where the lattice's prediction and a spot of the wall
+// step 6 with the calibration, on a frame where the lattice's prediction and a spot of the wall
 // behind the ham coincide: the blob at (313.5, 230.3) lies 0.006 px from the line of id (6, 12),
 // which the ham's lattice predicts there from three sources, and it is spot (9, 19)'s light.
 // Only the line of (9, 19), a free id of its colour, runs nearer it: the grown spot must be the
@@ -183,8 +183,8 @@ TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
   EXPECT_EQ(wrong_ids(f, r.decoded), 0);
   EXPECT_GT(grown, 10);  // the lattice still grows
   EXPECT_GT(r.decoded.size(), 170U);
-  // step 7's word on each blob (what decode-sweep counts its misses by): one per detected blob,
-  // the frame's sliver joined after step 7 too; the named ones named, and the wall's spot
+  // step 6's word on each blob (what decode-sweep counts its misses by): one per detected blob,
+  // the frame's sliver joined after step 6 too; the named ones named, and the wall's spot
   // refused for the nearer line
   ASSERT_EQ(r.growth.size(), r.detected.size());
   for (const DecodedSpot& d : r.decoded)

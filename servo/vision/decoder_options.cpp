@@ -29,7 +29,7 @@ std::vector<Field> fields(DecoderOptions& o) {
           {"segmentation.noise_floor_factor", &s.noise_floor_factor, 0, 255}, {"segmentation.local_window_px", &s.local_window_px, 1, 255},
           {"segmentation.peak_ratio", &s.peak_ratio}, {"segmentation.min_area_px", &s.min_area_px},
           {"segmentation.max_area_px", &s.max_area_px}, {"segmentation.max_elongation", &s.max_elongation},
-          {"segmentation.max_sliver_elongation", &s.max_sliver_elongation}, {"segmentation.min_fill", &s.min_fill},
+          {"segmentation.min_fill", &s.min_fill},
           {"segmentation.min_colour_match", &s.min_colour_match},
           {"adjacency.row_cone_deg", &a.row_cone_deg}, {"adjacency.column_cone_deg", &a.column_cone_deg},
           {"adjacency.reach", &a.reach}, {"adjacency.angle_weight", &a.angle_weight},

@@ -337,7 +337,7 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationOptions& p, bool
     const int we = std::max(1, w - spread), he = std::max(1, h - spread);
     const double elongation = static_cast<double>(std::max(we, he)) / std::min(we, he);
     const bool sliver = elongation > p.max_elongation;
-    if (b.area < p.min_area_px || b.area > p.max_area_px || elongation > std::max(p.max_elongation, p.max_sliver_elongation) ||
+    if (b.area < p.min_area_px || b.area > p.max_area_px ||
         b.area < p.min_fill * w * h || b.peak < p.min_peak) {
       ++out.rejected;
       continue;

@@ -42,7 +42,7 @@ std::vector<Field> fields(DecoderOptions& o) {
           {"epipolar.tolerance_px", &e.tolerance_px}, {"epipolar.min_island", &e.min_island},
           {"epipolar.min_sources", &e.min_sources},
           {"grown_limit.times_median", &e.grown_limit.times_median}, {"grown_limit.floor_px", &e.grown_limit.floor_px},
-          {"growth.slack", &g.slack}, {"growth.largest", &g.largest}, {"growth.unlike", &g.unlike},
+          {"growth.slack", &g.slack}, {"growth.unlike", &g.unlike},
           {"growth.faintest", &g.faintest}, {"growth.tight_slack", &g.tight_slack},
           {"growth.on_line_stretch", &g.on_line_stretch}, {"growth.alike", &g.alike},
           {"edge_run.nearest", &r.nearest}, {"edge_run.farthest", &r.farthest}, {"edge_run.aside", &r.aside},

@@ -147,7 +147,7 @@ class Lattice {
     // went unheard: on 72 tuning sweeps of 1000 poses the dark ham's wrong ids from 4 to 1, the
     // same ids elsewhere but 0.1 points fewer in 4 sweeps.
     if (spots_[found].truncated || !alike(source, spots_[found], o_.alike) ||
-        spots_[found].area_px > o_.largest * source.area_px ||
+        spots_[found].area_px > source.area_px / o_.alike ||
         !(pattern_.at(id.row, id.col) == spots_[found].colour && check_.confirms(found, id))) {
       if (outcomes_ && (*outcomes_)[found] == GrowthOutcome::kUnclaimed) (*outcomes_)[found] = GrowthOutcome::kUnlikeClaim;
       return;

@@ -225,10 +225,6 @@ struct GrowthOptions {
   // readable spots, +0.6 of the cylinder's, the same wrong ids in 24 sweeps of 1000 poses; 0.55
   // names fewer (a farther spot wins the place)
   double slack = 0.45;
-  // a grown spot no bigger than this many times any source: a wider blob is the colour wash of
-  // a surface far out of focus behind a silhouette, not a spot (without it, the dark egg gave a
-  // wrong id in 1000 poses, seed 7, with either pattern)
-  double largest = 2.5;
   // A spot named from a single row or column neighbour (and corners), or one source short, must look
   // like its sources' mean: at least this fraction of their strength and of their area, at most its
   // inverse of their area. At a silhouette the prediction can fall on a speck or a faint wash blob.
@@ -267,7 +263,10 @@ struct GrowthOptions {
   double on_line_stretch = 1.2;
   // a grown or run blob at least this fraction of its source's strength and area
   // (steps 6 and 7): a faint speck of noise, or the dim light of a surface behind an edge
-  // (defocused, oblique), is not a spot of the source's surface
+  // (defocused, oblique), is not a spot of the source's surface. And a grown blob's area at
+  // most its inverse (2.5) of the source's: a wider blob is the colour wash of a surface far out
+  // of focus behind a silhouette (without the ceiling, the dark egg gave a wrong id in 1000
+  // poses, seed 7, with either pattern): one number bounds both ways, as `unlike` does
   double alike = 0.4;
 };
 
@@ -295,7 +294,7 @@ struct EdgeRunOptions {
 enum class GrowthOutcome : std::uint8_t {
   kUnclaimed = 0,   // no source's prediction landed on it
   kNamed,           // identified before step 6 or by it
-  kUnlikeClaim,     // a prediction landed on it, but it is unlike the source (`alike`, `largest`),
+  kUnlikeClaim,     // a prediction landed on it, but it is unlike the source (`alike`),
                     // cut by the image border, or off the claimed id's colour or line
   kDissent,         // two sources claim another id, or a third id is claimed
   kNoDirectSource,  // no row or column neighbour among its sources

@@ -21,11 +21,11 @@ class EdgeRuns {
            const SpatialGrid& near, int k, const EdgeRunOptions& options, const GrowthOptions& growth, double cell_slack)
       : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), dr_(kIdStep[k][0]), dc_(kIdStep[k][1]),
         candidate_(static_cast<std::size_t>(pattern.rows) * pattern.cols, -1), o_(options), faintest_(growth.faintest),
-        alike_(growth.alike), cell_slack_(cell_slack) {}
+        alike_(growth.alike), farthest_(growth.on_line_stretch), cell_slack_(cell_slack) {}
 
   // each cell's candidate: the blob ahead of an identified spot along its step
   void find_candidates(const std::vector<DecodedSpot>& decoded) {
-    const double middle = (o_.nearest + o_.farthest) / 2;  // where a candidate is looked for
+    const double middle = (o_.nearest + farthest_) / 2;  // where a candidate is looked for
     for (const DecodedSpot& from : decoded) {
       const int r = from.row + dr_, c = from.col + dc_;
       if (!ids_.inside(r, c) || ids_.taken(r, c)) continue;
@@ -39,7 +39,7 @@ class EdgeRuns {
       near_.around(s.u + middle * vu, s.v + middle * vv, 1, [&](int j) {
         const double du = spots_[j].u - s.u, dv = spots_[j].v - s.v;
         const double along = (du * vu + dv * vv) / step2, aside = std::abs(du * vv - dv * vu) / step2;
-        if (along < o_.nearest || along > o_.farthest || aside > o_.aside) return;
+        if (along < o_.nearest || along > farthest_ || aside > o_.aside) return;
         const double d2 = du * du + dv * dv;
         if (d2 < best) best = d2, found = j;
       });
@@ -130,6 +130,7 @@ class EdgeRuns {
   const EdgeRunOptions& o_;
   float faintest_;     // GrowthOptions::faintest: a run's blob is no fainter than a grown spot
   double alike_;       // GrowthOptions::alike
+  double farthest_;    // GrowthOptions::on_line_stretch: the farthest a candidate lies along the step
   double cell_slack_;  // CellShape::cell_slack: two neighbours and their sources form a lattice cell
 };
 

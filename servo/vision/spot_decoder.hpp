@@ -259,7 +259,8 @@ struct GrowthOptions {
   // the held-out step under noise with the paper's pattern). +0.2 points of the ham's readable
   // spots, the same wrong ids in 32 calibrated sweeps. (Its own floor of 0.5 on the strength named
   // 0.05 % more of the tuning sweeps' ids than `unlike`, and 0.85 for the shortest step 244 fewer
-  // of 5.6 million than 1/1.2, the same wrong ids: not worth a number each.)
+  // of 5.6 million than 1/1.2, the same wrong ids: not worth a number each.) Step 7's candidate
+  // lies at most this far along its source's step too.
   double on_line_stretch = 1.2;
   // a grown or run blob at least this fraction of its source's strength and area
   // (steps 6 and 7): a faint speck of noise, or the dim light of a surface behind an edge
@@ -273,14 +274,16 @@ struct GrowthOptions {
 // Step 7's numbers (edge runs).
 struct EdgeRunOptions {
   // where a run's candidate may lie from its source, along the source's step: the steps shrink
-  // towards a silhouette (the surface turns away), so from 0.3 of a step to 1.15 of it, and at
-  // most 0.3 of a step aside (a cell's slack, 0.35, named a wrong id on the printed cylinder in
-  // 1000 poses, seed 7)
-  double nearest = 0.3, farthest = 1.15, aside = 0.3;
+  // towards a silhouette (the surface turns away), so from 0.3 of a step, to as far as a last
+  // step may stretch (GrowthOptions::on_line_stretch, 1.2: 1.15 of its own named 19 ids fewer
+  // of 5.6 million on the calibrated tuning sweeps, the same wrong ids), and at most 0.3 of a
+  // step aside (a cell's slack, 0.35, named a wrong id on the printed cylinder in 1000 poses,
+  // seed 7)
+  double nearest = 0.3, aside = 0.3;
   // consecutive candidates a run needs: each has the colour the pattern has there by chance one
   // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
   int length = 4;
-  // the candidate is looked for around the middle of [nearest, farthest] along the source's step
+  // the candidate is looked for around the middle of that range along the source's step
   // (no number of its own: a fixed 0.7 names the same ids in the 72 tuning sweeps); a shortest
   // step of 2 px bounded nothing (the same ids without it)
   // a line beyond is foreshortened: its spots no larger than their sources (a larger blob there

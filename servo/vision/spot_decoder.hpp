@@ -326,7 +326,7 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
 // before the cylinder's silhouette), the next line is foreshortened to slivers, closer than a
 // step and a third of a spot's area, which step 6 refuses one at a time (a speck or the wash of
 // the surface behind looks alike). Here they are taken as a run: from each identified spot, the
-// blob ahead along its step (0.3 to 1.15 of it, 0.3 aside) with the pattern's colour there, on
+// blob ahead along its step (0.3 to 1.2 of it, 0.3 aside) with the pattern's colour there, on
 // its epipolar line, not fainter than 0.4 of it; 4 or more such blobs for consecutive ids along
 // the edge, each offset from the next as their sources are, are named. The spots named here
 // are kept by the fragment test (`named_here`): their centroids are where their centres are
@@ -368,8 +368,8 @@ struct EpipolarOptions {
   // missing link, the image border or an edge has only two. With the epipolar check: +1.0 points of the cylinder's readable spots, +1.7 with the paper's pattern,
   // no wrong id added in 24 sweeps (docs/decoding.md).
   bool two_exact_votes = true;
-  // decoded neighbours (linked, or corners of its window) that must propose the same id: at an
-  // object's edge the spot beyond (on the surface behind) can sit where the lattice goes on,
+  // identified spots around a blob (row, column or corner neighbours) that must predict the same
+  // id for step 6 to name it: at an object's edge the spot beyond (on the surface behind) can sit where the lattice goes on,
   // on the same epipolar line, so one source is not enough. Three: a spot beyond a decoded edge
   // has its linked source and two corners; two let 17 wrong ids through in 1000 ham poses
   // (a spot's sliver cut by the ham's silhouette), three none

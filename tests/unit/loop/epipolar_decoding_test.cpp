@@ -266,8 +266,8 @@ TEST(EpipolarDecoding, TheGrownLatticeNamesThePlaneFromAnIslandOnlyWhereSourcesC
 
 // Step 6 where the graph has no links (cut here for a whole pattern row): the lattice grown
 // from the identified spots predicts each id's place and names the spot found there, and adds
-// the links it found. A spot whose colour or look (a speck, a
-// wash blob far bigger than its sources) does not fit stays unnamed.
+// the links it found. A spot whose colour or look (a speck, a wash blob far bigger than its
+// sources) does not fit stays unnamed.
 TEST(EpipolarDecoding, TheGrownLatticeNamesSpotsWhoseLinksAreMissingAndNoneWrong) {
   const Frame f = render("plane", false);
   const pattern::MArray& pat = f.cell->projector->pattern();

@@ -94,7 +94,7 @@ Islands find_islands(const AdjacencyGraph& graph, const std::vector<DecodedSpot>
 }  // namespace
 
 std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
-                                                  int spot_count, int min_island, bool sheared_links) {
+                                                  int spot_count, int min_island, bool sheared_links, bool within_region) {
   std::vector<int> at(static_cast<std::size_t>(spot_count), -1);  // spot -> index in decoded
   for (std::size_t i = 0; i < decoded.size(); ++i) at[decoded[i].spot] = static_cast<int>(i);
   const auto agrees = [&](const DecodedSpot& a, const DecodedSpot& b, int k) {
@@ -112,7 +112,8 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   // it disagree. Where only one end's region is that large, only the other end is condemned:
   // the large region's spot is not what the link makes doubtful (the egg's silhouette row
   // linked to a patch of the table: +0.1-0.3 points of the egg's readable spots, no wrong id
-  // added in 204 tuning sweeps of 1000 poses).
+  // added in 204 tuning sweeps of 1000 poses). `within_region`: a link whose ends lie in one
+  // large region is what is wrong too (add_silhouette_spots says when).
   const Islands regions = find_islands(graph, decoded, at, all, [&](int i, int j, int k) {
     return agrees(decoded[i], decoded[j], k);
   });
@@ -123,7 +124,7 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
       const int j = graph.next[decoded[i].spot][k];
       if (j < 0 || at[j] < 0 || agrees(decoded[i], decoded[at[j]], k)) continue;
       const bool large_i = min_island > 0 && large(static_cast<int>(i)), large_j = min_island > 0 && large(at[j]);
-      if (regions.of[i] != regions.of[at[j]] && large_i && large_j) continue;
+      if (large_i && large_j && (regions.of[i] != regions.of[at[j]] || within_region)) continue;
       if (!large_i || large_j) keep[i] = 0;  // a spot is kept only when its region alone is large
       if (!large_j || large_i) keep[at[j]] = 0;
     }
@@ -134,6 +135,18 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   for (std::size_t i = 0; i < decoded.size(); ++i)
     if (keep[i] && islands.size[islands.of[i]] >= min_island) out.push_back(decoded[i]);
   return out;
+}
+
+std::vector<DecodedSpot> add_silhouette_spots(const AdjacencyGraph& graph, const std::vector<DecodedSpot>& voted,
+                                              std::vector<DecodedSpot> decoded, int spot_count, int min_island,
+                                              const pattern::MArray& pattern) {
+  IdMap ids(pattern, static_cast<std::size_t>(spot_count), decoded);
+  for (const DecodedSpot& d : check_island_consistency(graph, voted, spot_count, min_island, true, true))
+    if (ids.index_of(d.spot) < 0 && !ids.taken(d.row, d.col)) {
+      decoded.push_back(d);
+      ids.add(d, static_cast<int>(decoded.size()) - 1);
+    }
+  return check_island_consistency(graph, std::move(decoded), spot_count, min_island, true, true);
 }
 
 }  // namespace vision

@@ -91,6 +91,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes, shape);
     const auto islands = [&] { r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true); };
     r.decoded = check_vote_consistency(r.detected, votes, options_.min_votes, e.two_exact_votes);
+    const std::vector<DecodedSpot> voted = r.decoded;  // for step 5b
     islands();
     epipolar->set_grown_limit(r.decoded, e.grown_limit);
     if (e.grow) {
@@ -105,6 +106,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
         islands();
       }
     }
+    r.decoded = add_silhouette_spots(graph, voted, std::move(r.decoded), n, e.min_island, table_.array());
   } else {
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance, nullptr, shape);
     r.readings = static_cast<int>(readings.size());

@@ -147,6 +147,37 @@ TEST(IslandConsistency, TwoLargeRegionsMeetingAtADepthEdgeKeepTheirIdsAMisreadPa
   for (const auto& d : left) EXPECT_NE(d.spot, 10);
 }
 
+TEST(IslandConsistency, ALinkAcrossASilhouetteWithinOneRegionIsWhatIsWrongAndItsSpotsComeLast) {
+  // an object on the table (image rows 1-3, columns 2-5) shows the pattern one row further on
+  // than the table beside it; at its sides the rows shift by one per link (a sheared link,
+  // which agrees with the calibration), so object and table are one region. Above it the
+  // table's row 3 is hidden: the column links from the table's row 2 reach the object's row 4.
+  const auto cell = [](int y, int x) {
+    const bool object = y >= 1 && x >= 2 && x <= 5;
+    return std::pair{2 + y + (object ? 1 : 0), 4 + x};
+  };
+  auto [g, decoded] = linked_grid(4, 8, cell);
+  // step 5 condemns both ends of each of those four links
+  const auto strict = check_island_consistency(g, decoded, 32, 3, true);
+  EXPECT_EQ(strict.size(), 24u);
+  // each end is held by agreeing links and lies on its id's line: the links are what is wrong
+  EXPECT_EQ(check_island_consistency(g, decoded, 32, 3, true, true).size(), 32u);
+  // step 5b adds them back after the steps that grow from identified spots
+  EXPECT_EQ(add_silhouette_spots(g, decoded, strict, 32, 3, paper_pattern()).size(), 32u);
+  // where a later step gave one of those blobs, or its id, to another spot, it stays so
+  auto later = strict;
+  later.push_back({2, 6, 0.0, 0.0, 2, NamedBy::kLattice});  // blob (0, 2)'s own id, named again
+  const auto added = add_silhouette_spots(g, decoded, later, 32, 3, paper_pattern());
+  EXPECT_EQ(added.size(), 32u);
+  EXPECT_EQ(std::count_if(added.begin(), added.end(), [](const DecodedSpot& d) { return d.spot == 2; }), 1);
+  // a spot misread inside the region still goes, alone
+  auto [g2, misread] = linked_grid(4, 8, cell);
+  misread[8 + 6].col += 5;
+  const auto left = check_island_consistency(g2, misread, 32, 3, true, true);
+  EXPECT_EQ(left.size(), 31u);
+  for (const auto& d : left) EXPECT_NE(d.spot, 8 + 6);
+}
+
 TEST(AdjacencyGraph, DoesNotLinkAcrossAMissingSpot) {
   Lattice l = lattice();
   const int gone = 6 * 20 + 6;

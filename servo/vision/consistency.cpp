@@ -113,7 +113,7 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   // the large region's spot is not what the link makes doubtful (the egg's silhouette row
   // linked to a patch of the table: +0.1-0.3 points of the egg's readable spots, no wrong id
   // added in 204 tuning sweeps of 1000 poses). `within_region`: a link whose ends lie in one
-  // large region is what is wrong too (add_silhouette_spots says when).
+  // large region is what is wrong too (restore_window_spots says when).
   const Islands regions = find_islands(graph, decoded, at, all, [&](int i, int j, int k) {
     return agrees(decoded[i], decoded[j], k);
   });
@@ -137,16 +137,20 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
   return out;
 }
 
-std::vector<DecodedSpot> add_silhouette_spots(const AdjacencyGraph& graph, const std::vector<DecodedSpot>& voted,
+std::vector<DecodedSpot> restore_window_spots(const AdjacencyGraph& graph, const std::vector<DecodedSpot>& voted,
                                               std::vector<DecodedSpot> decoded, int spot_count, int min_island,
                                               const pattern::MArray& pattern) {
   IdMap ids(pattern, static_cast<std::size_t>(spot_count), decoded);
+  bool added = false;
   for (const DecodedSpot& d : check_island_consistency(graph, voted, spot_count, min_island, true, true))
     if (ids.index_of(d.spot) < 0 && !ids.taken(d.row, d.col)) {
       decoded.push_back(d);
       ids.add(d, static_cast<int>(decoded.size()) - 1);
+      added = true;
     }
-  return check_island_consistency(graph, std::move(decoded), spot_count, min_island, true, true);
+  // (nothing added: `decoded` passed step 5 as it is, and hearing the links within a region as
+  // wrong condemns no more)
+  return added ? check_island_consistency(graph, std::move(decoded), spot_count, min_island, true, true) : decoded;
 }
 
 }  // namespace vision

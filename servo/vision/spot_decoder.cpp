@@ -106,7 +106,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
         islands();
       }
     }
-    r.decoded = add_silhouette_spots(graph, voted, std::move(r.decoded), n, e.min_island, table_.array());
+    r.decoded = restore_window_spots(graph, voted, std::move(r.decoded), n, e.min_island, table_.array());
   } else {
     const std::vector<WindowReading> readings = read_windows(r.detected, hoods, table_, options_.tolerance, nullptr, shape);
     r.readings = static_cast<int>(readings.size());

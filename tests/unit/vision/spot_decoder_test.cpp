@@ -163,11 +163,11 @@ TEST(IslandConsistency, ALinkAcrossASilhouetteWithinOneRegionIsWhatIsWrongAndIts
   // each end is held by agreeing links and lies on its id's line: the links are what is wrong
   EXPECT_EQ(check_island_consistency(g, decoded, 32, 3, true, true).size(), 32u);
   // step 5b adds them back after the steps that grow from identified spots
-  EXPECT_EQ(add_silhouette_spots(g, decoded, strict, 32, 3, paper_pattern()).size(), 32u);
+  EXPECT_EQ(restore_window_spots(g, decoded, strict, 32, 3, paper_pattern()).size(), 32u);
   // where a later step gave one of those blobs, or its id, to another spot, it stays so
   auto later = strict;
   later.push_back({2, 6, 0.0, 0.0, 2, NamedBy::kLattice});  // blob (0, 2)'s own id, named again
-  const auto added = add_silhouette_spots(g, decoded, later, 32, 3, paper_pattern());
+  const auto added = restore_window_spots(g, decoded, later, 32, 3, paper_pattern());
   EXPECT_EQ(added.size(), 32u);
   EXPECT_EQ(std::count_if(added.begin(), added.end(), [](const DecodedSpot& d) { return d.spot == 2; }), 1);
   // a spot misread inside the region still goes, alone

@@ -232,10 +232,11 @@ std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, s
 // and 7, condemn both ends, though the window-read end is held by its windows, its agreeing
 // links and its id's line. They come last, as no source of steps 6 and 7: grown from, they named
 // the table's spot behind the dark egg's top (a blob of it merged with the egg's spot, on nearly
-// the same epipolar line: 2 wrong ids more in 12 egg sweeps of 3000 poses, the egg's spills
-// named nearly doubled). On the calibrated tuning sweeps +0.2-0.3 % of the ids, the egg +1.2-1.8
-// points, the same wrong ids (400 poses at seed 1; 1000 at seed 7, at seed 11 drawn +-6 cm
-// +-10 deg, and the occluded cylinder's; the egg 3000 at seed 21, drawn as wide).
+// the same epipolar line: 2 wrong ids more, at seed 11 drawn +-6 cm +-10 deg and in 12 egg
+// sweeps of 3000 poses at seed 21 as wide; the egg's spills named nearly doubled). On the
+// calibrated tuning sweeps +0.2-0.3 % of the ids, the egg up to 1.8 points, the same wrong ids
+// (400 poses at seed 1; 1000 at seed 7, at seed 11 drawn +-6 cm +-10 deg, and the occluded
+// cylinder's; the egg 3000 at seed 21, drawn as wide).
 std::vector<DecodedSpot> restore_window_spots(const AdjacencyGraph& graph, const std::vector<DecodedSpot>& voted,
                                               std::vector<DecodedSpot> decoded, int spot_count, int min_island,
                                               const pattern::MArray& pattern);

@@ -94,7 +94,8 @@ Islands find_islands(const AdjacencyGraph& graph, const std::vector<DecodedSpot>
 }  // namespace
 
 std::vector<DecodedSpot> check_island_consistency(const AdjacencyGraph& graph, std::vector<DecodedSpot> decoded,
-                                                  int spot_count, int min_island, bool sheared_links, bool within_region) {
+                                                  int spot_count, int min_island, bool sheared_links,
+                                                  bool within_region) {
   std::vector<int> at(static_cast<std::size_t>(spot_count), -1);  // spot -> index in decoded
   for (std::size_t i = 0; i < decoded.size(); ++i) at[decoded[i].spot] = static_cast<int>(i);
   const auto agrees = [&](const DecodedSpot& a, const DecodedSpot& b, int k) {

@@ -345,8 +345,8 @@ struct DecodeCommand {
         ->check(CLI::Range(1, 9))
         ->capture_default_str();
     c->add_option("--segment-length", segment_length,
-                  "with --projector: spots in a 1 x N row or column reading (0: off; more ids on curved "
-                  "objects, rare wrong ids at depth edges: docs/decoding.md)")
+                  "with --projector: spots in a 1 x N row or column reading, decoder step 3b (0: off; the "
+                  "lines no window reads: docs/decoding.md)")
         ->check(CLI::Range(0, 15))
         ->capture_default_str();
     c->add_option("--projector", projector,

@@ -13,8 +13,8 @@ struct Field {
   const char* name;
   std::variant<double*, float*, int*> at;
   // the values it takes: [0, 1e9] but where a number sizes a buffer (the side of the window a
-  // pixel's level is read in: 0 or 1e9 px would stop the segmentation) or is an 8-bit level
-  // (a chroma floor past 255 would wrap)
+  // pixel's level is read in: 0 or 1e9 px would stop the segmentation; a run's length, 0-15 as
+  // `--segment-length` takes it) or is an 8-bit level (a chroma floor past 255 would wrap)
   double least = 0, most = 1e9;
 };
 
@@ -40,7 +40,7 @@ std::vector<Field> fields(DecoderOptions& o) {
           {"min_votes", &o.min_votes}, {"min_island", &o.min_island}, {"fragment_area", &o.fragment_area},
           {"speck_area", &o.speck_area},
           {"epipolar.tolerance_px", &e.tolerance_px}, {"epipolar.min_island", &e.min_island},
-          {"epipolar.min_sources", &e.min_sources},
+          {"epipolar.min_sources", &e.min_sources}, {"epipolar.segment_length", &e.segment_length, 0, 15},
           {"grown_limit.times_median", &e.grown_limit.times_median}, {"grown_limit.floor_px", &e.grown_limit.floor_px},
           {"growth.slack", &g.slack}, {"growth.unlike", &g.unlike},
           {"growth.faintest", &g.faintest}, {"growth.tight_slack", &g.tight_slack},

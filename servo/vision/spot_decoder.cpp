@@ -88,7 +88,12 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     r.readings = static_cast<int>(readings.size());
     std::vector<IdVote> votes;
     add_window_votes(hoods, readings, votes, &lines);
-    if (e.segment_length > 0) read_segments(r.detected, graph, check, table_.array(), e.segment_length, votes, shape);
+    if (e.segment_length > 0) {
+      // the runs' residuals are held to the windows' (EpipolarCheck::set_grown_limit)
+      const std::vector<DecodedSpot> by_windows = check_vote_consistency(r.detected, votes, options_.min_votes, e.two_exact_votes);
+      epipolar->set_grown_limit(by_windows, e.grown_limit);
+      read_segments(r.detected, graph, check, table_.array(), e.segment_length, by_windows, votes, shape, e.growth.unlike);
+    }
     const auto islands = [&] { r.decoded = check_island_consistency(graph, std::move(r.decoded), n, e.min_island, true); };
     r.decoded = check_vote_consistency(r.detected, votes, options_.min_votes, e.two_exact_votes);
     const std::vector<DecodedSpot> voted = r.decoded;  // for step 5b

@@ -180,8 +180,54 @@ void add_window_votes(const Neighbourhoods& hoods, const std::vector<WindowReadi
 
 
 
+namespace {
+// What step 3b asks of a run read as `ids`, beyond its colours and lines (read_segments).
+struct RunContext {
+  const std::vector<Spot>& spots;
+  const AdjacencyGraph& graph;
+  const EpipolarCheck& check;
+  const std::vector<pattern::SpotId>& by_windows;  // per spot; row -1 where no window named it
+  double alike;
+};
+
+// Each spot of the run alike the next along it: a spot of the surface behind an edge sits on
+// the line the run goes on, but is fainter, or larger out of focus.
+bool run_is_alike(const RunContext& at, const std::vector<int>& run) {
+  for (std::size_t m = 1; m < run.size(); ++m) {
+    const Spot &a = at.spots[run[m - 1]], &b = at.spots[run[m]];
+    if (!alike(a, b, at.alike) || !alike(b, a, at.alike)) return false;
+  }
+  return true;
+}
+
+// Every spot of the run as close to its id's line as the frame's window-read spots lie to
+// theirs (the grown limit, set from them).
+bool run_is_tight(const RunContext& at, const std::vector<int>& run, const std::vector<pattern::SpotId>& ids) {
+  for (std::size_t m = 0; m < run.size(); ++m)
+    if (!at.check.confirms_grown(run[m], ids[m])) return false;
+  return true;
+}
+
+// A spot of the run that a window named otherwise, or linked to a window-named spot whose id is
+// not the step away its link says: at a silhouette a run can go on onto the surface behind,
+// whose spot lies on the line of the id the run predicts and is linked to its own lattice.
+bool run_meets_dissent(const RunContext& at, const std::vector<int>& run, const std::vector<pattern::SpotId>& ids) {
+  for (std::size_t m = 0; m < run.size(); ++m) {
+    const pattern::SpotId& own = at.by_windows[run[m]];
+    if (own.row >= 0 && !(own == ids[m])) return true;
+    for (int k = 0; k < 4; ++k) {
+      const int j = at.graph.next[run[m]][k];
+      if (j < 0 || at.by_windows[j].row < 0) continue;
+      if (!(at.by_windows[j] == pattern::SpotId{ids[m].row + kIdStep[k][0], ids[m].col + kIdStep[k][1]})) return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
-                   const pattern::MArray& pattern, int length, std::vector<IdVote>& votes, const CellShape& shape) {
+                   const pattern::MArray& pattern, int length, const std::vector<DecodedSpot>& by_windows,
+                   std::vector<IdVote>& votes, const CellShape& shape, double alike_fraction) {
   const int half = length / 2;
   if (half < 1) return;
   // the ids each spot may carry: its colour, on its epipolar line (a handful of the 400)
@@ -196,7 +242,11 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
         if (check.confirms(i, id)) out.push_back(id);
     return out;
   };
+  std::vector<pattern::SpotId> named(spots.size(), pattern::SpotId{-1, -1});
+  for (const DecodedSpot& d : by_windows) named[d.spot] = {d.row, d.col};
+  const RunContext at{spots, graph, check, named, alike_fraction};
   std::vector<int> run(static_cast<std::size_t>(2 * half + 1));
+  std::vector<pattern::SpotId> ids(run.size());
   for (const auto& [forward, back, dr, dc] : {std::tuple{kEast, kWest, 0, 1}, std::tuple{kSouth, kNorth, 1, 0}}) {
     for (std::size_t s = 0; s < spots.size(); ++s) {
       // the run centred on s, `half` links each way
@@ -208,33 +258,38 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
         whole = run[half + m] >= 0 && run[half - m] >= 0;
       }
       if (!whole) continue;
+      // a run whose inner spots the windows all named adds nothing (a vote against them would
+      // be a dissent): most of a frame's runs, read at no cost
+      bool adds = false;
+      for (int m = 1; m + 1 < 2 * half + 1 && !adds; ++m) adds = named[run[m]].row < 0;
+      if (!adds) continue;
       // a run along one surface is smooth: each step close to the one before. At an object's
       // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
       bool smooth = true;
       for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m)
         smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]], shape.bend);
-      if (!smooth) continue;
-      // the run read straight along the axis, or sheared by one id across it per step (a
-      // column seen obliquely links diagonal neighbours): a misread run that fits one way
-      // while the truth fits another is ambiguous, and dropped
+      if (!smooth || !run_is_alike(at, run)) continue;
+      // exactly one place in the pattern has the run's colours along the axis, each spot within
+      // the tolerance of its id's line: a run that fits two places is dropped
       int matches = 0;
       pattern::SpotId found{};
-      int found_shear = 0;
-      for (const pattern::SpotId& a : candidates_of(static_cast<int>(s)))
-        for (int shear = -1; shear <= 1 && matches <= 1; ++shear) {
-          bool fits = true;
-          for (int m = -half; m <= half && fits; ++m) {
-            if (m == 0) continue;
-            const pattern::SpotId id{a.row + m * dr + shear * m * dc, a.col + m * dc + shear * m * dr};
-            fits = id.row >= 0 && id.col >= 0 && id.row < pattern.rows && id.col < pattern.cols &&
-                   pattern.at(id.row, id.col) == spots[run[half + m]].colour && check.confirms(run[half + m], id);
-          }
-          if (fits && ++matches == 1) found = a, found_shear = shear;
+      for (const pattern::SpotId& a : candidates_of(static_cast<int>(s))) {
+        bool fits = true;
+        for (int m = -half; m <= half && fits; ++m) {
+          const pattern::SpotId id{a.row + m * dr, a.col + m * dc};
+          fits = m == 0 || (id.row >= 0 && id.col >= 0 && id.row < pattern.rows && id.col < pattern.cols &&
+                            pattern.at(id.row, id.col) == spots[run[half + m]].colour &&
+                            check.confirms(run[half + m], id));
         }
+        if (fits && ++matches == 1) found = a;
+        if (matches > 1) break;
+      }
       if (matches != 1) continue;
-      for (int m = -half; m <= half; ++m)
-        votes.push_back({run[half + m],
-                         {found.row + m * dr + found_shear * m * dc, found.col + m * dc + found_shear * m * dr}});
+      for (int m = -half; m <= half; ++m) ids[half + m] = {found.row + m * dr, found.col + m * dc};
+      if (!run_is_tight(at, run, ids) || run_meets_dissent(at, run, ids)) continue;
+      // the run votes for its spots but its two ends: where a run crosses an edge, its last spot
+      // is the surface behind's, and a spot inside it has runs that go on past it
+      for (int m = 1; m + 1 < 2 * half + 1; ++m) votes.push_back({run[m], ids[m]});
     }
   }
 }

@@ -82,6 +82,13 @@ void BM_DecodeCalibratedGrow(benchmark::State& state, const char* scenario, bool
   decode_calibrated(state, frame(scenario), o);
 }
 
+// Step 3b (the runs read along the epipolar lines) against the calibrated decoder without it.
+void BM_DecodeCalibratedSegments(benchmark::State& state, const char* scenario, int length) {
+  vision::DecoderOptions o;
+  o.epipolar.segment_length = length;
+  decode_calibrated(state, frame(scenario), o);
+}
+
 void BM_SegmentOnly(benchmark::State& state) {
   const Frame& f = frame("plane");
   std::size_t n = 0;
@@ -225,6 +232,13 @@ BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, cylinder_no_grow, "cylinder", false)
     ->Name("decode_grow_cylinder/baseline_calibrated_not_grown")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, cylinder, "cylinder", true)
     ->Name("decode_grow_cylinder/calibrated_grown")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, ham_no_runs, "ham", 0)
+    ->Name("decode_runs_ham/baseline_calibrated_no_runs")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, ham, "ham", 7)->Name("decode_runs_ham/calibrated_runs")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, cylinder_no_runs, "cylinder", 0)
+    ->Name("decode_runs_cylinder/baseline_calibrated_no_runs")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, cylinder, "cylinder", 7)
+    ->Name("decode_runs_cylinder/calibrated_runs")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SegmentOnly)->Name("decode_vga/ours_segmentation_only")->Unit(benchmark::kMillisecond);
 // the baseline: the decoder before issue 19 (the paper's pattern, links as the nearest-spot
 // rule makes them)

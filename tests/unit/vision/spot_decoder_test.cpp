@@ -880,11 +880,13 @@ TEST(DecoderOptionNames, SetEachNumberByItsNameAndRefuseWhatIsNotOne) {
   set_decoder_option(o, "edge_run.length=6");
   set_decoder_option(o, "segmentation.min_peak=20");
   set_decoder_option(o, "cell_shape.cell_slack=0.25");
+  set_decoder_option(o, "epipolar.segment_length=0");
   EXPECT_DOUBLE_EQ(o.epipolar.growth.slack, 0.3);
   EXPECT_FLOAT_EQ(o.epipolar.growth.faintest, 7.5F);
   EXPECT_EQ(o.epipolar.edge_run.length, 6);
   EXPECT_EQ(o.segmentation.min_peak, 20);
   EXPECT_DOUBLE_EQ(o.cell_shape.cell_slack, 0.25);
+  EXPECT_EQ(o.epipolar.segment_length, 0);
   // every listed name is settable, and setting one leaves the others as they were
   for (const std::string& n : names) {
     DecoderOptions x;
@@ -893,7 +895,8 @@ TEST(DecoderOptionNames, SetEachNumberByItsNameAndRefuseWhatIsNotOne) {
   for (const char* bad : {"growth.nothing=1", "growth.slack=-1", "growth.slack=nan", "growth.slack=inf", "growth.slack=1e10",
                           "growth.slack=", "growth.slack", "=1", "edge_run.length=2.5", "growth.slack=0.3x", "growth.slack=0x1",
                           "growth.slack= 0.3",
-                          "segmentation.local_window_px=0", "segmentation.local_window_px=256"}) {
+                          "segmentation.local_window_px=0", "segmentation.local_window_px=256",
+                          "epipolar.segment_length=16"}) {
     DecoderOptions x;
     try {
       set_decoder_option(x, bad);

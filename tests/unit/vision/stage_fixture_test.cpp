@@ -158,9 +158,8 @@ TEST(Stages, TheDecoderNamesNoBlobWronglyAndNoFewerThanBefore) {
 // which the ham's lattice predicts there from three sources, and it is spot (9, 19)'s light.
 // Only the line of (9, 19), a free id of its colour, runs nearer it: the grown spot must be the
 // nearest any free id's line passes (decoder_support.hpp, nearest_free_line).
-TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
-  const nlohmann::json j = read_fixture("ham_dark_edge");
-  const Frame f = load("ham_dark_edge", 0);
+// The frame's camera-projector geometry, as the fixture recorded it.
+EpipolarGeometry geometry_of(const nlohmann::json& j) {
   const auto& cam = j.at("camera");
   calibration::CameraIntrinsics k;
   k.fx = cam.at("focal_px")[0], k.fy = cam.at("focal_px")[1];
@@ -171,7 +170,12 @@ TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
   p.fx = pj.at("fx"), p.fy = pj.at("fy"), p.cx = pj.at("cx"), p.cy = pj.at("cy");
   p.spot_pitch_px = pj.at("spot_pitch_px"), p.rows = pj.at("rows"), p.cols = pj.at("cols");
   p.world_T_projector = pose_of(pj);
-  const EpipolarGeometry geometry(k, p, pose_of(cam), DecoderOptions{}.epipolar.tolerance_px);
+  return EpipolarGeometry(k, p, pose_of(cam), DecoderOptions{}.epipolar.tolerance_px);
+}
+
+TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
+  const Frame f = load("ham_dark_edge", 0);
+  const EpipolarGeometry geometry = geometry_of(read_fixture("ham_dark_edge"));
   const DecodeResult r = SpotDecoder(table()).decode_spots(f.spots, &geometry);
   int grown = 0;
   for (const DecodedSpot& d : r.decoded) {
@@ -195,6 +199,103 @@ TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
     if (std::hypot(r.detected[i].u - 313.47, r.detected[i].v - 230.27) < 1) wall = i;
   ASSERT_LT(wall, r.detected.size());
   EXPECT_EQ(r.growth[wall], GrowthOutcome::kNearerLine);
+}
+
+// Step 3b on a frame where a strip of the table past the wedge's steep face shows three rows,
+// linked along themselves and sheared across: no window reads them, the segments do.
+TEST(Stages, SegmentsReadTheRowsNoWindowReadsAndNameNoBlobWrongly) {
+  const Frame f = load("wedge_desired", 0);
+  const EpipolarGeometry geometry = geometry_of(read_fixture("wedge_desired"));
+  DecoderOptions without;
+  without.epipolar.segment_length = 0;
+  const DecodeResult before = SpotDecoder(table(), without).decode_spots(f.spots, &geometry);
+  const DecodeResult after = SpotDecoder(table()).decode_spots(f.spots, &geometry);
+  int strip = 0;  // the table's rows 17-19 right of the face, columns 9 on
+  for (const DecodedSpot& d : after.decoded) strip += d.row >= 17 && d.col >= 9 && d.u > 380;
+  std::printf("%s: %zu blobs named without the segments, %zu with them (%d of the table's strip), %d wrong\n",
+              f.name.c_str(), before.decoded.size(), after.decoded.size(), strip, wrong_ids(f, after.decoded));
+  EXPECT_EQ(wrong_ids(f, after.decoded), 0);
+  EXPECT_GE(after.decoded.size(), before.decoded.size() + 20);
+  EXPECT_GE(strip, 15);
+}
+
+// Runs that go on past a silhouette onto the surface behind, where a spot sits on the line of
+// the id the run predicts, with its colour. The ham's row 13 onto the table, whose spot (14, 1)
+// lies where (13, 0) would: the run reads exactly and only its end is wrong. Two rules keep it
+// out, either alone: a run does not vote for its ends, and a run with a spot linked to a
+// window-named spot whose id is not a step away is not read (without both, (14, 1)'s blob is
+// named (13, 0)). The printed egg's row 13 onto the table's row 14, one column over: three of
+// the table's spots inside the run, each 0.35-0.42 as bright as the egg's beside them (the dark
+// ink). A run's spots look alike as a spot named from one line neighbour does (`unlike`, 0.6):
+// with `alike` (0.4), (14, 4)'s blob is named (13, 3).
+TEST(Stages, ARunPastASilhouetteNamesNoSpotOfTheSurfaceBehind) {
+  for (const char* name : {"ham_edge_run", "egg_printed_run"}) {
+    const Frame f = load(name, 0);
+    const EpipolarGeometry geometry = geometry_of(read_fixture(name));
+    const DecodeResult r = SpotDecoder(table()).decode_spots(f.spots, &geometry);
+    for (const DecodedSpot& d : r.decoded) {
+      const pattern::SpotId& t = f.truth[static_cast<std::size_t>(d.spot)];
+      EXPECT_FALSE(known(t) && (t.row != d.row || t.col != d.col))
+          << name << ": the blob of (" << t.row << ", " << t.col << ") named (" << d.row << ", " << d.col << ")";
+    }
+    std::printf("%s: %zu of %zu blobs named, %d wrong\n", f.name.c_str(), r.decoded.size(), f.spots.size(),
+                wrong_ids(f, r.decoded));
+    EXPECT_GT(r.decoded.size(), 100U);
+  }
+}
+
+// Step 3b alone on the wedge's table strip: a run votes only when each of its spots lies on its
+// id's line as closely as the frame's window-read spots lie on theirs and looks like the next
+// along the run. One blob of the strip, (18, 15), dimmed or moved off its line (within the
+// tolerance, past the frame's grown limit), gets no vote, and neither do the runs through it.
+TEST(SegmentReading, ARunVotesOnlyWhereEachSpotLiesOnItsLineAsTightlyAsTheWindowsAndLooksLikeTheNext) {
+  const Frame f = load("wedge_desired", 0);
+  const EpipolarGeometry geometry = geometry_of(read_fixture("wedge_desired"));
+  const DecodeResult decoded = SpotDecoder(table()).decode_spots(f.spots, &geometry);
+  std::size_t b = f.spots.size();
+  for (std::size_t i = 0; i < f.spots.size(); ++i)
+    if (f.truth[i].row == 18 && f.truth[i].col == 15) b = i;
+  ASSERT_LT(b, f.spots.size());
+  const auto votes_for = [&](const std::vector<Spot>& spots) {
+    const AdjacencyGraph graph = build_adjacency(spots);
+    EpipolarCheck check(geometry, spots);
+    check.set_grown_limit(decoded.decoded);
+    std::vector<IdVote> votes;
+    read_segments(spots, graph, check, table().array(), 7, {}, votes, CellShape{}, GrowthOptions{}.unlike);
+    int on_b = 0, wrong = 0;
+    for (const IdVote& v : votes) {
+      on_b += v.spot == static_cast<int>(b);
+      const pattern::SpotId& t = f.truth[static_cast<std::size_t>(v.spot)];
+      wrong += known(t) && !(t == v.id);
+    }
+    EXPECT_EQ(wrong, 0);
+    return std::pair{on_b, static_cast<int>(votes.size())};
+  };
+  const auto [as_seen, all] = votes_for(f.spots);
+  EXPECT_GE(as_seen, 2);  // (two exact votes name a spot: step 4)
+  std::vector<Spot> dim = f.spots;
+  dim[b].strength *= 0.3F;
+  const auto [dimmed, all_dimmed] = votes_for(dim);
+  EXPECT_EQ(dimmed, 0);
+  EXPECT_LT(all_dimmed, all);
+  // moved across its line: 1.5 px on, past the grown limit, within the tolerance
+  EpipolarCheck check(geometry, f.spots);
+  check.set_grown_limit(decoded.decoded);
+  std::vector<Spot> off = f.spots;
+  double best = 0;
+  for (const auto& [du, dv] : {std::pair{0.0, 1.5}, std::pair{1.5, 0.0}, std::pair{0.0, -1.5}, std::pair{-1.5, 0.0}}) {
+    Spot moved = f.spots[b];
+    moved.u += du, moved.v += dv;
+    const double r = geometry.residual_px(geometry.normalise(moved.u, moved.v), {18, 15});
+    if (r > best) best = r, off[b] = moved;
+  }
+  ASSERT_GT(best, check.grown_limit_px);
+  ASSERT_LT(best, geometry.tolerance_px());
+  const auto [moved, all_moved] = votes_for(off);
+  EXPECT_EQ(moved, 0);
+  EXPECT_LT(all_moved, all);
+  std::printf("votes for (18, 15)'s blob: %d as seen, %d dimmed, %d moved %.2f px off its line (limit %.2f px)\n",
+              as_seen, dimmed, moved, best, check.grown_limit_px);
 }
 
 }  // namespace

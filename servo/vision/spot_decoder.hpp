@@ -389,6 +389,7 @@ struct EpipolarOptions {
   // +4-6 points (its table strip past the steep face), the can +1.2-1.7, wrong ids 2 -> 1; read
   // without its checks (each spot within the tolerance only, every spot voted for) 479 wrong
   // ids, the ham's lower silhouette most (docs/decoding.md, "Runs read along the epipolar lines").
+  // (5 named 0.37 % more at seed 1, the same wrong id, not yet checked wider; 9, 0.54 % fewer.)
   int segment_length = 7;
   // Error-tolerant windows, confirmed epipolarly. Off: on the ham the confirmation still lets
   // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.

@@ -383,8 +383,9 @@ struct EpipolarOptions {
   // +0.1-0.3 more on the ham and the compact objects (egg, can, wedge), no wrong id added in 132
   // calibrated tuning sweeps of 1000 poses (seed 7, seed 11 wide, both patterns)
   int min_island = 3;
-  // Step 3b's runs (0: off). 7: a run votes for its 5 inner spots, and a spot needs two runs'
-  // votes (two exact votes, step 4), so a line of 8 linked spots names its middle 4. On the
+  // Step 3b's runs (0: off). 7: a run votes for its 5 inner spots, and a spot no window voted
+  // for needs two runs' votes (two exact votes, step 4): a line of 8 linked spots names its
+  // middle 4. On the
   // calibrated tuning sweeps (400 poses, seed 1, both patterns) +1.46 % of the ids, the wedge
   // +4-6 points (its table strip past the steep face), the can +1.2-1.7, wrong ids 2 -> 1; read
   // without its checks (each spot within the tolerance only, every spot voted for) 479 wrong

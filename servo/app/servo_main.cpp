@@ -345,7 +345,7 @@ struct DecodeCommand {
         ->check(CLI::Range(1, 9))
         ->capture_default_str();
     c->add_option("--segment-length", segment_length,
-                  "with --projector: spots in a 1 x N row or column reading, decoder step 3b (0: off; the "
+                  "with --projector: spots in a 1 x N row or column reading, decoder step 3b (under 3: off; the "
                   "lines no window reads: docs/decoding.md)")
         ->check(CLI::Range(0, 15))
         ->capture_default_str();

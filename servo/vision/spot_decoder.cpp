@@ -88,7 +88,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
     r.readings = static_cast<int>(readings.size());
     std::vector<IdVote> votes;
     add_window_votes(hoods, readings, votes, &lines);
-    if (e.segment_length > 0) {
+    if (e.segment_length >= 3) {  // (a run of 1 or 2 has no inner spot to vote for)
       // the runs' residuals are held to the windows' (EpipolarCheck::set_grown_limit)
       const std::vector<DecodedSpot> by_windows = check_vote_consistency(r.detected, votes, options_.min_votes, e.two_exact_votes);
       epipolar->set_grown_limit(by_windows, e.grown_limit);

@@ -7,7 +7,7 @@
 //                                  sheared between two lines
 //   3. read_windows:               each complete 8-neighbourhood looked up    window_reading.cpp
 //                                  in the window table
-//  3b. read_segments:              with the calibration, runs of 7 along a    window_reading.cpp
+//  3b. read_segments:              with the calibration, runs of 4 along a    window_reading.cpp
 //                                  row or column, read along the epipolar
 //                                  lines where no window reads
 //   4. check_decoding_consistency: every window a spot takes part in must     consistency.cpp
@@ -200,7 +200,7 @@ bool votes_for(const WindowReading& r, int cell);
 // line neighbour, GrowthOptions::unlike); no spot named otherwise by a window, nor linked to a
 // window-named spot whose id is not a step away. It votes for its spots but its two ends: a run
 // that goes on past a silhouette onto the surface behind finds a spot there on the line of the
-// id it predicts, with its colour one time in three.
+// id it predicts, with its colour one time in three. Any length from 3 (under 3: nothing read).
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
                    const pattern::MArray& pattern, int length, const std::vector<DecodedSpot>& by_windows,
                    std::vector<IdVote>& votes, const CellShape& shape, double alike);
@@ -383,15 +383,17 @@ struct EpipolarOptions {
   // +0.1-0.3 more on the ham and the compact objects (egg, can, wedge), no wrong id added in 132
   // calibrated tuning sweeps of 1000 poses (seed 7, seed 11 wide, both patterns)
   int min_island = 3;
-  // Step 3b's runs (0: off). 7: a run votes for its 5 inner spots, and a spot no window voted
-  // for needs two runs' votes (two exact votes, step 4): a line of 8 linked spots names its
-  // middle 4. On the
-  // calibrated tuning sweeps (400 poses, seed 1, both patterns) +1.46 % of the ids, the wedge
-  // +4-6 points (its table strip past the steep face), the can +1.2-1.7, wrong ids 2 -> 1; read
-  // without its checks (each spot within the tolerance only, every spot voted for) 479 wrong
-  // ids, the ham's lower silhouette most (docs/decoding.md, "Runs read along the epipolar lines").
-  // (5 named 0.37 % more at seed 1, the same wrong id, not yet checked wider; 9, 0.54 % fewer.)
-  int segment_length = 7;
+  // Step 3b's runs: the spots a run reads (under 3: off, a run of 1 or 2 has no inner spot).
+  // 4: a run votes for its 2 inner spots, and a spot no window voted for needs two runs' votes
+  // (two exact votes, step 4): a line of k linked spots names its middle k - 4. On the
+  // calibrated tuning sweeps (400 poses, seed 1, both patterns), against no runs: 3 +1.34 % of
+  // the ids and the dark egg's wrong id back (a run of 3 fits two places often, and is dropped),
+  // 4 +2.05 %, 5 +1.83, 6 +1.64, 7 +1.46, 9 +0.91 (and the dark egg's wrong id back); 4 on seed
+  // 7, seed 11 +-6 cm +-10 deg, the occluded cylinder and the egg's 3000 wide poses: the same
+  // wrong ids as 7, sweep for sweep. Read without its checks (each spot within the tolerance
+  // only, every spot voted for) runs of 7 named 479 wrong ids, the ham's lower silhouette most
+  // (docs/decoding.md, "Runs read along the epipolar lines").
+  int segment_length = 4;
   // Error-tolerant windows, confirmed epipolarly. Off: on the ham the confirmation still lets
   // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.
   bool tolerant = false;

@@ -228,8 +228,8 @@ bool run_meets_dissent(const RunContext& at, const std::vector<int>& run, const 
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
                    const pattern::MArray& pattern, int length, const std::vector<DecodedSpot>& by_windows,
                    std::vector<IdVote>& votes, const CellShape& shape, double alike_fraction) {
-  const int half = length / 2;
-  if (half < 1) return;
+  // a run of 1 or 2 has no inner spot to vote for
+  if (length < 3) return;
   // the ids each spot may carry: its colour, on its epipolar line (a handful of the 400)
   std::vector<std::vector<pattern::SpotId>> by_colour(static_cast<std::size_t>(pattern.colours));
   for (int r = 0; r < pattern.rows; ++r)
@@ -245,28 +245,25 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
   std::vector<pattern::SpotId> named(spots.size(), pattern::SpotId{-1, -1});
   for (const DecodedSpot& d : by_windows) named[d.spot] = {d.row, d.col};
   const RunContext at{spots, graph, check, named, alike_fraction};
-  std::vector<int> run(static_cast<std::size_t>(2 * half + 1));
+  const int n = length;
+  std::vector<int> run(static_cast<std::size_t>(n));
   std::vector<pattern::SpotId> ids(run.size());
-  for (const auto& [forward, back, dr, dc] : {std::tuple{kEast, kWest, 0, 1}, std::tuple{kSouth, kNorth, 1, 0}}) {
+  for (const auto& [forward, dr, dc] : {std::tuple{kEast, 0, 1}, std::tuple{kSouth, 1, 0}}) {
     for (std::size_t s = 0; s < spots.size(); ++s) {
-      // the run centred on s, `half` links each way
-      run[half] = static_cast<int>(s);
+      // the run from s, n - 1 links forward
+      run[0] = static_cast<int>(s);
       bool whole = true;
-      for (int m = 1; m <= half && whole; ++m) {
-        run[half + m] = graph.next[run[half + m - 1]][forward];
-        run[half - m] = graph.next[run[half - m + 1]][back];
-        whole = run[half + m] >= 0 && run[half - m] >= 0;
-      }
+      for (int m = 1; m < n && whole; ++m) whole = (run[m] = graph.next[run[m - 1]][forward]) >= 0;
       if (!whole) continue;
       // a run whose inner spots the windows all named adds nothing (a vote against them would
       // be a dissent): most of a frame's runs, read at no cost
       bool adds = false;
-      for (int m = 1; m + 1 < 2 * half + 1 && !adds; ++m) adds = named[run[m]].row < 0;
+      for (int m = 1; m + 1 < n && !adds; ++m) adds = named[run[m]].row < 0;
       if (!adds) continue;
       // a run along one surface is smooth: each step close to the one before. At an object's
       // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
       bool smooth = true;
-      for (int m = 1; m + 1 < 2 * half + 1 && smooth; ++m)
+      for (int m = 1; m + 1 < n && smooth; ++m)
         smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]], shape.bend);
       if (!smooth || !run_is_alike(at, run)) continue;
       // exactly one place in the pattern has the run's colours along the axis, each spot within
@@ -275,21 +272,20 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
       pattern::SpotId found{};
       for (const pattern::SpotId& a : candidates_of(static_cast<int>(s))) {
         bool fits = true;
-        for (int m = -half; m <= half && fits; ++m) {
+        for (int m = 1; m < n && fits; ++m) {
           const pattern::SpotId id{a.row + m * dr, a.col + m * dc};
-          fits = m == 0 || (id.row >= 0 && id.col >= 0 && id.row < pattern.rows && id.col < pattern.cols &&
-                            pattern.at(id.row, id.col) == spots[run[half + m]].colour &&
-                            check.confirms(run[half + m], id));
+          fits = id.row < pattern.rows && id.col < pattern.cols && pattern.at(id.row, id.col) == spots[run[m]].colour &&
+                 check.confirms(run[m], id);
         }
         if (fits && ++matches == 1) found = a;
         if (matches > 1) break;
       }
       if (matches != 1) continue;
-      for (int m = -half; m <= half; ++m) ids[half + m] = {found.row + m * dr, found.col + m * dc};
+      for (int m = 0; m < n; ++m) ids[m] = {found.row + m * dr, found.col + m * dc};
       if (!run_is_tight(at, run, ids) || run_meets_dissent(at, run, ids)) continue;
       // the run votes for its spots but its two ends: where a run crosses an edge, its last spot
       // is the surface behind's, and a spot inside it has runs that go on past it
-      for (int m = 1; m + 1 < 2 * half + 1; ++m) votes.push_back({run[m], ids[m]});
+      for (int m = 1; m + 1 < n; ++m) votes.push_back({run[m], ids[m]});
     }
   }
 }

@@ -504,7 +504,7 @@ struct DecodeSweepCommand {
         ->capture_default_str()
         ->check(CLI::Range(0.01, 100.0));
     c->add_option("--segment-length", sweep.decoder.epipolar.segment_length,
-                  "with --projector: spots in a 1 x N row or column reading, decoder step 3b (0: off)")
+                  "with --projector: spots in a 1 x N row or column reading, decoder step 3b (under 3: off)")
         ->capture_default_str()
         ->check(CLI::Range(0, 15));
     c->add_option("--propagate-sources", sweep.decoder.epipolar.min_sources,

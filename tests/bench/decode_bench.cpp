@@ -234,10 +234,11 @@ BENCHMARK_CAPTURE(BM_DecodeCalibratedGrow, cylinder, "cylinder", true)
     ->Name("decode_grow_cylinder/calibrated_grown")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, ham_no_runs, "ham", 0)
     ->Name("decode_runs_ham/baseline_calibrated_no_runs")->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, ham, "ham", 7)->Name("decode_runs_ham/calibrated_runs")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, ham, "ham", vision::EpipolarOptions{}.segment_length)
+    ->Name("decode_runs_ham/calibrated_runs")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, cylinder_no_runs, "cylinder", 0)
     ->Name("decode_runs_cylinder/baseline_calibrated_no_runs")->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, cylinder, "cylinder", 7)
+BENCHMARK_CAPTURE(BM_DecodeCalibratedSegments, cylinder, "cylinder", vision::EpipolarOptions{}.segment_length)
     ->Name("decode_runs_cylinder/calibrated_runs")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SegmentOnly)->Name("decode_vga/ours_segmentation_only")->Unit(benchmark::kMillisecond);
 // the baseline: the decoder before issue 19 (the paper's pattern, links as the nearest-spot

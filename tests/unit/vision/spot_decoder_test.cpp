@@ -371,8 +371,11 @@ TEST(Segmentation, ASpotSeenEdgeOnIsASliverListedLast) {
   };
   EXPECT_EQ(at_column(10.0), 1);
   EXPECT_EQ(at_column(60.0), 1);
-  for (const Spot& s : seg.spots)
-    if (std::abs(s.u - 10.0) < 1e-9) EXPECT_NEAR(s.v, 9.0, 1e-9);
+  for (const Spot& s : seg.spots) {
+    if (std::abs(s.u - 10.0) < 1e-9) {
+      EXPECT_NEAR(s.v, 9.0, 1e-9);
+    }
+  }
   EXPECT_EQ(seg.rejected, 0);
   // the decoder without a calibration sets slivers aside: they never reach its graph
   const SpotDecoder decoder(table());

@@ -192,8 +192,9 @@ TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
   // refused for the nearer line
   ASSERT_EQ(r.growth.size(), r.detected.size());
   for (const DecodedSpot& d : r.decoded)
-    if (d.by == NamedBy::kWindows || d.by == NamedBy::kLattice)
+    if (d.by == NamedBy::kWindows || d.by == NamedBy::kLattice) {
       EXPECT_EQ(r.growth[static_cast<std::size_t>(d.spot)], GrowthOutcome::kNamed) << d.row << ',' << d.col;
+    }
   std::size_t wall = r.detected.size();
   for (std::size_t i = 0; i < r.detected.size(); ++i)
     if (std::hypot(r.detected[i].u - 313.47, r.detected[i].v - 230.27) < 1) wall = i;
@@ -241,6 +242,36 @@ TEST(Stages, ARunPastASilhouetteNamesNoSpotOfTheSurfaceBehind) {
     std::printf("%s: %zu of %zu blobs named, %d wrong\n", f.name.c_str(), r.decoded.size(), f.spots.size(),
                 wrong_ids(f, r.decoded));
     EXPECT_GT(r.decoded.size(), 100U);
+  }
+}
+
+// Step 3b's run length is the number of spots read, odd or even: a run of n votes for its n - 2
+// inner spots, consecutive ids along one axis, all right on the wedge's strip; 1 and 2 have no
+// inner spot and read nothing.
+TEST(SegmentReading, ARunOfAnyLengthVotesForItsInnerSpotsInALine) {
+  const Frame f = load("wedge_desired", 0);
+  const EpipolarGeometry geometry = geometry_of(read_fixture("wedge_desired"));
+  const DecodeResult decoded = SpotDecoder(table()).decode_spots(f.spots, &geometry);
+  const AdjacencyGraph graph = build_adjacency(f.spots);
+  EpipolarCheck check(geometry, f.spots);
+  check.set_grown_limit(decoded.decoded);
+  for (int n = 1; n <= 9; ++n) {
+    std::vector<IdVote> votes;
+    read_segments(f.spots, graph, check, table().array(), n, {}, votes, CellShape{}, GrowthOptions{}.unlike);
+    if (n < 3) {
+      EXPECT_TRUE(votes.empty()) << n;
+      continue;
+    }
+    const std::size_t inner = static_cast<std::size_t>(n - 2);
+    ASSERT_FALSE(votes.empty()) << n;
+    ASSERT_EQ(votes.size() % inner, 0U) << n;
+    for (std::size_t k = 0; k < votes.size(); ++k) {
+      const pattern::SpotId& t = f.truth[static_cast<std::size_t>(votes[k].spot)];
+      EXPECT_FALSE(known(t) && !(t == votes[k].id)) << n;
+      if (k % inner == 0) continue;  // a run's first inner spot
+      const pattern::SpotId &a = votes[k - 1].id, &b = votes[k].id;
+      EXPECT_TRUE((b.row == a.row && b.col == a.col + 1) || (b.row == a.row + 1 && b.col == a.col)) << n << " at " << k;
+    }
   }
 }
 

@@ -314,7 +314,9 @@ struct EdgeRunOptions {
   // seed 7)
   double nearest = 0.3, aside = 0.3;
   // consecutive candidates a run needs: each has the colour the pattern has there by chance one
-  // time in three, so a run of 4 is one in 81 before the epipolar line and the positions
+  // time in three, so a run of 4 is one in 81 before the epipolar line and the positions (on
+  // the calibrated tuning sweeps, 400 poses at seed 1: 3 named 0.11 % more and a wrong id, on
+  // the coloured can with the paper's pattern; 5, 0.07 % fewer)
   int length = 4;
   // the candidate is looked for around the middle of that range along the source's step
   // (no number of its own: a fixed 0.7 names the same ids in the 72 tuning sweeps); a shortest

@@ -104,7 +104,16 @@ bool on_named_light(const sim::SpotTruth& named, double u, double v) {
 // Returns which spots were named right; the wrong ones are appended to `wrong`.
 std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, double tolerance_px,
                             std::vector<WrongId>& wrong) {
-  std::vector<char> right(truth.spots.size(), 0);
+  std::vector<char> right(truth.spots.size(), 0), named(truth.spots.size(), 0);
+  const auto at = [&](int id_row, int id_col) { return static_cast<std::size_t>(id_row) * truth.cols + id_col; };
+  for (const auto& d : r.decoded) named[at(d.row, d.col)] = 1;
+  const auto interior = [&](int id_row, int id_col) {
+    for (const auto& [dr, dc] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
+      const int rr = id_row + dr, cc = id_col + dc;
+      if (rr < 0 || cc < 0 || rr >= truth.rows || cc >= truth.cols || !named[at(rr, cc)]) return false;
+    }
+    return true;
+  };
   for (const auto& d : r.decoded) {
     const sim::SpotTruth* nearest = nullptr;
     double best = 1e18;
@@ -113,19 +122,21 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
       const double dist = std::hypot(t.uv.x() - d.u, t.uv.y() - d.v);
       if (dist < best) best = dist, nearest = &t;
     }
-    const sim::SpotTruth& named = truth.at(d.row, d.col);
+    const sim::SpotTruth& named_spot = truth.at(d.row, d.col);
     const bool nearest_is_named = nearest && nearest->row == d.row && nearest->col == d.col;
-    if (!nearest_is_named && on_named_light(named, d.u, d.v)) {
+    if (!nearest_is_named && on_named_light(named_spot, d.u, d.v)) {
       ++row.partial;
+      row.partial_interior += interior(d.row, d.col);
     } else if (!nearest_is_named) {
       ++row.wrong;
       wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
-                       nearest ? best : -1, named.visible, std::hypot(named.uv.x() - d.u, named.uv.y() - d.v), static_cast<int>(d.by)});
+                       nearest ? best : -1, named_spot.visible, std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v),
+                       static_cast<int>(d.by)});
     } else if (best > tolerance_px) {
       ++row.mislocated;
     } else {
       ++row.correct;
-      right[static_cast<std::size_t>(d.row) * truth.cols + d.col] = 1;
+      right[at(d.row, d.col)] = 1;
     }
   }
   return right;
@@ -254,6 +265,7 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     s.total_wrong += r.wrong;
     s.total_mislocated += r.mislocated;
     s.total_partial += r.partial;
+    s.total_partial_interior += r.partial_interior;
     s.total_visible += r.visible;
     ms.push_back(r.decode_ms);
     if (r.visible > 0) {
@@ -289,7 +301,7 @@ void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& fi
 void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {
   std::ofstream csv(file);
   csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
-         "partial,"
+         "partial,partial_interior,"
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
          "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart";
   for (const char* cause : kLossCauseNames) csv << ',' << cause;
@@ -298,7 +310,7 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
     csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
-        << r.mislocated << ',' << r.partial << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
+        << r.mislocated << ',' << r.partial << ',' << r.partial_interior << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
         << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
         << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
         << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart;

@@ -56,6 +56,10 @@ struct SweepRow {
   // partial: the named spot's centre is hidden but the decoded blob is its light (a spot split
   // by a depth edge, or cut by an occluding contour): the right id, its centroid not the centre
   int visible = 0, detected = 0, decoded = 0, correct = 0, wrong = 0, mislocated = 0, partial = 0;
+  // of the partial ids, those whose four pattern neighbours are named in the frame too: at most
+  // these reach the law with `--interior-points` (control::interior_points keeps the matched
+  // spots whose four neighbours are matched, when they are half the matched set or more)
+  int partial_interior = 0;
   // decodable: visible, and in some 3 x 3 window of the pattern whose nine spots are all
   // visible (its id can be read from what the camera sees); correct_decodable: of those, the
   // ones decoded right
@@ -85,6 +89,7 @@ struct SweepRow {
 struct SweepSummary {
   std::vector<SweepRow> rows;
   int total_decoded = 0, total_wrong = 0, total_visible = 0, total_mislocated = 0, total_partial = 0;
+  int total_partial_interior = 0;
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
   int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;

@@ -183,7 +183,7 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
   std::printf(") in %.1f s\n", secs);
   std::printf("  decoded %d of %d visible (mean rate %.1f %%, worst pose %.1f %%), wrong ids %d, mislocated %d, "
               "partial %d (the named spot's light, its centre elsewhere or hidden; %d with its four pattern "
-              "neighbours named, the interior --interior-points servoes on)\n",
+              "neighbours named, the most --interior-points lets into the law)\n",
               s.total_decoded, s.total_visible, 100 * s.mean_rate, 100 * s.min_rate, s.total_wrong,
               s.total_mislocated, s.total_partial, s.total_partial_interior);
   std::printf("  against the decodable spots (visible, in a fully visible 3 x 3 window): %d of %d identified "

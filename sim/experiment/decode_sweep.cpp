@@ -310,8 +310,8 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
     csv << ',' << r.visible << ',' << r.detected << ',' << r.decoded << ',' << r.correct << ',' << r.wrong << ','
-        << r.mislocated << ',' << r.partial << ',' << r.partial_interior << ',' << r.decode_ms << ',' << r.decodable << ',' << r.correct_decodable
-        << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
+        << r.mislocated << ',' << r.partial << ',' << r.partial_interior << ',' << r.decode_ms << ',' << r.decodable
+        << ',' << r.correct_decodable << ',' << r.resolved << ',' << r.readable << ',' << r.correct_readable << ',' << r.readable_segmented << ','
         << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
         << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart;
     for (const int n : r.lost) csv << ',' << n;

@@ -245,6 +245,18 @@ TEST(Stages, ARunPastASilhouetteNamesNoSpotOfTheSurfaceBehind) {
   }
 }
 
+// Step 3b alone on `spots`: the votes of the runs of `length`, the frame's grown limit set from
+// the spots the whole decoder named (`decoded`).
+std::vector<IdVote> run_votes(const std::vector<Spot>& spots, const EpipolarGeometry& geometry,
+                              const std::vector<DecodedSpot>& decoded, int length) {
+  const AdjacencyGraph graph = build_adjacency(spots);
+  EpipolarCheck check(geometry, spots);
+  check.set_grown_limit(decoded);
+  std::vector<IdVote> votes;
+  read_segments(spots, graph, check, table().array(), length, {}, votes, CellShape{}, GrowthOptions{}.unlike);
+  return votes;
+}
+
 // Step 3b's run length is the number of spots read, odd or even: a run of n votes for its n - 2
 // inner spots, consecutive ids along one axis, all right on the wedge's strip; 1 and 2 have no
 // inner spot and read nothing.
@@ -252,12 +264,8 @@ TEST(SegmentReading, ARunOfAnyLengthVotesForItsInnerSpotsInALine) {
   const Frame f = load("wedge_desired", 0);
   const EpipolarGeometry geometry = geometry_of(read_fixture("wedge_desired"));
   const DecodeResult decoded = SpotDecoder(table()).decode_spots(f.spots, &geometry);
-  const AdjacencyGraph graph = build_adjacency(f.spots);
-  EpipolarCheck check(geometry, f.spots);
-  check.set_grown_limit(decoded.decoded);
   for (int n = 1; n <= 9; ++n) {
-    std::vector<IdVote> votes;
-    read_segments(f.spots, graph, check, table().array(), n, {}, votes, CellShape{}, GrowthOptions{}.unlike);
+    const std::vector<IdVote> votes = run_votes(f.spots, geometry, decoded.decoded, n);
     if (n < 3) {
       EXPECT_TRUE(votes.empty()) << n;
       continue;
@@ -288,11 +296,7 @@ TEST(SegmentReading, ARunVotesOnlyWhereEachSpotLiesOnItsLineAsTightlyAsTheWindow
     if (f.truth[i].row == 18 && f.truth[i].col == 15) b = i;
   ASSERT_LT(b, f.spots.size());
   const auto votes_for = [&](const std::vector<Spot>& spots) {
-    const AdjacencyGraph graph = build_adjacency(spots);
-    EpipolarCheck check(geometry, spots);
-    check.set_grown_limit(decoded.decoded);
-    std::vector<IdVote> votes;
-    read_segments(spots, graph, check, table().array(), 7, {}, votes, CellShape{}, GrowthOptions{}.unlike);
+    const std::vector<IdVote> votes = run_votes(spots, geometry, decoded.decoded, 7);
     int on_b = 0, wrong = 0;
     for (const IdVote& v : votes) {
       on_b += v.spot == static_cast<int>(b);

@@ -245,14 +245,10 @@ void write_decode_json(const std::string& json_file, const std::string& image, c
 // several, the median and maximum per-frame time (the first image excluded). A bad image is
 // one line and the others still go; the exit code says whether all went.
 int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const std::string& json_out,
-               const std::string& json_dir, const std::string& overlay_out, bool tolerant, int min_votes,
-               const EpipolarInputs& epipolar, int segment_length) {
+               const std::string& json_dir, const std::string& overlay_out, const vision::DecoderOptions& options,
+               const EpipolarInputs& epipolar) {
   const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
   if (epipolar.projector) calibration::check_projector_against_pattern(*epipolar.projector, marray, pattern_file);
-  vision::DecoderOptions options;
-  options.tolerance.enabled = tolerant;
-  options.min_votes = min_votes;
-  options.epipolar.segment_length = segment_length;
   const vision::SpotDecoder decoder(pattern::WindowTable(marray, {3, 3}), options);
   const std::vector<std::filesystem::path> images = image_list(args);
   if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty()))
@@ -325,6 +321,16 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
 
 namespace {
 
+// The camera's colour crosstalk (vision::SegmentationOptions::crosstalk), a calibration as the
+// intrinsics are; `value` keeps its default when the flag is not given.
+void add_crosstalk_option(CLI::App* c, double& value) {
+  c->add_option("--crosstalk", value,
+                "the camera's channel crosstalk, as calibrated: the fraction of each colour channel leaking into "
+                "each other (default 0.06, the simulator's camera; config key crosstalk): the chroma levels of "
+                "the segmentation scale with it")
+      ->check(common::finite_in(0, vision::kMaxCrosstalk));
+}
+
 // One struct per subcommand: its flags, and what it runs once they are parsed.
 struct DecodeCommand {
   std::string pattern_file, json_out, json_dir, overlay_out, projector;
@@ -332,6 +338,7 @@ struct DecodeCommand {
   bool tolerant = false;
   int min_votes = vision::DecoderOptions{}.min_votes;
   int segment_length = vision::EpipolarOptions{}.segment_length;
+  double crosstalk = vision::kLevelsCrosstalk;
   std::vector<double> camera, pose;
   CLI::App* add(CLI::App& app) {
     auto* c = app.add_subcommand("decode", "segment and decode the coded spots of images (files or folders)");
@@ -353,6 +360,7 @@ struct DecodeCommand {
                   "projector calibration (YAML, from `cellsim calibration`): check ids along the epipolar lines "
                   "and grow the identified lattice; needs --camera and a camera pose");
     c->add_option("--camera", camera, "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]")->expected(4, 9);
+    add_crosstalk_option(c, crosstalk);
     c->add_option("--camera-pose", pose,
                   "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
                   "<stem>.json camera_pose, as `cellsim render --truth` writes)")
@@ -379,7 +387,12 @@ struct DecodeCommand {
     }
     if (!pose.empty())
       epi.fixed_pose = pose_from("--camera-pose", {pose[0], pose[1], pose[2]}, {pose[3], pose[4], pose[5], pose[6]});
-    return run_decode(images, pattern_file, json_out, json_dir, overlay_out, tolerant, min_votes, epi, segment_length);
+    vision::DecoderOptions options;
+    options.tolerance.enabled = tolerant;
+    options.min_votes = min_votes;
+    options.epipolar.segment_length = segment_length;
+    options.segmentation.crosstalk = crosstalk;
+    return run_decode(images, pattern_file, json_out, json_dir, overlay_out, options, epi);
   }
 };
 
@@ -391,8 +404,10 @@ struct ServoConfigFlags {
   int points = -1;
   bool interior_points = false;
   bool no_epipolar = false;
+  double crosstalk = -1;
   void add(CLI::App* c) {
     c->add_option("--config", config_file, "servo configuration (YAML)");
+    add_crosstalk_option(c, crosstalk);
     c->add_option("--model", model, "interaction matrix: desired-constant-depth | desired | current | mean");
     c->add_option("--z-hat", z_hat, "depth of desired-constant-depth (m)")->check(common::finite_in(0, 100));
     c->add_option("--gain", gain, "constant gain")->check(common::finite_in(1e-9, 1e3));
@@ -434,6 +449,7 @@ struct ServoConfigFlags {
     }
     if (!projector_file.empty()) config.projector = calibration::load_projector_calibration(projector_file);
     config.decoder.epipolar.enabled = !no_epipolar;
+    if (crosstalk >= 0) config.decoder.segmentation.crosstalk = crosstalk;
     if (points >= 0) config.points = points;
     if (interior_points) config.interior_points = true;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;

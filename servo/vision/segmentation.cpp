@@ -382,13 +382,27 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationOptions& p, bool
 
 }  // namespace
 
-Segmentation segment_spots(const cv::Mat& rgb, const SegmentationOptions& p, SegmentationScratch* scratch) {
+SegmentationOptions at_crosstalk(const SegmentationOptions& given) {
+  if (!(given.crosstalk >= 0 && given.crosstalk <= kMaxCrosstalk))
+    throw std::invalid_argument("segmentation: the camera's crosstalk must be in [0, 0.3], got " +
+                                std::to_string(given.crosstalk));
+  // a primary's chroma is (1 - 3x) of its light (SegmentationOptions::crosstalk); exactly 1 at
+  // the crosstalk the levels were set at
+  const double gain = (1 - 3 * given.crosstalk) / (1 - 3 * kLevelsCrosstalk);
+  SegmentationOptions p = given;
+  p.min_threshold = static_cast<int>(std::lround(given.min_threshold * gain));
+  p.min_peak = static_cast<int>(std::lround(given.min_peak * gain));
+  return p;
+}
+
+Segmentation segment_spots(const cv::Mat& rgb, const SegmentationOptions& given, SegmentationScratch* scratch) {
   if (rgb.empty()) throw std::invalid_argument("segment_spots: empty image");
   if (rgb.type() != CV_8UC3)
     throw std::invalid_argument("segment_spots: expected an 8-bit 3-channel RGB image, got type " +
                                 std::to_string(rgb.type()) + " with " + std::to_string(rgb.channels()) + " channels");
-  if (p.colours < 2 || p.colours > static_cast<int>(pattern::kPalette.size()))
+  if (given.colours < 2 || given.colours > static_cast<int>(pattern::kPalette.size()))
     throw std::invalid_argument("segment_spots: colours must be in 2..10");
+  const SegmentationOptions p = at_crosstalk(given);
   Segmentation out;
   SegmentationScratch local;
   SegmentationScratch& sc = scratch ? *scratch : local;

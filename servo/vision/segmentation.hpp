@@ -23,6 +23,15 @@ struct SegmentationOptions {
   // surface, crosstalk) keeps its whole extent down to the floor, while the wash of the far
   // wall's defocused spots, whose peaks hardly clear the floor, makes no blob (issue 41)
   int min_peak = 14;
+  // The camera's channel crosstalk, as calibrated: the fraction of each colour channel that
+  // leaks into each of the others (a real camera's is measured once, each primary cast on a
+  // white card). A primary's light I reads (1 - 2x) I in its own channel and x I in the others,
+  // so its chroma is (1 - 3x) I: the floor and the peak above were set on images at 0.06 (the
+  // simulator's camera) and are scaled by (1 - 3x) / (1 - 3 x 0.06), so that a camera with more
+  // crosstalk keeps the spots a clean one keeps. Not a tuning number: at 0.06 nothing changes.
+  // In [0, 0.3] (at 1/3 a primary has no chroma left). The decoder scales them only when it
+  // has the projector's calibration (SpotDecoder::decode says why).
+  double crosstalk = 0.06;
   double noise_floor_factor = 3.0;  // and at least this times the image's median chroma
   // a noisy image (one whose noise would set the floor above min_peak) averaged over 3 x 3
   // pixels first: a spot covers tens of pixels and the sensor's noise is independent from pixel
@@ -43,6 +52,14 @@ struct SegmentationOptions {
   double min_fill = 0.25;        // area / bounding-box area
   double min_colour_match = 0.85;  // cosine between the blob's chroma and its palette colour
 };
+
+// the crosstalk of the images SegmentationOptions' chroma levels were set on, and the most a
+// camera may have (at 1/3 a primary's chroma is gone)
+inline constexpr double kLevelsCrosstalk = 0.06, kMaxCrosstalk = 0.3;
+
+// The options with the chroma floor and peak scaled to the camera's crosstalk (the same at
+// kLevelsCrosstalk). Throws std::invalid_argument when the crosstalk is outside [0, kMaxCrosstalk].
+SegmentationOptions at_crosstalk(const SegmentationOptions& given);
 
 struct Segmentation {
   std::vector<Spot> spots;  // the slivers last

@@ -13,6 +13,7 @@ using namespace decoder_support;
 SpotDecoder::SpotDecoder(pattern::WindowTable table, DecoderOptions options)
     : table_(std::move(table)), options_(options) {
   options_.segmentation.colours = table_.array().colours;
+  (void)at_crosstalk(options_.segmentation);  // a crosstalk out of range fails here, not at the first frame
   // the distance of the pattern decides how much a window may be repaired
   distance_ = table_.min_hamming();  // a table holds only arrays with the window property
   if (options_.tolerance.by_pattern_distance && distance_ >= 3) {
@@ -126,7 +127,15 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
 }
 
 DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry) const {
-  Segmentation seg = segment_spots(rgb, options_.segmentation, &scratch_);
+  // The chroma levels follow the camera's crosstalk with the calibration only: without it the
+  // peak level is all that keeps the wash of a far surface's spots from the windows, and at a
+  // crosstalk of 0.2 the scaled levels let an egg's windows name a table spot past its top
+  // silhouette (1 in 400 poses at seed 1, 1 more in 1000 at seed 7 and at seed 11 wide); with
+  // it the epipolar check holds them (no wrong id more in 72 + 2 x 12 tuning sweeps).
+  // docs/decoding.md, Segmentation.
+  SegmentationOptions levels = options_.segmentation;
+  if (!geometry) levels.crosstalk = kLevelsCrosstalk;
+  Segmentation seg = segment_spots(rgb, levels, &scratch_);
   DecodeResult r = decode_spots(std::move(seg.spots), geometry);
   r.rejected_blobs = seg.rejected;
   return r;

@@ -464,7 +464,8 @@ class SpotDecoder {
  public:
   SpotDecoder(pattern::WindowTable table, DecoderOptions options = {});
   // Throws std::invalid_argument for an empty or non-RGB8 image (see segment_spots).
-  // `geometry` (optional): the frame's camera-projector geometry, for the epipolar steps.
+  // `geometry` (optional): the frame's camera-projector geometry, for the epipolar steps; with
+  // it the segmentation's chroma levels follow the camera's crosstalk (SegmentationOptions).
   DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr) const;
   DecodeResult decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry = nullptr) const;
   const DecoderOptions& options() const { return options_; }

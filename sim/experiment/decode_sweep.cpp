@@ -334,6 +334,9 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const sim::Scenario& sc = cell.scenario;
   std::vector<SweepRow> rows = draw_rows(sc, o);
   const calibration::CameraIntrinsics camera = camera_intrinsics_of(cell);
+  // the decoder is told the camera's colour crosstalk as it is told its intrinsics
+  vision::DecoderOptions decoder_options = o.decoder;
+  decoder_options.segmentation.crosstalk = sc.camera.crosstalk;
   const pattern::MArray& pattern = cell.projector->pattern();
   std::atomic<int> next{0}, done{0};
   std::mutex io;
@@ -344,7 +347,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     sim::RenderScratch scratch;
     scratch.threads = 1;  // the sweep's own threads share the cores
     // a decoder per thread (decoding is const and thread-safe, but cheap to own)
-    const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), o.decoder);
+    const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), decoder_options);
     std::vector<WrongId> wrong;
     for (int k; (k = next++) < o.poses;) {
       SweepRow& row = rows[k];

@@ -109,6 +109,8 @@ calibration::ProjectorModel projector_model_of(const sim::Cell& cell) {
 servo::ServoConfig servo_config_for(const sim::Cell& cell) {
   servo::ServoConfig c;
   c.camera = camera_intrinsics_of(cell);
+  // the camera's colour crosstalk, calibrated as its intrinsics are
+  c.decoder.segmentation.crosstalk = cell.scenario.camera.crosstalk;
   c.projector = projector_model_of(cell);
   // the projector's calibration is there for triangulation; decoding with it is an option
   // (`cellsim experiment --epipolar`), so runs compare with a servo started without --projector

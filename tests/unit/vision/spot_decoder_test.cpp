@@ -746,6 +746,46 @@ TEST(Segmentation, ADimSpotIsKeptAFaintWashIsNotAndANoisyImageIsAveraged) {
   EXPECT_LT(plain.spots.size(), 6u);  // without the average the floor rises over the spots
 }
 
+// Issue 41: a camera with more channel crosstalk sees every primary with less chroma, (1 - 3x)
+// of its light: told its crosstalk, the segmentation keeps the dim spots such a camera shows
+// (its chroma levels scale from the 0.06 they were set at), each with its own colour; at 0.06
+// nothing changes, and a crosstalk no camera can have is refused in one line.
+TEST(Segmentation, ACameraWithMoreCrosstalkKeepsItsDimSpotsWhenItsCrosstalkIsGiven) {
+  constexpr double x = 0.2;
+  cv::Mat rgb(40, 160, CV_8UC3, cv::Scalar(30, 30, 30));
+  for (int k = 0; k < 6; ++k) {  // primaries of light 26 seen through the crosstalk: chroma peak 10.4
+    const double u = 15 + 26 * k, v = 20;
+    for (int y = 0; y < rgb.rows; ++y)
+      for (int xx = 0; xx < rgb.cols; ++xx) {
+        const double d2 = (xx - u) * (xx - u) + (y - v) * (y - v), light = 26 * std::exp(-d2 / (2 * 2.5 * 2.5));
+        for (int ch = 0; ch < 3; ++ch) {
+          auto& px = rgb.at<cv::Vec3b>(y, xx)[ch];
+          px = cv::saturate_cast<std::uint8_t>(px + light * (ch == k % 3 ? 1 - 2 * x : x));
+        }
+      }
+  }
+  EXPECT_TRUE(segment_spots(rgb).spots.empty()) << "told 0.06, the spots' chroma of 10 is under the peak of 14";
+  SegmentationOptions told;
+  told.crosstalk = x;
+  const Segmentation seg = segment_spots(rgb, told);
+  ASSERT_EQ(seg.spots.size(), 6u);
+  for (std::size_t k = 0; k < 6; ++k) {
+    EXPECT_NEAR(seg.spots[k].u, 15 + 26.0 * static_cast<double>(k), 0.1);
+    EXPECT_EQ(seg.spots[k].colour, 2 - static_cast<int>(k % 3)) << "each primary keeps its colour (red is symbol 2)";
+  }
+  const SegmentationOptions same = at_crosstalk(SegmentationOptions{});
+  EXPECT_EQ(same.min_threshold, SegmentationOptions{}.min_threshold);
+  EXPECT_EQ(same.min_peak, SegmentationOptions{}.min_peak);
+  for (const double bad : {-0.01, 0.31, std::nan("")}) {
+    SegmentationOptions o;
+    o.crosstalk = bad;
+    EXPECT_THROW(segment_spots(rgb, o), std::invalid_argument) << bad;
+    DecoderOptions d;
+    d.segmentation.crosstalk = bad;
+    EXPECT_THROW(SpotDecoder(pattern::WindowTable(paper_pattern(), {3, 3}), d), std::invalid_argument) << bad;
+  }
+}
+
 // Issue 41: the 3 x 3 mean the segmentation smooths with is the mean of each pixel's
 // neighbourhood (the border replicated), rounded to the nearest, for every width's vector tail.
 TEST(Segmentation, TheThreeByThreeMeanIsEachNeighbourhoodsRoundedMean) {

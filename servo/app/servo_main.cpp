@@ -326,8 +326,8 @@ namespace {
 void add_crosstalk_option(CLI::App* c, double& value) {
   c->add_option("--crosstalk", value,
                 "the camera's channel crosstalk, as calibrated: the fraction of each colour channel leaking into "
-                "each other (default 0.06, the simulator's camera; config key crosstalk): the chroma levels of "
-                "the segmentation scale with it")
+                "each other (default 0.06, the simulator's camera; in a servo config, crosstalk); with --projector the "
+                "segmentation's chroma levels scale with it")
       ->check(common::finite_in(0, vision::kMaxCrosstalk));
 }
 

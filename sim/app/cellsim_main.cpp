@@ -517,6 +517,10 @@ struct DecodeSweepCommand {
     c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing (step 6)");
     c->add_flag("--no-edge-runs", no_edge_runs,
                 "with --projector: do not name the runs of foreshortened spots beyond an identified line (step 7)");
+    c->add_option("--crosstalk", sweep.told_crosstalk,
+                  "with --projector: the camera crosstalk the decoder is told (default: the scenario camera's; "
+                  "another value is a crosstalk calibration that far off)")
+        ->check(common::finite_in(0, vision::kMaxCrosstalk));
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")

@@ -336,7 +336,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const calibration::CameraIntrinsics camera = camera_intrinsics_of(cell);
   // the decoder is told the camera's colour crosstalk as it is told its intrinsics
   vision::DecoderOptions decoder_options = o.decoder;
-  decoder_options.segmentation.crosstalk = sc.camera.crosstalk;
+  decoder_options.segmentation.crosstalk = o.told_crosstalk.value_or(sc.camera.crosstalk);
   const pattern::MArray& pattern = cell.projector->pattern();
   std::atomic<int> next{0}, done{0};
   std::mutex io;

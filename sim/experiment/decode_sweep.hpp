@@ -21,6 +21,10 @@ struct SweepOptions {
   // the projector's calibration: the decoder then checks ids against the epipolar geometry of
   // each pose (the camera's intrinsics are the scenario's, its pose the true one)
   std::optional<calibration::ProjectorModel> projector;
+  // the camera's crosstalk the decoder is told (SegmentationOptions::crosstalk; with the
+  // calibration the segmentation's levels follow it): unset, the scenario camera's; set, a
+  // crosstalk calibration off by that much
+  std::optional<double> told_crosstalk;
   double match_tolerance_px = 2.0;
   std::filesystem::path out_dir;   // sweep.csv (and failure overlays) go here when set
   int threads = 2;

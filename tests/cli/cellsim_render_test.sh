@@ -67,6 +67,16 @@ for bad in "growth.nothing=1" "growth.slack=-1" "growth.slack=nan" "growth.slack
   one_line_error "--decoder-option $bad" "--decoder-option" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" \
     --poses 1 --decoder-option "$bad"
 done
+# the decoder is told the scenario camera's crosstalk (issue 41): a wedge seen through 0.2,
+# decoded with the calibration, names more than with a crosstalk calibration of 0.06
+sed -e 's/^camera:$/camera:\n  crosstalk: 0.2/' -e "s#\.\./\.\./\.\./#$src/#g" "$src/sim/scenarios/compact/wedge.yaml" > "$tmp/wedge.yaml"
+"$cellsim" calibration "$tmp/wedge.yaml" -o "$tmp/wedge_cal.yaml" >/dev/null || fail "the wedge's calibration"
+told=$("$cellsim" decode-sweep "$tmp/wedge.yaml" --poses 6 --projector "$tmp/wedge_cal.yaml") || fail "wedge sweep: $told"
+off=$("$cellsim" decode-sweep "$tmp/wedge.yaml" --poses 6 --projector "$tmp/wedge_cal.yaml" --crosstalk 0.06) ||
+  fail "wedge sweep told 0.06: $off"
+[ "$(count "$told")" -gt "$(count "$off")" ] || fail "told the camera's crosstalk $(count "$told"), told 0.06 $(count "$off")"
+one_line_error "sweep --crosstalk" "--crosstalk: '0.4' is not a finite number in \\[0, 0.3\\]" \
+  "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 1 --crosstalk 0.4
 printf 'fx: 1500\n' > "$tmp/badcal.yaml"
 one_line_error "sweep calibration" "fy: missing" "$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 1 --projector "$tmp/badcal.yaml"
 echo "cellsim render: all checks passed"

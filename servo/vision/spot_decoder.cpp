@@ -132,7 +132,7 @@ DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geo
   // crosstalk of 0.2 the scaled levels let an egg's windows name a table spot past its top
   // silhouette (1 in 400 poses at seed 1, 1 more in 1000 at seed 7 and at seed 11 wide); with
   // it the epipolar check holds them (no wrong id more in 72 + 2 x 12 tuning sweeps).
-  // docs/decoding.md, Segmentation.
+  // docs/decoding.md, Decisions.
   SegmentationOptions levels = options_.segmentation;
   if (!geometry) levels.crosstalk = kLevelsCrosstalk;
   Segmentation seg = segment_spots(rgb, levels, &scratch_);

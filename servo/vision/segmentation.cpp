@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
@@ -383,9 +384,12 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationOptions& p, bool
 }  // namespace
 
 SegmentationOptions at_crosstalk(const SegmentationOptions& given) {
-  if (!(given.crosstalk >= 0 && given.crosstalk <= kMaxCrosstalk))
-    throw std::invalid_argument("segmentation: the camera's crosstalk must be in [0, 0.3], got " +
-                                std::to_string(given.crosstalk));
+  if (!(given.crosstalk >= 0 && given.crosstalk <= kMaxCrosstalk)) {
+    char m[128];
+    std::snprintf(m, sizeof m, "segmentation: the camera's crosstalk must be in [0, %g], got %g", kMaxCrosstalk,
+                  given.crosstalk);
+    throw std::invalid_argument(m);
+  }
   // a primary's chroma is (1 - 3x) of its light (SegmentationOptions::crosstalk); exactly 1 at
   // the crosstalk the levels were set at
   const double gain = (1 - 3 * given.crosstalk) / (1 - 3 * kLevelsCrosstalk);

@@ -211,6 +211,9 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
   if (!near) return decoded;
   const Lattice lattice(spots, check, pattern, ids, *near, options, outcomes);
   std::vector<Proposal> proposals(n);
+  // the blobs some claim landed on this round, judged in index order, as a pass over every
+  // blob would: the proposals cleared and judged are those, not the frame's every blob
+  std::vector<int> touched;
   // A source's claims depend only on the ids within one step of it, so they are recomputed
   // only for sources new or next to an id named in the round before (two steps, for margin);
   // the others' are reused: the same ids, a fraction of the rounds' spatial lookups (8 rounds
@@ -222,16 +225,22 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
     grew = false;
     claims.resize(decoded.size());
     active.resize(decoded.size(), 1);
-    std::fill(proposals.begin(), proposals.end(), Proposal{});
+    for (const int j : touched) proposals[j] = Proposal{};
+    touched.clear();
     for (std::size_t i = 0; i < decoded.size(); ++i) {
       if (active[i]) {
         claims[i].clear();
         lattice.claims_of(decoded[i], claims[i]);
       }
-      for (const Claim& claim : claims[i]) tally(claim, spots[decoded[i].spot], proposals);
+      for (const Claim& claim : claims[i]) {
+        if (proposals[claim.spot].first.sources == 0) touched.push_back(claim.spot);  // its first claim
+        tally(claim, spots[decoded[i].spot], proposals);
+      }
     }
+    std::sort(touched.begin(), touched.end());
     named.clear();
-    for (std::size_t j = 0; j < n; ++j) {
+    for (const int blob : touched) {
+      const std::size_t j = static_cast<std::size_t>(blob);
       Proposal& pr = proposals[j];
       if (pr.second.sources > pr.first.sources) std::swap(pr.first, pr.second);
       if (pr.first.sources == 0) continue;

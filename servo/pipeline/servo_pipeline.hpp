@@ -45,6 +45,9 @@ struct ServoConfig {
 struct ImageSpot {
   int row = 0, col = 0;
   double u = 0, v = 0;
+  // the decoder found it off its id's epipolar line (vision::DecodedSpot::off_line): the right
+  // id, but not where the spot's centre is; it is no feature of the law
+  bool off_line = false;
 };
 
 struct StepResult {
@@ -67,7 +70,7 @@ class ServoPipeline {
                                 int* detected = nullptr) const;
 
   // Features of located spots: normalised coordinates and, when a camera pose and the
-  // projector's calibration are known, triangulated depths.
+  // projector's calibration are known, triangulated depths. None of a spot off its line.
   std::vector<control::Feature> features(const std::vector<ImageSpot>& spots,
                                          const std::optional<Eigen::Isometry3d>& world_T_camera) const;
 

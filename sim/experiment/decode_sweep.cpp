@@ -124,18 +124,23 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
     }
     const sim::SpotTruth& named_spot = truth.at(d.row, d.col);
     const bool nearest_is_named = nearest && nearest->row == d.row && nearest->col == d.col;
+    row.off_line += d.off_line;
     if (!nearest_is_named && on_named_light(named_spot, d.u, d.v)) {
       ++row.partial;
       row.partial_interior += interior(d.row, d.col);
+      row.off_line_partial += d.off_line;
     } else if (!nearest_is_named) {
       ++row.wrong;
+      row.off_line_wrong += d.off_line;
       wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
                        nearest ? best : -1, named_spot.visible, std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v),
                        static_cast<int>(d.by)});
     } else if (best > tolerance_px) {
       ++row.mislocated;
+      row.off_line_mislocated += d.off_line;
     } else {
       ++row.correct;
+      row.off_line_right += d.off_line;
       right[at(d.row, d.col)] = 1;
     }
   }
@@ -266,6 +271,11 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     s.total_mislocated += r.mislocated;
     s.total_partial += r.partial;
     s.total_partial_interior += r.partial_interior;
+    s.total_off_line += r.off_line;
+    s.total_off_line_right += r.off_line_right;
+    s.total_off_line_mislocated += r.off_line_mislocated;
+    s.total_off_line_partial += r.off_line_partial;
+    s.total_off_line_wrong += r.off_line_wrong;
     s.total_visible += r.visible;
     ms.push_back(r.decode_ms);
     if (r.visible > 0) {
@@ -305,7 +315,7 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
          "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart";
   for (const char* cause : kLossCauseNames) csv << ',' << cause;
-  csv << '\n';
+  csv << ",off_line,off_line_right,off_line_mislocated,off_line_partial,off_line_wrong\n";
   for (const auto& r : rows) {
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
@@ -315,7 +325,8 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
         << r.readable_linked << ',' << r.readable_windowed << ',' << r.readable_one_object << ','
         << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart;
     for (const int n : r.lost) csv << ',' << n;
-    csv << '\n';
+    csv << ',' << r.off_line << ',' << r.off_line_right << ',' << r.off_line_mislocated << ',' << r.off_line_partial << ','
+        << r.off_line_wrong << '\n';
   }
 }
 

@@ -64,6 +64,9 @@ struct SweepRow {
   // these reach the law with `--interior-points` (control::interior_points keeps the matched
   // spots whose four neighbours are matched, when they are half the matched set or more)
   int partial_interior = 0;
+  // With the calibration, the ids the decoder found off their epipolar lines and keeps from the
+  // control law (DecodedSpot::off_line), in all and by what the truth says they are
+  int off_line = 0, off_line_right = 0, off_line_mislocated = 0, off_line_partial = 0, off_line_wrong = 0;
   // decodable: visible, and in some 3 x 3 window of the pattern whose nine spots are all
   // visible (its id can be read from what the camera sees); correct_decodable: of those, the
   // ones decoded right
@@ -94,6 +97,8 @@ struct SweepSummary {
   std::vector<SweepRow> rows;
   int total_decoded = 0, total_wrong = 0, total_visible = 0, total_mislocated = 0, total_partial = 0;
   int total_partial_interior = 0;
+  int total_off_line = 0, total_off_line_right = 0, total_off_line_mislocated = 0, total_off_line_partial = 0,
+      total_off_line_wrong = 0;
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
   int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;

@@ -296,5 +296,30 @@ TEST_F(Frames, ASafeStopThatLastsStopsTheServo) {
   EXPECT_FALSE(next(initial).twist.isZero());
 }
 
+// A spot the decoder found off its epipolar line (a spill, a split spot) is reported but is no
+// feature of the law: neither taught into s* nor matched (vision::DecodedSpot::off_line).
+TEST_F(Frames, ASpotOffItsLineIsReportedButIsNoFeature) {
+  ServoConfig c;
+  c.law.z_hat_m = 0.9;
+  const auto& k = cell->scenario.camera.intrinsics;
+  c.camera.fx = k.fx, c.camera.fy = k.fy, c.camera.cx = k.cx, c.camera.cy = k.cy;
+  ServoPipeline p(pattern::WindowTable(cell->projector->pattern(), {3, 3}), c);
+  std::vector<ImageSpot> spots = p.locate(desired, std::nullopt);
+  ASSERT_GT(spots.size(), 50U);
+  for (const ImageSpot& s : spots) EXPECT_FALSE(s.off_line) << "no line to be off without the calibration";
+  spots[3].off_line = true;
+  EXPECT_EQ(p.features(spots, std::nullopt).size(), spots.size() - 1);
+  EXPECT_EQ(p.teach(spots, std::nullopt), static_cast<int>(spots.size()) - 1);
+  spots[3].off_line = false;  // on its line now: not in s*, so still no match
+  spots[4].off_line = true;
+  const StepResult r = p.step(spots, std::nullopt);
+  EXPECT_EQ(r.decoded, static_cast<int>(spots.size()));
+  EXPECT_EQ(r.matched.size(), spots.size() - 2);
+  for (const auto& m : r.matched) {
+    EXPECT_FALSE(m.row == spots[3].row && m.col == spots[3].col);
+    EXPECT_FALSE(m.row == spots[4].row && m.col == spots[4].col);
+  }
+}
+
 }  // namespace
 }  // namespace servo

@@ -333,5 +333,44 @@ TEST(SegmentReading, ARunVotesOnlyWhereEachSpotLiesOnItsLineAsTightlyAsTheWindow
               as_seen, dimmed, moved, best, check.grown_limit_px);
 }
 
+// A window-named spot whose blob lies off its id's epipolar line (a spill past a silhouette, a
+// spot split by a depth edge) keeps its id but is marked off its line, so that the servo keeps
+// it from the law; on its line, or without the calibration, it is not.
+TEST(Stages, ASpotOffItsLineKeepsItsIdAndIsMarkedOffTheLine) {
+  const Frame f = load("ham_dark_edge", 0);
+  const EpipolarGeometry geometry = geometry_of(read_fixture("ham_dark_edge"));
+  const SpotDecoder decoder(table());
+  const DecodeResult as_seen = decoder.decode_spots(f.spots, &geometry);
+  int off = 0;
+  for (const DecodedSpot& d : as_seen.decoded) off += d.off_line;
+  EXPECT_LT(off, static_cast<int>(as_seen.decoded.size()) / 20) << "most spots lie on their lines";
+  for (const DecodedSpot& d : decoder.decode_spots(f.spots).decoded) EXPECT_FALSE(d.off_line) << "no line to be off";
+  // a window-named spot on its line, its blob moved 2 px aside: where its line moves away most
+  const auto residual = [&](double u, double v, const DecodedSpot& d) {
+    return geometry.residual_px(geometry.normalise(u, v), {d.row, d.col});
+  };
+  const DecodedSpot* pick = nullptr;
+  double du = 0, dv = 0;
+  for (const DecodedSpot& d : as_seen.decoded) {
+    if (d.by != NamedBy::kWindows || d.off_line || d.row < 8 || d.row > 12 || d.col < 8 || d.col > 12) continue;
+    for (const auto& [a, b] : {std::pair{2.0, 0.0}, std::pair{-2.0, 0.0}, std::pair{0.0, 2.0}, std::pair{0.0, -2.0}})
+      if (residual(d.u + a, d.v + b, d) > 1.6) pick = &d, du = a, dv = b;
+    if (pick) break;
+  }
+  ASSERT_NE(pick, nullptr) << "no interior window-named spot to move";
+  std::vector<Spot> moved = f.spots;
+  moved[static_cast<std::size_t>(pick->spot)].u += du;
+  moved[static_cast<std::size_t>(pick->spot)].v += dv;
+  const DecodeResult r = decoder.decode_spots(moved, &geometry);
+  const DecodedSpot* again = nullptr;
+  for (const DecodedSpot& d : r.decoded)
+    if (d.spot == pick->spot) again = &d;
+  ASSERT_NE(again, nullptr) << "the moved spot lost its id";
+  EXPECT_EQ(again->row, pick->row);
+  EXPECT_EQ(again->col, pick->col);
+  EXPECT_TRUE(again->off_line) << "residual " << residual(again->u, again->v, *again) << " px";
+  EXPECT_EQ(wrong_ids(f, r.decoded), 0);
+}
+
 }  // namespace
 }  // namespace vision

@@ -1,3 +1,4 @@
+#include "servo/vision/overlay.hpp"
 #include "servo/vision/spot_decoder.hpp"
 
 #include <gtest/gtest.h>
@@ -949,6 +950,25 @@ TEST(DecoderOptionNames, SetEachNumberByItsNameAndRefuseWhatIsNotOne) {
     }
     EXPECT_DOUBLE_EQ(x.epipolar.growth.slack, GrowthOptions{}.slack) << bad;
   }
+}
+
+// The overlay rings a spot off its epipolar line in orange, the others in white.
+TEST(Overlay, ASpotOffItsLineIsRingedInOrange) {
+  const cv::Mat black(40, 60, CV_8UC3, cv::Scalar::all(0));
+  DecodeResult r;
+  r.detected = {Spot{}, Spot{}};
+  r.decoded = {DecodedSpot{1, 2, 15.0, 20.0, 0}, DecodedSpot{3, 4, 45.0, 20.0, 1}};
+  r.decoded[1].off_line = true;
+  const cv::Mat out = draw_overlay(black, r);
+  // the ring's rightmost pixel, 5 px from the centre at the overlay's scale of 2
+  const auto ring = [&](double u) { return out.at<cv::Vec3b>(static_cast<int>((20 + 0.5) * 2), static_cast<int>((u + 0.5) * 2 + 10)); };
+  // (anti-aliased: the ring's colour scaled by its coverage of the pixel)
+  const cv::Vec3b white = ring(15.0), orange = ring(45.0);
+  EXPECT_GT(white[0], 150);
+  EXPECT_TRUE(white[0] == white[1] && white[1] == white[2]) << white;
+  EXPECT_GT(orange[0], 150);
+  EXPECT_NEAR(orange[1], orange[0] * 160 / 255, 2) << orange;
+  EXPECT_EQ(orange[2], 0) << orange;
 }
 
 }  // namespace

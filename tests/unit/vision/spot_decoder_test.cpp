@@ -961,7 +961,9 @@ TEST(Overlay, ASpotOffItsLineIsRingedInOrange) {
   r.decoded[1].off_line = true;
   const cv::Mat out = draw_overlay(black, r);
   // the ring's rightmost pixel, 5 px from the centre at the overlay's scale of 2
-  const auto ring = [&](double u) { return out.at<cv::Vec3b>(static_cast<int>((20 + 0.5) * 2), static_cast<int>((u + 0.5) * 2 + 10)); };
+  const auto ring = [&](double u) {
+    return out.at<cv::Vec3b>(static_cast<int>((20 + 0.5) * 2), static_cast<int>((u + 0.5) * 2 + 10));
+  };
   // (anti-aliased: the ring's colour scaled by its coverage of the pixel)
   const cv::Vec3b white = ring(15.0), orange = ring(45.0);
   EXPECT_GT(white[0], 150);

@@ -63,9 +63,7 @@ std::vector<DecodedSpot> reported_spots(const std::vector<Spot>& detected, const
 // spills and 42 % of the ids over 2 px from their spot's centre lie so, 0.26 % of the right ids.
 // Steps 6 and 7 hold their spots to that limit already: these are the windows' (step 3's).
 void mark_off_line(std::vector<DecodedSpot>& reported, const EpipolarCheck& check) {
-  for (DecodedSpot& d : reported)
-    d.off_line = !(check.geometry.residual_px(check.xy[static_cast<std::size_t>(d.spot)], {d.row, d.col}) <=
-                   check.grown_limit_px);
+  for (DecodedSpot& d : reported) d.off_line = !check.confirms_grown(d.spot, {d.row, d.col});
 }
 
 }  // namespace

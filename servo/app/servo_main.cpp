@@ -147,6 +147,7 @@ std::vector<std::filesystem::path> image_list(const std::vector<std::string>& ar
 struct EpipolarInputs {
   std::optional<calibration::ProjectorModel> projector;
   calibration::CameraIntrinsics camera;
+  bool camera_given = false;  // --camera: without the projector, the frame's own lines are fitted
   std::optional<Eigen::Isometry3d> fixed_pose;
 };
 
@@ -289,7 +290,8 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
       warm = true;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const vision::DecodeResult r = decoder.decode(rgb, g);
+    vision::DecodeResult r = decoder.decode(rgb, g);
+    if (!g && epipolar.camera_given) vision::mark_off_fitted_lines(r.decoded, epipolar.camera, options.epipolar);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     times.push_back(ms);
     std::string json_file = json_out;
@@ -360,7 +362,10 @@ struct DecodeCommand {
     c->add_option("--projector", projector,
                   "projector calibration (YAML, from `cellsim calibration`): check ids along the epipolar lines "
                   "and grow the identified lattice; needs --camera and a camera pose");
-    c->add_option("--camera", camera, "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]")->expected(4, 9);
+    c->add_option("--camera", camera,
+                  "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]; without --projector, a spot off the epipolar "
+                  "lines fitted to the frame's own spots is marked off_line (docs/decoding.md)")
+        ->expected(4, 9);
     add_crosstalk_option(c, crosstalk);
     c->add_option("--camera-pose", pose,
                   "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
@@ -381,6 +386,7 @@ struct DecodeCommand {
       check_finite("--camera", camera, 1e6);
       if (!(camera[0] > 0 && camera[1] > 0)) throw std::runtime_error("--camera: fx and fy must be > 0");
       epi.camera = {camera[0], camera[1], camera[2], camera[3]};
+      epi.camera_given = true;
       for (std::size_t k = 4; k < camera.size(); ++k) {
         check_finite("--camera distortion", {camera[k]}, 10);
         epi.camera.distortion[k - 4] = camera[k];

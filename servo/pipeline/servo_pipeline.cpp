@@ -39,7 +39,9 @@ std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::opti
   const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
   if (at && config_.projector && config_.decoder.epipolar.enabled)
     geometry.emplace(config_.camera, *config_.projector, *at, config_.decoder.epipolar.tolerance_px);
-  const vision::DecodeResult r = decoder_.decode(rgb, geometry ? &*geometry : nullptr);
+  vision::DecodeResult r = decoder_.decode(rgb, geometry ? &*geometry : nullptr);
+  // without the calibration the frame's own lines, fitted to its spots, tell the spills
+  if (!geometry) vision::mark_off_fitted_lines(r.decoded, config_.camera, config_.decoder.epipolar);
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());
@@ -55,7 +57,7 @@ std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpo
   for (const ImageSpot& s : spots) {
     if (s.off_line) continue;
     const Eigen::Vector2d xy = calibration::normalise(config_.camera, {s.u, s.v});
-    control::Feature f{s.row, s.col, xy.x(), xy.y(), std::nullopt};
+    control::Feature f{s.row, s.col, xy.x(), xy.y(), std::nullopt, std::nullopt};
     if (at && config_.projector) f.z = control::triangulate_depth(xy, s.row, s.col, *config_.projector, *at);
     // a spot of a projector on the camera: its ray, fixed in the camera frame, for its rows of L
     if (config_.projector && config_.projector->on_camera)

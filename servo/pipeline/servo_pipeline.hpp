@@ -64,7 +64,8 @@ class ServoPipeline {
 
   // Decodes an image into identified spots. With a camera pose and the projector's
   // calibration, the decoder also checks ids along the epipolar lines and grows the
-  // identified lattice.
+  // identified lattice; without them, the spots off the lines fitted to the frame's own spots
+  // are marked off_line (vision::mark_off_fitted_lines), as the calibration's lines mark them.
   // Throws std::invalid_argument for a bad image.
   std::vector<ImageSpot> locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& world_T_camera,
                                 int* detected = nullptr) const;

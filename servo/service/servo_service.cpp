@@ -59,7 +59,7 @@ std::vector<control::Feature> load_reference(const std::filesystem::path& file) 
     if (!j.is_array() || j.size() > 65536) throw std::runtime_error("expected a list of at most 65536 features");
     for (const auto& e : j) {
       control::Feature f{e.at("row").get<int>(), e.at("col").get<int>(), e.at("x").get<double>(), e.at("y").get<double>(),
-                         std::nullopt};
+                         std::nullopt, std::nullopt};
       if (!e.at("z").is_null()) f.z = e.at("z").get<double>();
       if (!std::isfinite(f.x) || !std::isfinite(f.y) || (f.z && !(std::isfinite(*f.z) && *f.z > 0)))
         throw std::runtime_error("non-finite feature or non-positive depth");

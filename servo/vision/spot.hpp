@@ -30,10 +30,11 @@ struct DecodedSpot {
   double u = 0, v = 0;
   int spot = 0;  // index into the segmented spots
   NamedBy by = NamedBy::kWindows;
-  // With the projector's calibration: its centroid lies farther from its id's epipolar line
-  // than the frame's grown limit (EpipolarCheck::grown_limit_px). The id is right, but the blob
-  // is not where the spot's centre is: its light past a silhouette on the surface behind, or a
-  // spot split by a depth edge. It is reported, and kept out of the control law.
+  // Its centroid lies farther from its id's epipolar line than the frame's grown limit
+  // (EpipolarCheck::grown_limit_px): the calibration's line, or without it the line fitted to
+  // the frame's own spots (mark_off_fitted_lines). The id is right, but the blob is not where
+  // the spot's centre is: its light past a silhouette on the surface behind, or a spot split by
+  // a depth edge. It is reported, and kept out of the control law.
   bool off_line = false;
 };
 

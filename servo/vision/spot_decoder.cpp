@@ -1,6 +1,7 @@
 // M-array decoding, the decoder: the steps in order (SpotDecoder; the steps are declared in spot_decoder.hpp).
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <optional>
 #include <tuple>
 
@@ -67,6 +68,26 @@ void mark_off_line(std::vector<DecodedSpot>& reported, const EpipolarCheck& chec
 }
 
 }  // namespace
+
+void mark_off_fitted_lines(std::vector<DecodedSpot>& decoded, const calibration::CameraIntrinsics& camera,
+                           const EpipolarOptions& options) {
+  std::vector<Eigen::Vector2d> xy, grid;
+  xy.reserve(decoded.size());
+  grid.reserve(decoded.size());
+  for (const DecodedSpot& d : decoded) {
+    xy.push_back(calibration::normalise(camera, {d.u, d.v}));
+    grid.emplace_back(d.col, d.row);
+  }
+  const FittedEpipolarLines lines(xy, grid, 0.5 * (camera.fx + camera.fy), options.tolerance_px);
+  for (DecodedSpot& d : decoded) d.off_line = false;
+  if (!lines.fitted()) return;
+  std::vector<double> residuals, finite;
+  residuals.reserve(decoded.size());
+  for (std::size_t k = 0; k < decoded.size(); ++k) residuals.push_back(lines.residual_px(xy[k], grid[k]));
+  std::copy_if(residuals.begin(), residuals.end(), std::back_inserter(finite), [](double r) { return std::isfinite(r); });
+  const double limit = grown_limit_of(std::move(finite), options.grown_limit, options.tolerance_px);
+  for (std::size_t k = 0; k < decoded.size(); ++k) decoded[k].off_line = !(residuals[k] <= limit);
+}
 
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
   DecodeResult r;

@@ -102,6 +102,8 @@ struct GrownLimit {
   double times_median = 4.0;
   double floor_px = 1.0;
 };
+// That limit over a frame's residuals (pixels), at most `tolerance_px`.
+double grown_limit_of(std::vector<double> residuals, const GrownLimit& limit, double tolerance_px);
 
 struct EpipolarCheck {
   EpipolarCheck(const EpipolarGeometry& geometry, const std::vector<Spot>& spots);
@@ -446,6 +448,14 @@ struct DecoderOptions {
   CellShape cell_shape;
   EpipolarOptions epipolar;  // used when decode() is given the frame's geometry
 };
+
+// Without the calibration (the closed loop decodes so unless told `--projector`): the reported
+// spots off the lines of the frame's own epipolar geometry, fitted to them (FittedEpipolarLines),
+// marked off_line as with the calibration: beyond the grown limit of their residuals
+// (`options.grown_limit`, at most `options.tolerance_px`); every other spot unmarked. Nothing is
+// marked where fewer than 9 spots (one window's) are named.
+void mark_off_fitted_lines(std::vector<DecodedSpot>& decoded, const calibration::CameraIntrinsics& camera,
+                           const EpipolarOptions& options);
 
 struct DecodeResult {
   std::vector<Spot> detected;

@@ -23,14 +23,15 @@ void EpipolarCheck::set_grown_limit(const std::vector<DecodedSpot>& decoded, con
     const double r = geometry.residual_px(xy[static_cast<std::size_t>(d.spot)], {d.row, d.col});
     if (std::isfinite(r)) residuals.push_back(r);
   }
+  grown_limit_px = grown_limit_of(std::move(residuals), limit, geometry.tolerance_px());
+}
+
+double grown_limit_of(std::vector<double> residuals, const GrownLimit& limit, double tolerance_px) {
   // too few (fewer than one window's spots) to say what the frame's residuals are: the tolerance alone
-  if (residuals.size() < std::tuple_size_v<Window>) {
-    grown_limit_px = geometry.tolerance_px();
-    return;
-  }
+  if (residuals.size() < std::tuple_size_v<Window>) return tolerance_px;
   const auto mid = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
   std::nth_element(residuals.begin(), mid, residuals.end());
-  grown_limit_px = std::min(geometry.tolerance_px(), std::max(limit.floor_px, limit.times_median * *mid));
+  return std::min(tolerance_px, std::max(limit.floor_px, limit.times_median * *mid));
 }
 
 bool EpipolarCheck::confirms(const Window& w, const pattern::SpotId& centre) const {

@@ -186,11 +186,10 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
               "neighbours named, the most --interior-points lets into the law)\n",
               s.total_decoded, s.total_visible, 100 * s.mean_rate, 100 * s.min_rate, s.total_wrong,
               s.total_mislocated, s.total_partial, s.total_partial_interior);
-  if (o.projector)
-    std::printf("  off their epipolar lines, kept from the control law: %d ids (%d of the partial, %d of the mislocated, "
-                "%d right, %d wrong)\n",
-                s.total_off_line, s.total_off_line_partial, s.total_off_line_mislocated, s.total_off_line_right,
-                s.total_off_line_wrong);
+  std::printf("  off their epipolar lines (%s), kept from the control law: %d ids (%d of the partial, %d of the "
+              "mislocated, %d right, %d wrong)\n",
+              o.projector ? "the calibration's" : "fitted to each frame's spots", s.total_off_line,
+              s.total_off_line_partial, s.total_off_line_mislocated, s.total_off_line_right, s.total_off_line_wrong);
   std::printf("  against the decodable spots (visible, in a fully visible 3 x 3 window): %d of %d identified "
               "(mean rate %.1f %%); against all visible: %d of %d\n",
               s.total_correct_decodable, s.total_decodable, 100 * s.mean_decodable_rate, s.total_correct,

@@ -19,7 +19,9 @@ struct SweepOptions {
   std::vector<double> noise_sigmas{0.5, 1.5, 3.0, 6.0};
   vision::DecoderOptions decoder;
   // the projector's calibration: the decoder then checks ids against the epipolar geometry of
-  // each pose (the camera's intrinsics are the scenario's, its pose the true one)
+  // each pose (the camera's intrinsics are the scenario's, its pose the true one); without it,
+  // the ids off the lines fitted to each frame's own spots are marked (mark_off_fitted_lines),
+  // as the servo marks them
   std::optional<calibration::ProjectorModel> projector;
   // the camera's crosstalk the decoder is told (SegmentationOptions::crosstalk; with the
   // calibration the segmentation's levels follow it): unset, the scenario camera's; set, a

@@ -89,6 +89,35 @@ void BM_DecodeCalibratedSegments(benchmark::State& state, const char* scenario, 
   decode_calibrated(state, frame(scenario), o);
 }
 
+// Without the calibration, as the servo decodes by default: the decoder, then the epipolar
+// lines fitted to the frame's own spots and the spots off them marked (mark_off_fitted_lines).
+void BM_DecodeFittedLines(benchmark::State& state, const char* scenario) {
+  const Frame& f = frame(scenario);
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}));
+  std::size_t off = 0;
+  for (auto _ : state) {
+    auto r = decoder.decode(f.rgb);
+    vision::mark_off_fitted_lines(r.decoded, f.camera, decoder.options().epipolar);
+    off = static_cast<std::size_t>(std::count_if(r.decoded.begin(), r.decoded.end(), [](const auto& d) { return d.off_line; }));
+    benchmark::DoNotOptimize(r.decoded.data());
+  }
+  state.counters["off_line"] = static_cast<double>(off);
+}
+
+// The marking alone, on the frame's decoded spots.
+void BM_FittedLinesOnly(benchmark::State& state, const char* scenario) {
+  const Frame& f = frame(scenario);
+  const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}));
+  const std::vector<vision::DecodedSpot> decoded = decoder.decode(f.rgb).decoded;
+  std::vector<vision::DecodedSpot> marked;
+  for (auto _ : state) {
+    marked = decoded;
+    vision::mark_off_fitted_lines(marked, f.camera, decoder.options().epipolar);
+    benchmark::DoNotOptimize(marked.data());
+  }
+  state.counters["spots"] = static_cast<double>(decoded.size());
+}
+
 void BM_SegmentOnly(benchmark::State& state) {
   const Frame& f = frame("plane");
   std::size_t n = 0;
@@ -260,6 +289,10 @@ BENCHMARK_CAPTURE(BM_DecodePattern, ham_d3, "ham", "marray_20x20_k3_w3_d3.txt", 
 BENCHMARK_CAPTURE(BM_DecodeInterleaved, cylinder, "cylinder")
     ->Name("decode_correction_interleaved/cylinder")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DecodeInterleaved, ham, "ham")->Name("decode_correction_interleaved/ham")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Decode, ham, "ham")->Name("decode_fitted_lines/baseline_ham_decoded")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DecodeFittedLines, ham, "ham")
+    ->Name("decode_fitted_lines/ham_decoded_and_marked")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_FittedLinesOnly, ham, "ham")->Name("decode_fitted_lines/ham_marked_only")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/baseline_vga")->Arg(480)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/720p")->Arg(720)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DecodeImageSize)->Name("decode_image/1080p")->Arg(1080)->Unit(benchmark::kMillisecond);

@@ -5,7 +5,9 @@
 // blob unnamed, never name it wrongly.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -159,12 +161,18 @@ TEST(Stages, TheDecoderNamesNoBlobWronglyAndNoFewerThanBefore) {
 // Only the line of (9, 19), a free id of its colour, runs nearer it: the grown spot must be the
 // nearest any free id's line passes (decoder_support.hpp, nearest_free_line).
 // The frame's camera-projector geometry, as the fixture recorded it.
-EpipolarGeometry geometry_of(const nlohmann::json& j) {
+calibration::CameraIntrinsics intrinsics_of(const nlohmann::json& j) {
   const auto& cam = j.at("camera");
   calibration::CameraIntrinsics k;
   k.fx = cam.at("focal_px")[0], k.fy = cam.at("focal_px")[1];
   k.cx = cam.at("centre_px")[0], k.cy = cam.at("centre_px")[1];
   for (int i = 0; i < 5; ++i) k.distortion[static_cast<std::size_t>(i)] = cam.at("distortion")[i];
+  return k;
+}
+
+EpipolarGeometry geometry_of(const nlohmann::json& j) {
+  const auto& cam = j.at("camera");
+  const calibration::CameraIntrinsics k = intrinsics_of(j);
   const auto& pj = j.at("projector");
   calibration::ProjectorModel p;
   p.fx = pj.at("fx"), p.fy = pj.at("fy"), p.cx = pj.at("cx"), p.cy = pj.at("cy");
@@ -371,6 +379,76 @@ TEST(Stages, ASpotOffItsLineKeepsItsIdAndIsMarkedOffTheLine) {
   EXPECT_EQ(again->col, pick->col);
   EXPECT_TRUE(again->off_line) << "residual " << residual(again->u, again->v, *again) << " px";
   EXPECT_EQ(wrong_ids(f, r.decoded), 0);
+}
+
+// Without the calibration, the lines fitted to a frame's own identified spots are the
+// calibration's lines (the projector a pinhole, its spots a grid): a spot moved off its line is
+// marked as the calibration marks it, and a frame of fewer than 9 named spots fits nothing.
+TEST(Stages, WithoutTheCalibrationTheFramesOwnLinesMarkASpotOffItsLine) {
+  const nlohmann::json j = read_fixture("ham_dark_edge");
+  const Frame f = load("ham_dark_edge", 0);
+  const EpipolarGeometry geometry = geometry_of(j);
+  const calibration::CameraIntrinsics camera = intrinsics_of(j);
+  const SpotDecoder decoder(table());
+  const EpipolarOptions options;
+  std::vector<DecodedSpot> decoded = decoder.decode_spots(f.spots).decoded;
+  ASSERT_GT(decoded.size(), 100U);
+  std::vector<Eigen::Vector2d> xy, grid;
+  for (const DecodedSpot& d : decoded) {
+    xy.push_back(geometry.normalise(d.u, d.v));
+    grid.emplace_back(d.col, d.row);
+  }
+  const FittedEpipolarLines lines(xy, grid, camera.fx, options.tolerance_px);
+  ASSERT_TRUE(lines.fitted());
+  // the frame's spots lie as near the fitted lines as the calibrated ones (the calibration's own
+  // error, a few tenths of a pixel, is not in the fit)
+  std::vector<double> fitted, calibrated;
+  for (std::size_t k = 0; k < decoded.size(); ++k) {
+    fitted.push_back(lines.residual_px(xy[k], grid[k]));
+    calibrated.push_back(geometry.residual_px(xy[k], {decoded[k].row, decoded[k].col}));
+  }
+  std::sort(fitted.begin(), fitted.end());
+  std::sort(calibrated.begin(), calibrated.end());
+  std::printf("residuals: fitted median %.3f px, 90th %.3f; calibrated median %.3f, 90th %.3f\n", fitted[fitted.size() / 2],
+              fitted[fitted.size() * 9 / 10], calibrated[calibrated.size() / 2], calibrated[calibrated.size() * 9 / 10]);
+  EXPECT_LE(fitted[fitted.size() / 2], calibrated[calibrated.size() / 2]);
+  EXPECT_LT(fitted[fitted.size() * 9 / 10], 0.5);
+  mark_off_fitted_lines(decoded, camera, options);
+  int off = 0;
+  for (const DecodedSpot& d : decoded) off += d.off_line;
+  EXPECT_LT(off, static_cast<int>(decoded.size()) / 20) << "most spots lie on their lines";
+  // an interior spot's blob moved 2 px to a side that takes it over 1.6 px off its line
+  const DecodedSpot* pick = nullptr;
+  double du = 0, dv = 0;
+  for (const DecodedSpot& d : decoded) {
+    if (d.off_line || d.row < 8 || d.row > 12 || d.col < 8 || d.col > 12) continue;
+    for (const auto& [a, b] : {std::pair{2.0, 0.0}, std::pair{-2.0, 0.0}, std::pair{0.0, 2.0}, std::pair{0.0, -2.0}})
+      if (geometry.residual_px(geometry.normalise(d.u + a, d.v + b), {d.row, d.col}) > 1.6) pick = &d, du = a, dv = b;
+    if (pick) break;
+  }
+  ASSERT_NE(pick, nullptr) << "no interior spot to move";
+  std::vector<Spot> moved = f.spots;
+  moved[static_cast<std::size_t>(pick->spot)].u += du;
+  moved[static_cast<std::size_t>(pick->spot)].v += dv;
+  std::vector<DecodedSpot> again = decoder.decode_spots(moved).decoded;
+  mark_off_fitted_lines(again, camera, options);
+  int marked = 0;
+  for (const DecodedSpot& d : again) {
+    if (d.spot == pick->spot) {
+      EXPECT_TRUE(d.off_line) << d.row << ',' << d.col;
+    }
+    marked += d.spot == pick->spot && d.off_line;
+  }
+  EXPECT_EQ(marked, 1) << "the moved spot lost its id, or was not marked";
+  // a frame of 8 named spots: no line is fitted, nothing marked (the moved one among them)
+  std::vector<DecodedSpot> few;
+  for (const DecodedSpot& d : again)
+    if (few.size() < 7 && d.spot != pick->spot) few.push_back(d);
+  for (const DecodedSpot& d : again)
+    if (d.spot == pick->spot) few.push_back(d);
+  ASSERT_EQ(few.size(), 8U);
+  mark_off_fitted_lines(few, camera, options);
+  for (const DecodedSpot& d : few) EXPECT_FALSE(d.off_line);
 }
 
 }  // namespace

@@ -48,10 +48,6 @@ class EpipolarGeometry {
   double tolerance_px_ = 3;
 };
 
-}  // namespace vision
-
-namespace vision {
-
 // Without the projector's calibration, the frame's own epipolar geometry: the fundamental
 // matrix F between the camera's normalised coordinates x and the pattern's grid (col, row, 1),
 // x' F p = 0, fitted to the frame's identified spots. The projector is a pinhole and its spots

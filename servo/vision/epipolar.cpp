@@ -103,10 +103,12 @@ FittedEpipolarLines::FittedEpipolarLines(const std::vector<Eigen::Vector2d>& xy,
     if (!f || !f->allFinite()) break;
     f_ = tx.transpose() * *f * tp;
     fitted_ = true;
+    if (pass == 2) break;  // the last fit's weights would serve nothing
     for (std::size_t k = 0; k < xy.size(); ++k) {
       const Eigen::Vector3d line = f_ * grid[k].homogeneous();
       const double g2 = line.head<2>().squaredNorm();
-      w[k] = g2 > 0 && residual_px(xy[k], grid[k]) <= tolerance_px ? 1.0 / g2 : 0.0;
+      const bool near = g2 > 0 && std::abs(line.dot(xy[k].homogeneous())) / std::sqrt(g2) * pixels_ <= tolerance_px;
+      w[k] = near ? 1.0 / g2 : 0.0;
     }
   }
 }

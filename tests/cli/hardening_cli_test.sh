@@ -58,3 +58,16 @@ one_line_error "bridge --address localhost" "names are not looked up" "$bin/cell
 one_line_error "serve --foxglove-address alone" "needs --foxglove" \
   "$bin/cellsim" serve "$src/sim/scenarios/plane.yaml" --foxglove-address 127.0.0.2
 echo "hardening: domain range, enclave names, decimal seeds and numbers, the live view's address"
+# the project's scripts read their command line before the set-up (minutes of apt and build):
+# a typo is named in one line, --help says the usage and runs nothing
+one_line_error "bin/experiments --hlep" "unknown argument '--hlep'" "$src/bin/experiments" --hlep
+one_line_error "bin/experiments campaign studies" "one argument at most" "$src/bin/experiments" campaign studies
+one_line_error "bin/fuzz nope" "unknown target 'nope'" "$src/bin/fuzz" decoder nope
+one_line_error "FUZZ_SECONDS=1e3 bin/fuzz" "FUZZ_SECONDS" env FUZZ_SECONDS=1e3 "$src/bin/fuzz"
+one_line_error "bin/keystore -x" "unknown option '-x'" "$src/bin/keystore" -x "$tmp/ks"
+[ ! -e "$tmp/ks" ] || fail "bin/keystore -x made its DIR"
+for s in experiments fuzz keystore; do
+  out=$("$src/bin/$s" --help 2>&1) || fail "bin/$s --help: exit $?"
+  grep -q "^usage: bin/$s" <<<"$out" || fail "bin/$s --help: no usage line: $out"
+done
+echo "hardening: the scripts' command lines refused before their set-up"

@@ -31,6 +31,7 @@ std::vector<Field> fields(DecoderOptions& o) {
           {"segmentation.max_area_px", &s.max_area_px}, {"segmentation.max_elongation", &s.max_elongation},
           {"segmentation.min_fill", &s.min_fill},
           {"segmentation.min_colour_match", &s.min_colour_match},
+          {"segmentation.border_cut_px", &s.border_cut_px}, {"segmentation.border_reach_px", &s.border_reach_px},
           {"adjacency.row_cone_deg", &a.row_cone_deg}, {"adjacency.column_cone_deg", &a.column_cone_deg},
           {"adjacency.reach", &a.reach}, {"adjacency.angle_weight", &a.angle_weight},
           {"adjacency.chain_votes", &a.chain_votes}, {"adjacency.chain_share", &a.chain_share},

@@ -320,11 +320,6 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, SegmentationScratch& sc) {
   return blobs;
 }
 
-// how much shorter a spot's reach towards the image border may be than away from it (pixels)
-constexpr double kBorderCutPx = 0.5;
-// and how far at least it must reach towards it (pixels)
-constexpr double kBorderReachPx = 1.5;
-
 // The blobs that are spots: their size, shape and fill, and a dominant palette colour.
 void spots_of(const std::vector<Blob>& blobs, const SegmentationOptions& p, bool smoothed, int W, int H, Segmentation& out) {
   const std::vector<std::array<double, 3>> palette = palette_directions(p.colours);
@@ -372,7 +367,9 @@ void spots_of(const std::vector<Blob>& blobs, const SegmentationOptions& p, bool
     // A sliver whose centre lies beyond the border can reach as far both ways (two rows of a
     // spot): the reach towards the border must also be a spot's half-width's worth.
     const double left = spot.u - b.x0, right = b.x1 - spot.u, top = spot.v - b.y0, bottom = b.y1 - spot.v;
-    const auto cut = [](double towards, double away) { return towards < away - kBorderCutPx || towards < kBorderReachPx; };
+    const auto cut = [&p](double towards, double away) {
+      return towards < away - p.border_cut_px || towards < p.border_reach_px;
+    };
     spot.truncated = (b.x0 == 0 && cut(left, right)) || (b.x1 == W - 1 && cut(right, left)) ||
                      (b.y0 == 0 && cut(top, bottom)) || (b.y1 == H - 1 && cut(bottom, top));
     spot.sliver = sliver;

@@ -51,6 +51,12 @@ struct SegmentationOptions {
   // 1000 at seeds 7 and 11 wide, 110 ids more of 35 million).
   double min_fill = 0.25;        // area / bounding-box area
   double min_colour_match = 0.85;  // cosine between the blob's chroma and its palette colour
+  // A blob touching the image border is cut (Spot::truncated: it helps decode its neighbours,
+  // its centroid is not reported) when it reaches less far from its centroid towards the border
+  // than away from it, by more than border_cut_px, or less than border_reach_px towards it (a
+  // spot's half-width's worth: a sliver whose centre lies beyond the border reaches as far both
+  // ways). Pixels.
+  double border_cut_px = 0.5, border_reach_px = 1.5;
 };
 
 // the crosstalk of the images SegmentationOptions' chroma levels were set on, and the most a

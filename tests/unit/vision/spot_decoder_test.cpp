@@ -348,6 +348,14 @@ TEST(Segmentation, ASpotGrazingTheBorderKeepsItsCentroidASpotCutByItIsTruncated)
   EXPECT_FALSE(at(40.0, 57.0).truncated);
   EXPECT_NEAR(at(40.0, 57.0).v, 57.0, 0.25);
   EXPECT_TRUE(at(65.0, 58.7).truncated);
+  // the test's two numbers are the options': a spot grazing the border is cut when its reach
+  // towards it must be longer than it is (2 px, the left one's and the bottom rim's)
+  SegmentationOptions strict;
+  strict.border_reach_px = 3;
+  const Segmentation cut = segment_spots(rgb, strict);
+  ASSERT_EQ(cut.spots.size(), 5u);
+  for (const Spot& s : cut.spots)  // all but the inner one
+    EXPECT_EQ(s.truncated, std::hypot(s.u - 40.0, s.v - 30.0) > 2.0) << s.u << ", " << s.v;
 }
 
 // A spot seen edge-on at a silhouette: 1 px wide, 9 px tall (elongation 9) is a sliver, listed

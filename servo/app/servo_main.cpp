@@ -290,8 +290,8 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
       warm = true;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    vision::DecodeResult r = decoder.decode(rgb, g);
-    if (!g && epipolar.camera_given) vision::mark_off_fitted_lines(r.decoded, epipolar.camera, options.epipolar);
+    const vision::DecodeResult r =
+        !g && epipolar.camera_given ? decoder.decode_uncalibrated(rgb, epipolar.camera) : decoder.decode(rgb, g);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     times.push_back(ms);
     std::string json_file = json_out;
@@ -338,7 +338,7 @@ void add_crosstalk_option(CLI::App* c, double& value) {
 struct DecodeCommand {
   std::string pattern_file, json_out, json_dir, overlay_out, projector;
   std::vector<std::string> images;
-  bool tolerant = false;
+  bool tolerant = false, fitted_lines = false;
   int min_votes = vision::DecoderOptions{}.min_votes;
   int segment_length = vision::EpipolarOptions{}.segment_length;
   double crosstalk = vision::kLevelsCrosstalk;
@@ -366,6 +366,9 @@ struct DecodeCommand {
                   "camera intrinsics: fx fy cx cy [k1 k2 p1 p2 k3]; without --projector, a spot off the epipolar "
                   "lines fitted to the frame's own spots is marked off_line (docs/decoding.md)")
         ->expected(4, 9);
+    c->add_flag("--fitted-lines", fitted_lines,
+                "with --camera, without --projector: decode again on the epipolar lines fitted to the first "
+                "decoding's spots, as with a calibration (docs/decoding.md)");
     add_crosstalk_option(c, crosstalk);
     c->add_option("--camera-pose", pose,
                   "camera pose in the world for every image: x y z qx qy qz qw (default: each image's "
@@ -398,6 +401,9 @@ struct DecodeCommand {
     options.tolerance.enabled = tolerant;
     options.min_votes = min_votes;
     options.epipolar.segment_length = segment_length;
+    if (fitted_lines && (camera.empty() || !projector.empty()))
+      throw std::runtime_error("--fitted-lines needs --camera and no --projector (the calibration's lines serve then)");
+    options.epipolar.fitted_lines = fitted_lines;
     options.segmentation.crosstalk = crosstalk;
     return run_decode(images, pattern_file, json_out, json_dir, overlay_out, options, epi);
   }
@@ -409,7 +415,7 @@ struct ServoConfigFlags {
   std::string config_file, model, projector_file, robust, features;
   double z_hat = 0, gain = 0, divergence_ratio = -1;
   int points = -1;
-  bool interior_points = false;
+  bool interior_points = false, fitted_lines = false;
   bool no_epipolar = false;
   double crosstalk = -1;
   void add(CLI::App* c) {
@@ -434,6 +440,9 @@ struct ServoConfigFlags {
     c->add_flag("--interior-points", interior_points,
                 "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
                 "when they are at least half of them (config key interior_points)");
+    c->add_flag("--fitted-lines", fitted_lines,
+                "without --projector: decode each frame again on the epipolar lines fitted to its first decoding's "
+                "spots, as with a calibration (config key fitted_lines; docs/decoding.md)");
     c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and the grown lattice");
     c->add_option("--visual-features", features,
@@ -459,6 +468,7 @@ struct ServoConfigFlags {
     if (crosstalk >= 0) config.decoder.segmentation.crosstalk = crosstalk;
     if (points >= 0) config.points = points;
     if (interior_points) config.interior_points = true;
+    if (fitted_lines) config.decoder.epipolar.fitted_lines = true;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
     if (!robust.empty()) config.law.robust = control::parse_robust_estimator(robust);
     if (!features.empty()) config.law.features = control::parse_visual_features(features);

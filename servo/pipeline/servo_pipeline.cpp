@@ -39,9 +39,8 @@ std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::opti
   const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
   if (at && config_.projector && config_.decoder.epipolar.enabled)
     geometry.emplace(config_.camera, *config_.projector, *at, config_.decoder.epipolar.tolerance_px);
-  vision::DecodeResult r = decoder_.decode(rgb, geometry ? &*geometry : nullptr);
   // without the calibration the frame's own lines, fitted to its spots, tell the spills
-  if (!geometry) vision::mark_off_fitted_lines(r.decoded, config_.camera, config_.decoder.epipolar);
+  const vision::DecodeResult r = geometry ? decoder_.decode(rgb, &*geometry) : decoder_.decode_uncalibrated(rgb, config_.camera);
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());

@@ -252,10 +252,13 @@ bool nearest_free_line(const std::vector<Spot>& spots, int j, const pattern::Spo
                        const pattern::MArray& pattern, Taken&& taken) {
   const Eigen::Vector2d& xy = check.xy[static_cast<std::size_t>(j)];
   const double own = check.geometry.residual_px(xy, x);
+  // a line fitted to the frame's spots (no calibration) is extrapolated beyond them, by pixels:
+  // there a rival is heard within the tolerance (EpipolarGeometry::trusted)
+  const double untrusted = check.geometry.tolerance_px();
   for (int r = 0; r < pattern.rows; ++r)
     for (int c = 0; c < pattern.cols; ++c)
       if (pattern.at(r, c) == spots[j].colour && (r != x.row || c != x.col) && !taken(r, c) &&
-          check.geometry.residual_px(xy, {r, c}) <= own)
+          check.geometry.residual_px(xy, {r, c}) <= (check.geometry.trusted({r, c}) ? own : untrusted))
         return false;
   return true;
 }

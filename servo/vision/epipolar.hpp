@@ -18,11 +18,25 @@
 
 namespace vision {
 
+class FittedEpipolarLines;
+
 class EpipolarGeometry {
  public:
   // tolerance_px: how far from its epipolar line (camera pixels) a spot may be and keep its id
   EpipolarGeometry(const calibration::CameraIntrinsics& camera, const calibration::ProjectorModel& projector,
                    const Eigen::Isometry3d& world_T_camera, double tolerance_px);
+  // Without the calibration: the lines of the frame's own fundamental matrix (FittedEpipolarLines
+  // fitted with rank 2), each id's the line F (col, row, 1). No rays, so no front check. A line
+  // is known as well as the spots it was fitted on only between them: `lines.spans()` says which
+  // ids' lines are (trusted()), and the others are held to the tolerance where a rival's line is
+  // weighed (decoder step 6's nearest free line).
+  EpipolarGeometry(const calibration::CameraIntrinsics& camera, const FittedEpipolarLines& lines, int rows,
+                   int cols, double tolerance_px);
+  // whether id's line is known as well as the frame's spots lie on theirs (always, with the
+  // calibration)
+  bool trusted(const pattern::SpotId& id) const {
+    return trusted_.empty() || trusted_[static_cast<std::size_t>(id.row) * cols_ + id.col] != 0;
+  }
 
   // Normalised, undistorted coordinates of a pixel.
   Eigen::Vector2d normalise(double u, double v) const;
@@ -46,6 +60,8 @@ class EpipolarGeometry {
   std::vector<Ray> rays_;   // row-major over the pattern
   int rows_ = 0, cols_ = 0;
   double tolerance_px_ = 3;
+  bool front_check_ = true;
+  std::vector<char> trusted_;
 };
 
 // Without the projector's calibration, the frame's own epipolar geometry: the fundamental
@@ -59,21 +75,30 @@ class FittedEpipolarLines {
  public:
   // `xy`: the spots' normalised coordinates; `grid`: their ids' (col, row). Fitted by linear
   // least squares (Hartley's normalisation), then twice to the spots within `tolerance_px` of
-  // their lines, each weighted so that its term is a pixel distance, not an algebraic one. Rank
-  // 2 is not enforced: the cylinder's spots lie near a quadric through both centres, where F is
-  // ill-conditioned, and truncating its third singular value moved a frame's lines by 0.4 px
-  // (median) where the linear fit's lie 0.03 px from its spots; only the lines are used, and a
-  // frame names 100-300 spots for the fit's 8 degrees of freedom. Fewer than 9 spots (one
-  // window's): nothing fitted (fitted() false).
+  // their lines, each weighted so that its term is a pixel distance, not an algebraic one.
+  // Fewer than 9 spots (one window's): nothing fitted (fitted() false).
+  // Rank 2 (`rank2`): the last fit refined as F = U diag(1, s, 0) V' (Levenberg-Marquardt on the
+  // same spots' pixel distances), so that every line passes through one epipole, the projector
+  // centre's image, as a real projector's do. Where the lines serve to mark the frame's own spots
+  // the linear fit serves (its lines lie 0.03 px from the cylinder's spots, whose near-critical
+  // quadric lets truncation move them 0.4 px); where they name new spots, far from those fitted,
+  // the linear fit's lines drift by pixels (the dark ham's wall spot 2.3 px off its own line), the
+  // rank-2 fit's less (1.3 px), and spans() says where they are extrapolated (docs/decoding.md).
   FittedEpipolarLines(const std::vector<Eigen::Vector2d>& xy, const std::vector<Eigen::Vector2d>& grid,
-                      double pixels_per_unit, double tolerance_px);
+                      double pixels_per_unit, double tolerance_px, bool rank2 = false);
   bool fitted() const { return fitted_; }
+  // whether the grid position (col, row) lies in the convex hull of the ids the last fit used:
+  // there its line is interpolated, beyond it extrapolated
+  bool spans(const Eigen::Vector2d& grid) const;
   // distance in camera pixels from xy to the line of the id at grid position (col, row)
   double residual_px(const Eigen::Vector2d& xy, const Eigen::Vector2d& grid) const;
   const Eigen::Matrix3d& fundamental() const { return f_; }
 
  private:
+  void refine_rank2(const std::vector<Eigen::Vector2d>& xy, const std::vector<Eigen::Vector2d>& grid,
+                    const std::vector<double>& w);
   Eigen::Matrix3d f_ = Eigen::Matrix3d::Zero();
+  std::vector<Eigen::Vector2d> hull_;  // counter-clockwise
   double pixels_ = 1;
   bool fitted_ = false;
 };

@@ -69,21 +69,42 @@ void mark_off_line(std::vector<DecodedSpot>& reported, const EpipolarCheck& chec
 
 }  // namespace
 
+namespace {
+
+// The frame's own lines, fitted to the spots `decoded` names (FittedEpipolarLines), with the
+// normalised coordinates and grid positions they were fitted on.
+struct FrameLines {
+  FrameLines(const std::vector<DecodedSpot>& decoded, const calibration::CameraIntrinsics& camera, double tolerance_px,
+             bool rank2)
+      : xy(normalised(decoded, camera)), grid(grid_of(decoded)),
+        lines(xy, grid, 0.5 * (camera.fx + camera.fy), tolerance_px, rank2) {}
+  static std::vector<Eigen::Vector2d> normalised(const std::vector<DecodedSpot>& decoded,
+                                                 const calibration::CameraIntrinsics& camera) {
+    std::vector<Eigen::Vector2d> xy;
+    xy.reserve(decoded.size());
+    for (const DecodedSpot& d : decoded) xy.push_back(calibration::normalise(camera, {d.u, d.v}));
+    return xy;
+  }
+  static std::vector<Eigen::Vector2d> grid_of(const std::vector<DecodedSpot>& decoded) {
+    std::vector<Eigen::Vector2d> grid;
+    grid.reserve(decoded.size());
+    for (const DecodedSpot& d : decoded) grid.emplace_back(d.col, d.row);
+    return grid;
+  }
+  std::vector<Eigen::Vector2d> xy, grid;
+  FittedEpipolarLines lines;
+};
+
+}  // namespace
+
 void mark_off_fitted_lines(std::vector<DecodedSpot>& decoded, const calibration::CameraIntrinsics& camera,
                            const EpipolarOptions& options) {
-  std::vector<Eigen::Vector2d> xy, grid;
-  xy.reserve(decoded.size());
-  grid.reserve(decoded.size());
-  for (const DecodedSpot& d : decoded) {
-    xy.push_back(calibration::normalise(camera, {d.u, d.v}));
-    grid.emplace_back(d.col, d.row);
-  }
-  const FittedEpipolarLines lines(xy, grid, 0.5 * (camera.fx + camera.fy), options.tolerance_px);
+  const FrameLines frame(decoded, camera, options.tolerance_px, false);
   for (DecodedSpot& d : decoded) d.off_line = false;
-  if (!lines.fitted()) return;
+  if (!frame.lines.fitted()) return;
   std::vector<double> residuals, finite;
   residuals.reserve(decoded.size());
-  for (std::size_t k = 0; k < decoded.size(); ++k) residuals.push_back(lines.residual_px(xy[k], grid[k]));
+  for (std::size_t k = 0; k < decoded.size(); ++k) residuals.push_back(frame.lines.residual_px(frame.xy[k], frame.grid[k]));
   std::copy_if(residuals.begin(), residuals.end(), std::back_inserter(finite), [](double r) { return std::isfinite(r); });
   const double limit = grown_limit_of(std::move(finite), options.grown_limit, options.tolerance_px);
   for (std::size_t k = 0; k < decoded.size(); ++k) decoded[k].off_line = !(residuals[k] <= limit);
@@ -155,6 +176,27 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   if (epipolar) mark_off_line(r.decoded, *epipolar);
   r.graph = std::move(graph);
   r.hoods = std::move(hoods);
+  return r;
+}
+
+DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const {
+  SegmentationOptions levels = options_.segmentation;
+  levels.crosstalk = kLevelsCrosstalk;  // (as decode() without the calibration)
+  Segmentation seg = segment_spots(rgb, levels, &scratch_);
+  const EpipolarOptions& e = options_.epipolar;
+  DecodeResult r = decode_spots(e.fitted_lines ? seg.spots : std::move(seg.spots), nullptr);
+  r.rejected_blobs = seg.rejected;
+  if (e.fitted_lines) {
+    const FrameLines frame(r.decoded, camera, e.tolerance_px, true);
+    if (frame.lines.fitted()) {
+      const pattern::MArray& pattern = table_.array();
+      const EpipolarGeometry geometry(camera, frame.lines, pattern.rows, pattern.cols, e.tolerance_px);
+      r = decode_spots(std::move(seg.spots), &geometry);
+      r.rejected_blobs = seg.rejected;
+      return r;
+    }
+  }
+  mark_off_fitted_lines(r.decoded, camera, e);
   return r;
 }
 

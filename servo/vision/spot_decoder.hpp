@@ -398,6 +398,10 @@ struct EpipolarOptions {
   // only, every spot voted for) runs of 7 named 479 wrong ids, the ham's lower silhouette most
   // (docs/decoding.md, "Runs read along the epipolar lines").
   int segment_length = 4;
+  // Without a calibration, decode a second time on the lines fitted to the first decoding's spots
+  // (SpotDecoder::decode_uncalibrated). Off by default: the closed loop's figures in
+  // docs/results.md are the decoder's without it; what it names, docs/decoding.md.
+  bool fitted_lines = false;
   // Error-tolerant windows, confirmed epipolarly. Off: on the ham the confirmation still lets
   // wrong repairs through at depth edges (23 in 1000 poses), for 4 points of rate.
   bool tolerant = false;
@@ -478,6 +482,13 @@ class SpotDecoder {
   // it the segmentation's chroma levels follow the camera's crosstalk (SegmentationOptions).
   DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr) const;
   DecodeResult decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry = nullptr) const;
+  // Without the projector's calibration, knowing the camera's intrinsics: decode() without a
+  // geometry, then either the spots off the frame's own fitted lines marked (mark_off_fitted_lines)
+  // or, with `EpipolarOptions::fitted_lines`, the same blobs decoded again on those lines, fitted
+  // with rank 2 (EpipolarGeometry from FittedEpipolarLines): steps 3b, 5b, 6 and 7 as with a
+  // calibration, each spot off its line marked. Where no lines can be fitted (under 9 spots
+  // named), the first decoding, marked.
+  DecodeResult decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const;
   const DecoderOptions& options() const { return options_; }
   const pattern::WindowTable& table() const { return table_; }
   // the pattern's minimum window distance, read at construction

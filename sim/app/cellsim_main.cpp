@@ -225,7 +225,7 @@ struct LawFlags {
   std::vector<double> adaptive;  // l0 linf slope
   double converge_mm = 1e3 * control::ControlLawOptions{}.convergence_translation_m;
   double converge_deg = control::ControlLawOptions{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
-  bool epipolar = false;
+  bool epipolar = false, fitted_lines = false;
   int points = 0;
   bool interior = false;
   std::string robust = "none";
@@ -239,6 +239,7 @@ struct LawFlags {
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
     add_interior(c);
+    add_fitted_lines(c);
     c->add_flag("--epipolar", epipolar,
                 "decode with the projector's calibration (epipolar check and the grown lattice), as `servo run "
                 "--projector` does");
@@ -266,6 +267,7 @@ struct LawFlags {
     cfg.law.convergence_translation_m = converge_mm / 1e3;
     cfg.law.convergence_rotation_rad = converge_deg * 3.14159265358979323846 / 180;
     cfg.decoder.epipolar.enabled = epipolar;
+    cfg.decoder.epipolar.fitted_lines = fitted_lines;
     cfg.points = points;
     cfg.interior_points = interior;
     cfg.law.robust = control::parse_robust_estimator(robust);
@@ -275,6 +277,11 @@ struct LawFlags {
     c->add_flag("--interior-points", interior,
                 "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
                 "when they are at least half of them (docs/results.md)");
+  }
+  void add_fitted_lines(CLI::App* c) {
+    c->add_flag("--fitted-lines", fitted_lines,
+                "without --epipolar: decode each frame again on the epipolar lines fitted to its first decoding's "
+                "spots, as with a calibration (docs/decoding.md; servo config key fitted_lines)");
   }
   // campaign and study add the law's flags one by one; this one they share with experiment
   void add_visual_features(CLI::App* c) {
@@ -360,6 +367,7 @@ struct CampaignFlags {
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
     law.add_interior(c);
+    law.add_fitted_lines(c);
     c->add_flag("--epipolar", law.epipolar, "decode with the projector's calibration");
     c->add_option("--robust", law.robust, "tukey | huber | none: M-estimator weights on the points")->capture_default_str();
     law.add_visual_features(c);
@@ -521,6 +529,9 @@ struct DecodeSweepCommand {
     c->add_flag("--no-grow", no_grow, "with --projector: do not grow the identified lattice where links are missing (step 6)");
     c->add_flag("--no-edge-runs", no_edge_runs,
                 "with --projector: do not name the runs of foreshortened spots beyond an identified line (step 7)");
+    c->add_flag("--fitted-lines", sweep.decoder.epipolar.fitted_lines,
+                "without --projector: decode each frame again on the epipolar lines fitted to its first decoding's "
+                "spots, as with a calibration (docs/decoding.md)");
     c->add_option("--crosstalk", sweep.told_crosstalk,
                   "with --projector: the camera crosstalk the decoder is told (default: the scenario camera's; "
                   "another value is a crosstalk calibration that far off)")

@@ -517,6 +517,7 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
                      {"max_angular_radps", law.max_angular_radps},
                      {"min_points", law.min_points},
                      {"epipolar", o.base.decoder.epipolar.enabled},
+                     {"fitted_lines", o.base.decoder.epipolar.fitted_lines},
                      {"robust", control::to_string(law.robust)},
                      {"visual_features", control::to_string(law.features)},
                      {"outliers", o.outlier_fraction},

@@ -373,8 +373,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       const auto t0 = std::chrono::steady_clock::now();
       std::optional<vision::EpipolarGeometry> geometry;
       if (o.projector) geometry.emplace(camera, *o.projector, wTc, o.decoder.epipolar.tolerance_px);
-      vision::DecodeResult r = decoder.decode(img, geometry ? &*geometry : nullptr);
-      if (!geometry) vision::mark_off_fitted_lines(r.decoded, camera, o.decoder.epipolar);
+      vision::DecodeResult r = geometry ? decoder.decode(img, &*geometry) : decoder.decode_uncalibrated(img, camera);
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
       const FrameTruth truth{spots, pattern.rows, pattern.cols};

@@ -134,6 +134,21 @@ off = [(s["row"], s["col"]) for s in fitted if s["off_line"]]
 print("off their fitted lines:", off)
 assert 1 <= len(off) <= 8 and all(r == 16 for r, c in off), off  # the spills of row 16
 PY
+# --fitted-lines: decoded again on those lines, as with a calibration: more ids, each blob's
+# id the same where both name it, no id twice
+"$servo" decode "$tmp/cal/spill.png" --pattern "$curved" "${cam[@]}" --fitted-lines --json "$tmp/cal/again.json" \
+  >/dev/null || fail "decode the ham with --fitted-lines"
+/usr/bin/python3 - "$tmp/cal/plain.json" "$tmp/cal/again.json" <<'PY' || fail "the ham with --fitted-lines"
+import json, sys
+plain, again = (json.load(open(f))["spots"] for f in sys.argv[1:])
+print(f"--fitted-lines: {len(plain)} ids -> {len(again)}")
+assert len(again) >= len(plain) + 10, (len(plain), len(again))
+at = {(round(s["u"], 3), round(s["v"], 3)): (s["row"], s["col"]) for s in plain}
+assert all(at.get((round(s["u"], 3), round(s["v"], 3)), (s["row"], s["col"])) == (s["row"], s["col"]) for s in again)
+assert len({(s["row"], s["col"]) for s in again}) == len(again), "an id twice"
+PY
+one_line_error "--fitted-lines without --camera" "--fitted-lines needs --camera" \
+  "$servo" decode "$tmp/cal/spill.png" --pattern "$curved" --fitted-lines
 # a half-size image with the full-size intrinsics: the mismatch said (issue 43)
 /usr/bin/python3 -c "
 import matplotlib.image as m; m.imsave('$tmp/cal/half.png', m.imread('$tmp/cal/cyl.png')[::2, ::2])"

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <Eigen/SVD>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -379,6 +380,53 @@ TEST(Stages, ASpotOffItsLineKeepsItsIdAndIsMarkedOffTheLine) {
   EXPECT_EQ(again->col, pick->col);
   EXPECT_TRUE(again->off_line) << "residual " << residual(again->u, again->v, *again) << " px";
   EXPECT_EQ(wrong_ids(f, r.decoded), 0);
+}
+
+// Decoding again on the frame's own lines, fitted with rank 2 (EpipolarOptions::fitted_lines), on
+// the dark-ham frame whose wall spot the linearly fitted lines let the grown lattice name (6, 12):
+// its true id (9, 19) lies past the named ids, where a fitted line is extrapolated.
+TEST(Stages, WithoutTheCalibrationTheRankTwoLinesNameWhatTheCalibrationNames) {
+  const nlohmann::json j = read_fixture("ham_dark_edge");
+  const Frame f = load("ham_dark_edge", 0);
+  const EpipolarGeometry calibrated = geometry_of(j);
+  const calibration::CameraIntrinsics camera = intrinsics_of(j);
+  const SpotDecoder decoder(table());
+  const DecodeResult first = decoder.decode_spots(f.spots);
+  std::vector<Eigen::Vector2d> xy, grid;
+  for (const DecodedSpot& d : first.decoded) {
+    xy.push_back(calibrated.normalise(d.u, d.v));
+    grid.emplace_back(d.col, d.row);
+  }
+  const double pixels = 0.5 * (camera.fx + camera.fy), tolerance = EpipolarOptions{}.tolerance_px;
+  const FittedEpipolarLines linear(xy, grid, pixels, tolerance), rank2(xy, grid, pixels, tolerance, true);
+  ASSERT_TRUE(rank2.fitted());
+  EXPECT_NEAR(rank2.fundamental().jacobiSvd().singularValues()[2], 0, 1e-9 * rank2.fundamental().norm());
+  // the wall spot against its own id's line: the calibration's 0.07 px, the linear fit's 2.3
+  // px, the rank-2 fit's 1.3: nearer, but (9, 19) lies past the ids fitted, where a line is
+  // extrapolated, and there a rival's line is held to the tolerance
+  const Eigen::Vector2d wall = calibrated.normalise(313.47, 230.27), own(19, 9);
+  std::printf("the wall spot off (9, 19)'s line: calibrated %.3f px, linear fit %.3f, rank 2 %.3f; (9, 19) %s the "
+              "fitted ids' hull\n",
+              calibrated.residual_px(wall, {9, 19}), linear.residual_px(wall, own), rank2.residual_px(wall, own),
+              rank2.spans(own) ? "inside" : "outside");
+  EXPECT_GT(linear.residual_px(wall, own), 2.0);
+  EXPECT_LT(rank2.residual_px(wall, own), 0.7 * linear.residual_px(wall, own));
+  EXPECT_TRUE(rank2.spans({10, 10}));
+  EXPECT_FALSE(rank2.spans({-1, 10}));
+  EXPECT_FALSE(rank2.spans(own));
+  const EpipolarGeometry fitted(camera, rank2, 20, 20, tolerance);
+  EXPECT_FALSE(fitted.trusted({9, 19}));
+  EXPECT_TRUE(fitted.trusted({10, 10}));
+  const DecodeResult again = decoder.decode_spots(f.spots, &fitted);
+  const DecodeResult with_calibration = decoder.decode_spots(f.spots, &calibrated);
+  std::printf("%s: without the calibration %zu named, again on the fitted lines %zu (%d wrong), with it %zu\n",
+              f.name.c_str(), first.decoded.size(), again.decoded.size(), wrong_ids(f, again.decoded),
+              with_calibration.decoded.size());
+  EXPECT_EQ(wrong_ids(f, again.decoded), 0);
+  for (const DecodedSpot& d : again.decoded)
+    EXPECT_FALSE(d.row == 6 && d.col == 12 && std::hypot(d.u - 313.47, d.v - 230.27) < 1) << "the wall's spot named (6, 12)";
+  EXPECT_GT(again.decoded.size(), first.decoded.size() + 20);  // 132 -> 158, the calibration's 181
+  EXPECT_GT(again.decoded.size() * 10, with_calibration.decoded.size() * 8);
 }
 
 // Without the calibration, the lines fitted to a frame's own identified spots are the

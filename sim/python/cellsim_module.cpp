@@ -166,10 +166,18 @@ py::dict spots_dict(const std::vector<servo::ImageSpot>& spots, int detected) {
 }
 
 // The servo's pipeline: decoding, teaching, one iteration of the control law.
+// a scenario's servo configuration, decoding again on each frame's fitted lines or not
+servo::ServoConfig with_fitted_lines(servo::ServoConfig cfg, bool fitted_lines) {
+  cfg.decoder.epipolar.fitted_lines = fitted_lines;
+  return cfg;
+}
+
 struct Servo {
-  Servo(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust)
+  Servo(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
+        bool fitted_lines = false)
       : scenario(s),
-        pipeline(pattern::WindowTable(s.cell->projector->pattern(), {3, 3}), servo_config(s, model, z_hat, gain, robust)) {}
+        pipeline(pattern::WindowTable(s.cell->projector->pattern(), {3, 3}),
+                 with_fitted_lines(servo_config(s, model, z_hat, gain, robust), fitted_lines)) {}
   Scenario scenario;
   servo::ServoPipeline pipeline;
 
@@ -198,11 +206,12 @@ struct Servo {
 
 py::dict run_experiment_dict(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
                     int max_iterations, const std::string& features, const std::string& visual_features,
-                    bool interior_points) {
+                    bool interior_points, bool fitted_lines) {
   if (max_iterations < 1 || max_iterations > 100000) throw py::value_error("max_iterations must be in [1, 100000]");
   experiment::ExperimentOptions o;
   o.servo = servo_config(s, model, z_hat, gain, robust, visual_features);
   o.servo.interior_points = interior_points;
+  o.servo.decoder.epipolar.fitted_lines = fitted_lines;
   o.source = experiment::parse_feature_source(features);
   o.max_iterations = max_iterations;
   // Ctrl-C stops the run at the next round (a signal reaches Python only when it holds the GIL)
@@ -378,8 +387,13 @@ PYBIND11_MODULE(cellsim, m) {
       .def("render", &render, py::arg("pose") = "desired", py::arg("frame") = 0,
            "(image H x W x 3 uint8, truth dict of arrays) at a pose: 'desired', 'initial', \"x y z rx ry rz\" (cm, "
            "deg) or a 4 x 4 world_T_camera; frame k's noise, as `cellsim render --frame k`")
-      .def("decoder", [](const Scenario& s) { return std::make_unique<Servo>(s, "desired-constant-depth", 0, 0.5, "none"); },
-           "a servo of the scenario's pattern and camera, for decode()");
+      .def("decoder",
+           [](const Scenario& s, bool fitted_lines) {
+             return std::make_unique<Servo>(s, "desired-constant-depth", 0, 0.5, "none", fitted_lines);
+           },
+           py::arg("fitted_lines") = false,
+           "a servo of the scenario's pattern and camera, for decode() (fitted_lines: decode each frame again on the "
+           "epipolar lines fitted to its first decoding's spots, as --fitted-lines)");
   py::class_<Servo>(m, "Servo", "the servo's pipeline: decode, teach, one control-law iteration")
       .def(py::init<const Scenario&, const std::string&, double, double, const std::string&>(), py::arg("scenario"),
            py::arg("model") = "desired-constant-depth", py::arg("z_hat") = 0.0, py::arg("gain") = 0.5,
@@ -390,11 +404,12 @@ PYBIND11_MODULE(cellsim, m) {
   m.def("experiment", &run_experiment_dict, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
         py::arg("features") = "decoded", py::arg("visual_features") = "", py::arg("interior_points") = false,
+        py::arg("fitted_lines") = false,
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns "
         "(features: where the spots come from, decoded | ideal; visual_features: what the law servoes on, points | "
         "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera; "
         "interior_points: servo on the matched spots whose four pattern neighbours are matched too, as "
-        "--interior-points)");
+        "--interior-points; fitted_lines: decode each frame again on its fitted epipolar lines, as --fitted-lines)");
   py::class_<Env>(m, "_ServoEnvCore",
                   "the environment's engine (ServoEnv, defined below in Python, is the public face)")
       .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&>(),

@@ -51,6 +51,18 @@ def test_decoding_an_image_array_gives_the_spots_with_their_ids(plane):
         assert abs(u - tu) < 3 and abs(v - tv) < 3
 
 
+def test_decoding_again_on_the_fitted_lines_names_more_of_the_ham(tmp_path):
+    ham = cellsim.Scenario(os.path.join(SRC, "sim", "scenarios", "ham.yaml"))
+    image, truth = ham.render("initial")
+    once, again = ham.decoder().decode(image), ham.decoder(fitted_lines=True).decode(image)
+    assert len(again["row"]) > len(once["row"]) + 10, (len(once["row"]), len(again["row"]))
+    visible = {(int(r), int(c)): (u, v) for r, c, u, v, vis in
+               zip(truth["row"], truth["col"], truth["u"], truth["v"], truth["visible"]) if vis}
+    for r, c, u, v in zip(again["row"], again["col"], again["u"], again["v"]):
+        tu, tv = visible[(int(r), int(c))]  # every id a visible spot's, near where it is
+        assert abs(u - tu) < 6 and abs(v - tv) < 6
+
+
 def test_one_servo_iteration_from_python(plane):
     servo = cellsim.Servo(plane, z_hat=0.9)
     assert servo.teach(plane.render("desired")[0]) > 100

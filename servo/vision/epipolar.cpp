@@ -160,11 +160,13 @@ FittedEpipolarLines::FittedEpipolarLines(const std::vector<Eigen::Vector2d>& xy,
     f_ = tx.transpose() * *f * tp;
     fitted_ = true;
     if (pass == 2) {  // (the last fit's weights would serve nothing)
-      if (rank2) refine_rank2(xy, grid, w);
-      std::vector<Eigen::Vector2d> used;
-      for (std::size_t k = 0; k < grid.size(); ++k)
-        if (w[k] > 0) used.push_back(grid[k]);
-      hull_ = convex_hull(std::move(used));
+      if (rank2) {  // lines to name new spots by: where they are extrapolated (spans())
+        refine_rank2(xy, grid, w);
+        std::vector<Eigen::Vector2d> used;
+        for (std::size_t k = 0; k < grid.size(); ++k)
+          if (w[k] > 0) used.push_back(grid[k]);
+        hull_ = convex_hull(std::move(used));
+      }
       break;
     }
     for (std::size_t k = 0; k < xy.size(); ++k) {

@@ -88,7 +88,8 @@ class FittedEpipolarLines {
                       double pixels_per_unit, double tolerance_px, bool rank2 = false);
   bool fitted() const { return fitted_; }
   // whether the grid position (col, row) lies in the convex hull of the ids the last fit used:
-  // there its line is interpolated, beyond it extrapolated
+  // there its line is interpolated, beyond it extrapolated. Kept for a rank-2 fit only, whose
+  // lines name new spots (false everywhere otherwise: marking a frame's own spots never asks)
   bool spans(const Eigen::Vector2d& grid) const;
   // distance in camera pixels from xy to the line of the id at grid position (col, row)
   double residual_px(const Eigen::Vector2d& xy, const Eigen::Vector2d& grid) const;

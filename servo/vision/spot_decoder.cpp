@@ -180,9 +180,7 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
 }
 
 DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const {
-  SegmentationOptions levels = options_.segmentation;
-  levels.crosstalk = kLevelsCrosstalk;  // (as decode() without the calibration)
-  Segmentation seg = segment_spots(rgb, levels, &scratch_);
+  Segmentation seg = segment(rgb, false);
   const EpipolarOptions& e = options_.epipolar;
   DecodeResult r = decode_spots(e.fitted_lines ? seg.spots : std::move(seg.spots), nullptr);
   r.rejected_blobs = seg.rejected;
@@ -200,7 +198,7 @@ DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibrat
   return r;
 }
 
-DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry) const {
+Segmentation SpotDecoder::segment(const cv::Mat& rgb, bool calibrated) const {
   // The chroma levels follow the camera's crosstalk with the calibration only: without it the
   // peak level is all that keeps the wash of a far surface's spots from the windows, and at a
   // crosstalk of 0.2 the scaled levels let an egg's windows name a table spot past its top
@@ -208,8 +206,12 @@ DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geo
   // it the epipolar check holds them (no wrong id more in 72 + 2 x 12 tuning sweeps).
   // docs/decoding.md, Decisions.
   SegmentationOptions levels = options_.segmentation;
-  if (!geometry) levels.crosstalk = kLevelsCrosstalk;
-  Segmentation seg = segment_spots(rgb, levels, &scratch_);
+  if (!calibrated) levels.crosstalk = kLevelsCrosstalk;
+  return segment_spots(rgb, levels, &scratch_);
+}
+
+DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry) const {
+  Segmentation seg = segment(rgb, geometry != nullptr);
   DecodeResult r = decode_spots(std::move(seg.spots), geometry);
   r.rejected_blobs = seg.rejected;
   return r;

@@ -495,6 +495,8 @@ class SpotDecoder {
   int pattern_distance() const { return distance_; }
 
  private:
+  // the frame's blobs, the chroma levels following the camera's crosstalk when `calibrated`
+  Segmentation segment(const cv::Mat& rgb, bool calibrated) const;
   pattern::WindowTable table_;
   DecoderOptions options_;
   int distance_ = 1;

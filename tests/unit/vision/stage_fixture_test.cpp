@@ -382,6 +382,17 @@ TEST(Stages, ASpotOffItsLineKeepsItsIdAndIsMarkedOffTheLine) {
   EXPECT_EQ(wrong_ids(f, r.decoded), 0);
 }
 
+// The normalised coordinates and grid positions (col, row) of the named spots, as a fit takes them.
+std::pair<std::vector<Eigen::Vector2d>, std::vector<Eigen::Vector2d>> fit_inputs(const std::vector<DecodedSpot>& decoded,
+                                                                                 const EpipolarGeometry& geometry) {
+  std::vector<Eigen::Vector2d> xy, grid;
+  for (const DecodedSpot& d : decoded) {
+    xy.push_back(geometry.normalise(d.u, d.v));
+    grid.emplace_back(d.col, d.row);
+  }
+  return {xy, grid};
+}
+
 // Decoding again on the frame's own lines, fitted with rank 2 (EpipolarOptions::fitted_lines), on
 // the dark-ham frame whose wall spot the linearly fitted lines let the grown lattice name (6, 12):
 // its true id (9, 19) lies past the named ids, where a fitted line is extrapolated.
@@ -392,11 +403,7 @@ TEST(Stages, WithoutTheCalibrationTheRankTwoLinesNameWhatTheCalibrationNames) {
   const calibration::CameraIntrinsics camera = intrinsics_of(j);
   const SpotDecoder decoder(table());
   const DecodeResult first = decoder.decode_spots(f.spots);
-  std::vector<Eigen::Vector2d> xy, grid;
-  for (const DecodedSpot& d : first.decoded) {
-    xy.push_back(calibrated.normalise(d.u, d.v));
-    grid.emplace_back(d.col, d.row);
-  }
+  const auto [xy, grid] = fit_inputs(first.decoded, calibrated);
   const double pixels = 0.5 * (camera.fx + camera.fy), tolerance = EpipolarOptions{}.tolerance_px;
   const FittedEpipolarLines linear(xy, grid, pixels, tolerance), rank2(xy, grid, pixels, tolerance, true);
   ASSERT_TRUE(rank2.fitted());
@@ -441,11 +448,7 @@ TEST(Stages, WithoutTheCalibrationTheFramesOwnLinesMarkASpotOffItsLine) {
   const EpipolarOptions options;
   std::vector<DecodedSpot> decoded = decoder.decode_spots(f.spots).decoded;
   ASSERT_GT(decoded.size(), 100U);
-  std::vector<Eigen::Vector2d> xy, grid;
-  for (const DecodedSpot& d : decoded) {
-    xy.push_back(geometry.normalise(d.u, d.v));
-    grid.emplace_back(d.col, d.row);
-  }
+  const auto [xy, grid] = fit_inputs(decoded, geometry);
   const FittedEpipolarLines lines(xy, grid, camera.fx, options.tolerance_px);
   ASSERT_TRUE(lines.fitted());
   // the frame's spots lie as near the fitted lines as the calibrated ones (the calibration's own

@@ -391,6 +391,28 @@ TEST(Segmentation, ASpotSeenEdgeOnIsASliverListedLast) {
   EXPECT_EQ(decoder.decode(rgb).detected.size(), 2u);
 }
 
+// A hollow blob, under a quarter of its bounding box (a ring 1 px wide: 56 of 225 pixels), is no
+// spot; 2 px wide (104 of 225) it is one, its centroid the ring's centre (SegmentationOptions::
+// min_fill: without it a ragged blob at the held-out step's edge was named wrongly).
+TEST(Segmentation, AHollowBlobUnderAQuarterOfItsBoxIsNoSpot) {
+  cv::Mat rgb(60, 80, CV_8UC3, cv::Scalar(0, 0, 0));
+  paint_spot(rgb, 20.0, 30.0);
+  cv::rectangle(rgb, {50, 20}, {64, 34}, cv::Scalar(200, 0, 0), 1);
+  Segmentation seg = segment_spots(rgb);
+  ASSERT_EQ(seg.spots.size(), 1u);
+  EXPECT_EQ(seg.rejected, 1);
+  EXPECT_LT(seg.spots[0].u, 40);
+  cv::rectangle(rgb, {51, 21}, {63, 33}, cv::Scalar(200, 0, 0), 1);
+  seg = segment_spots(rgb);
+  ASSERT_EQ(seg.spots.size(), 2u);
+  EXPECT_EQ(seg.rejected, 0);
+  const auto ring = std::find_if(seg.spots.begin(), seg.spots.end(), [](const Spot& s) { return s.u > 40; });
+  ASSERT_NE(ring, seg.spots.end());
+  EXPECT_EQ(ring->area_px, 104);
+  EXPECT_NEAR(ring->u, 57.0, 1e-9);
+  EXPECT_NEAR(ring->v, 27.0, 1e-9);
+}
+
 TEST(DecodingConsistency, TwoExactVotesNameASpotWhenAskedRepairedOrDisagreeingOnesDoNot) {
   const std::vector<Spot> spots(6);
   const pattern::SpotId a{4, 4}, b{4, 5}, c{4, 6}, d{4, 7}, e{4, 8};

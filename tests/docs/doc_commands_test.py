@@ -121,6 +121,8 @@ RUN = [
     ("cellsim experiment sim/scenarios/cylinder.yaml --z-hat 0.6 --max-iterations 900", RESULTS, 0,
      [r"after 520 iterations", ("final error", "0.27", "0.018")], []),
     ("cellsim experiment sim/scenarios/cylinder.yaml --z-hat 0.6", RESULTS, 5, [("final error", "2.0", None)], []),
+    ("cellsim experiment sim/scenarios/ham.yaml --z-hat 0.6 --max-iterations 900", RESULTS, 0,
+     [r"after 308 iterations", ("final error", "0.13", "0.039")], []),
     ("build/bin/cellsim experiment sim/scenarios/cylinder_occlusion.yaml --z-hat 0.6 --max-iterations 900 -o "
      "out/occlusion", RESULTS, 0, [r"after 490 iterations", ("final error", "0.32", "0.026")],
      ["out/occlusion/occlusion.png"]),
@@ -177,6 +179,19 @@ def held(cmd, said, mm, deg):
             fail(f"`{cmd}`: final error {value} {unit}, the docs say {claim}")
 
 
+def printed(cmd, path, patterns):
+    """The docs print what the test holds the run to: its iterations and final error, so that
+    a run that moves and a doc that does not (or the other way round) cannot both pass (a
+    README command's figures are docs/results.md's first table)."""
+    text = doc_text(path) + doc_text(RESULTS)
+    for p in patterns:
+        wanted = [f"{p[1]} mm"] + ([f"{p[2]}°"] if p[2] else []) if isinstance(p, tuple) else \
+            [f"{m} iterations" for m in re.findall(r"(\d+) iterations", p)]
+        for w in wanted:
+            if w not in text:
+                fail(f"{path} does not print '{w}', the figure this test holds `{cmd}` to")
+
+
 def run(cmd, out, code, patterns, files):
     argv = shlex.split(cmd)
     if argv[0] == "cellsim":
@@ -212,9 +227,12 @@ def main():
             if not any(cmd.startswith(k) or k.startswith(cmd) for k in known) and \
                     not any(cmd.startswith(k) for k in NOT_RUN):
                 fail(f"{path}: `{cmd}` is neither run by this test nor named with why not")
-    for cmd, path, *_ in RUN:
+    for cmd, path, _, patterns, _ in RUN:
         if cmd not in doc_text(path):
             fail(f"{path} no longer writes `{cmd}`: update the test with the doc")
+        printed(cmd, path, patterns)
+    for _, _, patterns in FIG5_RUNS:
+        printed(FIG5, RESULTS, patterns)
     if FIG5 not in doc_text(RESULTS):
         fail(f"{RESULTS} no longer writes `{FIG5}`")
     with tempfile.TemporaryDirectory() as out:

@@ -212,11 +212,12 @@ def printed(cmd, path, patterns):
             wanted = [p[1]]
         elif isinstance(p, tuple):
             wanted = [f"{p[1]} mm"] + ([f"{p[2]}°"] if p[2] else [])
-        else:
-            wanted = [f"{m} iterations" for m in re.findall(r"(\d+) iterations", p)]
+        else:  # in prose, or in a table's iterations column
+            wanted = [(f"{m} iterations", f"| {m} |") for m in re.findall(r"(\d+) iterations", p)]
         for w in wanted:
-            if w not in text:
-                fail(f"{path} does not print '{w}', the figure this test holds `{cmd}` to")
+            alternatives = w if isinstance(w, tuple) else (w,)
+            if not any(alt in text for alt in alternatives):
+                fail(f"{path} does not print '{alternatives[0]}', the figure this test holds `{cmd}` to")
 
 
 def run(cmd, out, code, patterns, files):

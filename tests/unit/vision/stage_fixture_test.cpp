@@ -393,43 +393,49 @@ std::pair<std::vector<Eigen::Vector2d>, std::vector<Eigen::Vector2d>> fit_inputs
   return {xy, grid};
 }
 
+// The dark-ham frame with what a decoder without the calibration is told (the camera) and what
+// the fits are held against (the calibration's lines).
+struct DarkHamEdge {
+  nlohmann::json j = read_fixture("ham_dark_edge");
+  Frame f = load("ham_dark_edge", 0);
+  EpipolarGeometry calibrated = geometry_of(j);
+  calibration::CameraIntrinsics camera = intrinsics_of(j);
+};
+
 // Decoding again on the frame's own lines, fitted with rank 2 (EpipolarOptions::fitted_lines), on
 // the dark-ham frame whose wall spot the linearly fitted lines let the grown lattice name (6, 12):
 // its true id (9, 19) lies past the named ids, where a fitted line is extrapolated.
 TEST(Stages, WithoutTheCalibrationTheRankTwoLinesNameWhatTheCalibrationNames) {
-  const nlohmann::json j = read_fixture("ham_dark_edge");
-  const Frame f = load("ham_dark_edge", 0);
-  const EpipolarGeometry calibrated = geometry_of(j);
-  const calibration::CameraIntrinsics camera = intrinsics_of(j);
+  const DarkHamEdge frame;
   const SpotDecoder decoder(table());
-  const DecodeResult first = decoder.decode_spots(f.spots);
-  const auto [xy, grid] = fit_inputs(first.decoded, calibrated);
-  const double pixels = 0.5 * (camera.fx + camera.fy), tolerance = EpipolarOptions{}.tolerance_px;
+  const DecodeResult first = decoder.decode_spots(frame.f.spots);
+  const auto [xy, grid] = fit_inputs(first.decoded, frame.calibrated);
+  const double pixels = 0.5 * (frame.camera.fx + frame.camera.fy), tolerance = EpipolarOptions{}.tolerance_px;
   const FittedEpipolarLines linear(xy, grid, pixels, tolerance), rank2(xy, grid, pixels, tolerance, true);
   ASSERT_TRUE(rank2.fitted());
   EXPECT_NEAR(rank2.fundamental().jacobiSvd().singularValues()[2], 0, 1e-9 * rank2.fundamental().norm());
   // the wall spot against its own id's line: the calibration's 0.07 px, the linear fit's 2.3
   // px, the rank-2 fit's 1.3: nearer, but (9, 19) lies past the ids fitted, where a line is
   // extrapolated, and there a rival's line is held to the tolerance
-  const Eigen::Vector2d wall = calibrated.normalise(313.47, 230.27), own(19, 9);
+  const Eigen::Vector2d wall = frame.calibrated.normalise(313.47, 230.27), own(19, 9);
   std::printf("the wall spot off (9, 19)'s line: calibrated %.3f px, linear fit %.3f, rank 2 %.3f; (9, 19) %s the "
               "fitted ids' hull\n",
-              calibrated.residual_px(wall, {9, 19}), linear.residual_px(wall, own), rank2.residual_px(wall, own),
+              frame.calibrated.residual_px(wall, {9, 19}), linear.residual_px(wall, own), rank2.residual_px(wall, own),
               rank2.spans(own) ? "inside" : "outside");
   EXPECT_GT(linear.residual_px(wall, own), 2.0);
   EXPECT_LT(rank2.residual_px(wall, own), 0.7 * linear.residual_px(wall, own));
   EXPECT_TRUE(rank2.spans({10, 10}));
   EXPECT_FALSE(rank2.spans({-1, 10}));
   EXPECT_FALSE(rank2.spans(own));
-  const EpipolarGeometry fitted(camera, rank2, 20, 20, tolerance);
+  const EpipolarGeometry fitted(frame.camera, rank2, 20, 20, tolerance);
   EXPECT_FALSE(fitted.trusted({9, 19}));
   EXPECT_TRUE(fitted.trusted({10, 10}));
-  const DecodeResult again = decoder.decode_spots(f.spots, &fitted);
-  const DecodeResult with_calibration = decoder.decode_spots(f.spots, &calibrated);
+  const DecodeResult again = decoder.decode_spots(frame.f.spots, &fitted);
+  const DecodeResult with_calibration = decoder.decode_spots(frame.f.spots, &frame.calibrated);
   std::printf("%s: without the calibration %zu named, again on the fitted lines %zu (%d wrong), with it %zu\n",
-              f.name.c_str(), first.decoded.size(), again.decoded.size(), wrong_ids(f, again.decoded),
+              frame.f.name.c_str(), first.decoded.size(), again.decoded.size(), wrong_ids(frame.f, again.decoded),
               with_calibration.decoded.size());
-  EXPECT_EQ(wrong_ids(f, again.decoded), 0);
+  EXPECT_EQ(wrong_ids(frame.f, again.decoded), 0);
   for (const DecodedSpot& d : again.decoded)
     EXPECT_FALSE(d.row == 6 && d.col == 12 && std::hypot(d.u - 313.47, d.v - 230.27) < 1) << "the wall's spot named (6, 12)";
   EXPECT_GT(again.decoded.size(), first.decoded.size() + 20);  // 132 -> 158, the calibration's 181
@@ -440,23 +446,20 @@ TEST(Stages, WithoutTheCalibrationTheRankTwoLinesNameWhatTheCalibrationNames) {
 // calibration's lines (the projector a pinhole, its spots a grid): a spot moved off its line is
 // marked as the calibration marks it, and a frame of fewer than 9 named spots fits nothing.
 TEST(Stages, WithoutTheCalibrationTheFramesOwnLinesMarkASpotOffItsLine) {
-  const nlohmann::json j = read_fixture("ham_dark_edge");
-  const Frame f = load("ham_dark_edge", 0);
-  const EpipolarGeometry geometry = geometry_of(j);
-  const calibration::CameraIntrinsics camera = intrinsics_of(j);
+  const DarkHamEdge frame;
   const SpotDecoder decoder(table());
   const EpipolarOptions options;
-  std::vector<DecodedSpot> decoded = decoder.decode_spots(f.spots).decoded;
+  std::vector<DecodedSpot> decoded = decoder.decode_spots(frame.f.spots).decoded;
   ASSERT_GT(decoded.size(), 100U);
-  const auto [xy, grid] = fit_inputs(decoded, geometry);
-  const FittedEpipolarLines lines(xy, grid, camera.fx, options.tolerance_px);
+  const auto [xy, grid] = fit_inputs(decoded, frame.calibrated);
+  const FittedEpipolarLines lines(xy, grid, frame.camera.fx, options.tolerance_px);
   ASSERT_TRUE(lines.fitted());
   // the frame's spots lie as near the fitted lines as the calibrated ones (the calibration's own
   // error, a few tenths of a pixel, is not in the fit)
   std::vector<double> fitted, calibrated;
   for (std::size_t k = 0; k < decoded.size(); ++k) {
     fitted.push_back(lines.residual_px(xy[k], grid[k]));
-    calibrated.push_back(geometry.residual_px(xy[k], {decoded[k].row, decoded[k].col}));
+    calibrated.push_back(frame.calibrated.residual_px(xy[k], {decoded[k].row, decoded[k].col}));
   }
   std::sort(fitted.begin(), fitted.end());
   std::sort(calibrated.begin(), calibrated.end());
@@ -464,7 +467,7 @@ TEST(Stages, WithoutTheCalibrationTheFramesOwnLinesMarkASpotOffItsLine) {
               fitted[fitted.size() * 9 / 10], calibrated[calibrated.size() / 2], calibrated[calibrated.size() * 9 / 10]);
   EXPECT_LE(fitted[fitted.size() / 2], calibrated[calibrated.size() / 2]);
   EXPECT_LT(fitted[fitted.size() * 9 / 10], 0.5);
-  mark_off_fitted_lines(decoded, camera, options);
+  mark_off_fitted_lines(decoded, frame.camera, options);
   int off = 0;
   for (const DecodedSpot& d : decoded) off += d.off_line;
   EXPECT_LT(off, static_cast<int>(decoded.size()) / 20) << "most spots lie on their lines";
@@ -474,15 +477,16 @@ TEST(Stages, WithoutTheCalibrationTheFramesOwnLinesMarkASpotOffItsLine) {
   for (const DecodedSpot& d : decoded) {
     if (d.off_line || d.row < 8 || d.row > 12 || d.col < 8 || d.col > 12) continue;
     for (const auto& [a, b] : {std::pair{2.0, 0.0}, std::pair{-2.0, 0.0}, std::pair{0.0, 2.0}, std::pair{0.0, -2.0}})
-      if (geometry.residual_px(geometry.normalise(d.u + a, d.v + b), {d.row, d.col}) > 1.6) pick = &d, du = a, dv = b;
+      if (frame.calibrated.residual_px(frame.calibrated.normalise(d.u + a, d.v + b), {d.row, d.col}) > 1.6)
+        pick = &d, du = a, dv = b;
     if (pick) break;
   }
   ASSERT_NE(pick, nullptr) << "no interior spot to move";
-  std::vector<Spot> moved = f.spots;
+  std::vector<Spot> moved = frame.f.spots;
   moved[static_cast<std::size_t>(pick->spot)].u += du;
   moved[static_cast<std::size_t>(pick->spot)].v += dv;
   std::vector<DecodedSpot> again = decoder.decode_spots(moved).decoded;
-  mark_off_fitted_lines(again, camera, options);
+  mark_off_fitted_lines(again, frame.camera, options);
   int marked = 0;
   for (const DecodedSpot& d : again) {
     if (d.spot == pick->spot) {
@@ -498,7 +502,7 @@ TEST(Stages, WithoutTheCalibrationTheFramesOwnLinesMarkASpotOffItsLine) {
   for (const DecodedSpot& d : again)
     if (d.spot == pick->spot) few.push_back(d);
   ASSERT_EQ(few.size(), 8U);
-  mark_off_fitted_lines(few, camera, options);
+  mark_off_fitted_lines(few, frame.camera, options);
   for (const DecodedSpot& d : few) EXPECT_FALSE(d.off_line);
 }
 

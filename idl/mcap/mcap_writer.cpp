@@ -236,7 +236,9 @@ void Writer::write_message(std::uint16_t channel_id, std::uint32_t sequence, std
 }
 
 void Writer::add_metadata(const std::string& name, const KeyValues& values) {
-  if (!failure_.empty()) throw std::runtime_error(failure_);
+  if (closed_) fail("metadata after close");
+  // (tried after a failed write too: the file was cut back to its last complete record, and
+  // the record that says why the recording stopped is the one a reader needs most)
   flush_chunk();  // metadata records are not allowed inside a chunk
   std::string c;
   put_string(c, name);

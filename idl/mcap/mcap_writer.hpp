@@ -62,7 +62,8 @@ class Writer {
   // unknown channel or a failed write.
   void write_message(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time_ns,
                      std::uint64_t publish_time_ns, const std::uint8_t* data, std::size_t size);
-  // A metadata record (written between chunks, indexed in the summary).
+  // A metadata record (written between chunks, indexed in the summary). Also after a write
+  // failed (the messages are no longer taken): it may fail again, and then throws.
   void add_metadata(const std::string& name, const KeyValues& values);
 
   // Writes the last chunk, the data end, the summary and the footer, and renames the file to

@@ -195,6 +195,14 @@ mcap::WriteSummary Recorder::close() {
   queued_.notify_all();
   room_.notify_all();
   if (thread_.joinable()) thread_.join();
+  if (stopped_) {
+    try {
+      writer_->add_metadata(kStoppedMetadata, {{"reason", stop_reason_}});
+    } catch (const std::exception&) {
+      // the disk is still full: the writer's problem says so, and the file ends at its last
+      // complete record, which a reader names truncated
+    }
+  }
   summary_ = writer_->close();
   return summary_;
 }

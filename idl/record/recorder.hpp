@@ -50,6 +50,12 @@ std::string ros_topic_name(const std::string& dds_topic);
 // Nanoseconds since the Unix epoch, as rosbag2 stamps what it records.
 std::uint64_t wall_ns();
 
+// The metadata record a recording that stopped before the run ended closes with (the size
+// limit, a failed write): {"reason": why}. The last messages before the stop may then answer
+// frames whose images are not in the file (a twist is queued as it arrives, its image's
+// megabyte after it), as in a truncated file; `servo replay` counts those apart.
+inline constexpr const char* kStoppedMetadata = "recording_stopped";
+
 class Recorder {
  public:
   // Opens the file; throws std::runtime_error (one line naming it) when it cannot.

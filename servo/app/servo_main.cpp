@@ -540,6 +540,9 @@ struct ReplayCommand {
     replay.plot = !no_plot;
     const servo::ReplayResult r = servo::run_replay(replay);
     if (r.truncated) std::printf("servo replay: %s; replayed what it holds\n", r.truncated->c_str());
+    if (r.stopped)
+      std::printf("servo replay: %s: the recording stopped before the run ended (%s); replayed what it holds\n",
+                  replay.recording.c_str(), r.stopped->c_str());
     std::printf("servo replay: %s: %ld images, %ld recorded twists compared", replay.recording.c_str(), r.images,
                 r.compared);
     if (r.differing == 0)
@@ -549,6 +552,8 @@ struct ReplayCommand {
                   r.max_difference, r.first_differing_s.value_or(0));
     std::printf("; %ld recorded twists not answered, %ld replayed twists not recorded", r.recorded_only, r.replayed_only);
     if (r.past_cut > 0) std::printf("; %ld recorded twists answer images past the cut", r.past_cut);
+    if (r.lost_recorded + r.lost_replayed > 0)
+      std::printf("; LOST notices (not compared): %ld recorded, %ld replayed", r.lost_recorded, r.lost_replayed);
     std::printf("\n");
     if (!replay.output.empty()) {
       std::printf("servo replay: trace %s\n", (replay.output / "replay.csv").c_str());

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cell_msgsPubSubTypes.h"
+#include "common/strict_yaml.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
 #include "mcap/mcap_reader.hpp"
@@ -80,7 +81,8 @@ class Replay {
   void on_message(const mcap::Channel& c, const mcap::MessageView& m) {
     if (!t0_) t0_ = m.log_time_ns;
     const double now = static_cast<double>(m.log_time_ns - std::min(*t0_, m.log_time_ns)) * 1e-9;
-    if (auto lost = machine_->tick(now)) replayed(*lost);
+    // a LOST notice comes from the servo's clock, not from an image: counted, not compared
+    if (machine_->tick(now)) ++lost_replayed_;
     const std::string& file = o_.recording.string();
     if (is_topic(c.topic, cell_dds::kImageTopic)) {
       flush();  // the image before waits no longer: its frame is over
@@ -108,6 +110,10 @@ class Replay {
     } else if (is_topic(c.topic, o_.commands == CommandSource::kSimulator ? cell_dds::kAcceptedTopic : cell_dds::kControlTopic)) {
       flush();  // a command heard after an image acts after it, as it did live
       machine_->on_command(decode<cell_msgs::msg::dds_::SimControl_PubSubType>(c, m, file).command());
+    } else if (is_topic(c.topic, cell_dds::kStatusTopic)) {
+      const auto st = decode<cell_msgs::msg::dds_::ServoStatus_PubSubType>(c, m, file);
+      if (st.state() == cell_dds::to_wire(cell_dds::ServoState::kLost) && lost_recorded_at_.size() < kMaxLostStamps)
+        ++lost_recorded_at_[key(to_stamp(st.header().stamp()))];
     } else if (is_topic(c.topic, cell_dds::kTwistTopic)) {
       const auto t = decode<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(c, m, file);
       TwistAt r;
@@ -119,11 +125,12 @@ class Replay {
     }
   }
 
-  // `truncated`: the recording ends before its footer, and a twist recorded after the last
-  // image it holds answered an image past the cut (the recorder writes the small twist as it
-  // comes and the image's megabyte after it: the twist can land in the last complete chunk,
-  // the image in the lost one): such twists are counted apart, not as unanswered
-  ReplayResult compare_and_write(bool truncated) {
+  // `cut`: the recording ends before its footer, or says it stopped before the run ended (a
+  // full disk, the size limit: kStoppedMetadata), and a twist recorded after the last image it
+  // holds answered an image past the cut (the recorder writes the small twist as it comes and
+  // the image's megabyte after it: the twist can land in the last complete chunk, the image in
+  // the lost one): such twists are counted apart, not as unanswered
+  ReplayResult compare_and_write(bool cut) {
     flush();  // the last image, whatever came of its status
     ReplayResult res;
     res.images = images_;
@@ -150,10 +157,19 @@ class Replay {
              "identical\n"
           << std::setprecision(17);
     }
+    res.lost_replayed = lost_replayed_;
     for (const auto& rec : recorded_) {
       auto it = by_stamp.find({rec.stamp.sec, rec.stamp.nanosec});
       if (it == by_stamp.end() || it->second.empty()) {
-        const bool past_cut = truncated && (!last_image_ || std::make_pair(rec.stamp.sec, rec.stamp.nanosec) >
+        // the live servo's LOST notice (its status at that stamp says LOST, its twist zero):
+        // the live clock saw no image for a while, which a replay cannot time alike
+        auto lost = lost_recorded_at_.find({rec.stamp.sec, rec.stamp.nanosec});
+        if (lost != lost_recorded_at_.end() && lost->second > 0 && rec.twist.isZero(0)) {
+          --lost->second;
+          ++res.lost_recorded;
+          continue;
+        }
+        const bool past_cut = cut && (!last_image_ || std::make_pair(rec.stamp.sec, rec.stamp.nanosec) >
                                                                  std::make_pair(last_image_->sec, last_image_->nanosec));
         ++(past_cut ? res.past_cut : res.recorded_only);
         continue;
@@ -219,6 +235,10 @@ class Replay {
   std::optional<std::uint64_t> t0_;
   long images_ = 0;
   std::optional<Stamp> last_image_;  // the latest image stamp fed
+  // the recorded LOST statuses by stamp (bounded: a recording is untrusted), and the replay's own
+  static constexpr std::size_t kMaxLostStamps = 1u << 16;
+  std::map<Key, long> lost_recorded_at_;
+  long lost_replayed_ = 0;
   TwistAt ready_;
   std::vector<TwistAt> recorded_, replayed_;
   std::optional<Pending> pending_;         // an image waiting for its frame's status and pose
@@ -237,8 +257,13 @@ ReplayResult run_replay(const ReplayOptions& options) {
   if (s.profile != "ros2")
     std::fprintf(stderr, "servo replay: %s: profile '%s', not ros2; read as the cell's topics anyway\n",
                  options.recording.c_str(), s.profile.c_str());
-  ReplayResult r = replay.compare_and_write(s.truncated.has_value());
+  const auto stopped = s.metadata.find(cell_record::kStoppedMetadata);
+  ReplayResult r = replay.compare_and_write(s.truncated.has_value() || stopped != s.metadata.end());
   r.truncated = s.truncated;
+  if (stopped != s.metadata.end()) {
+    const auto why = stopped->second.find("reason");
+    r.stopped = common::printable(why == stopped->second.end() ? std::string("no reason given") : why->second, 300);
+  }
   return r;
 }
 

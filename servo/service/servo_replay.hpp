@@ -40,11 +40,18 @@ struct ReplayResult {
   double max_difference = 0;    // largest |replayed - recorded| over all components (m/s, rad/s)
   std::optional<double> first_differing_s;  // the stamp of the first that differs (s)
   long recorded_only = 0;       // recorded twists the replay did not answer
-  long past_cut = 0;            // of a truncated recording: twists whose image lies past its end
+  long past_cut = 0;            // of a cut recording: twists whose image lies past its end
   long replayed_only = 0;       // replayed twists the recording does not hold (its writer was not matched yet)
+  // LOST notices (no image for --lost-ms: a zero twist at the last image's stamp), sent by the
+  // live servo's clock and by the replay's from the log times: counted, never compared (they
+  // answer no image, and a loaded machine times them otherwise)
+  long lost_recorded = 0, lost_replayed = 0;
   // the recording ends before its footer (its recorder was killed, or the disk filled): where,
   // in one line; what its complete chunks hold was replayed
   std::optional<std::string> truncated;
+  // the recording says it stopped before the run ended (the size limit, a full disk): why,
+  // printable, at most 300 characters; what it holds was replayed
+  std::optional<std::string> stopped;
 };
 
 // Throws std::runtime_error (one line naming the file) for a recording that cannot be read

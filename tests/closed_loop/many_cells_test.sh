@@ -31,10 +31,8 @@ for i in 0 1 2; do
   ns="cell$((i + 1))"
   wait "${sims[$i]}"; rc=$?
   summary=$(grep "twists applied" "$tmp/sim_$ns.log")
-  # (both asked whatever the exit code: converged_at_goal sets `final`, which the message names)
-  at_goal=0; converged_at_goal "$tmp/sim_$ns.log" && at_goal=1
-  if [ "$rc" -ne 0 ] || [ "$at_goal" -ne 1 ]; then
-    echo "FAIL: $ns (${scenarios[$i]}) did not converge (exit $rc, ${final:-no final error})"
+  if ! ended_at_goal "$rc" "$tmp/sim_$ns.log"; then
+    echo "FAIL: $ns (${scenarios[$i]}) did not converge (exit $rc, $final)"
     tail -n 8 "$tmp/sim_$ns.log" "$tmp/servo_$ns.log"
     status=1
   fi

@@ -66,6 +66,32 @@ in_order=$("$bin/servo" replay "$mcap" --pattern "$pattern" --z-hat 0.9 --no-plo
   fail "arrival order: $out; in the file's order: $in_order"
 echo "replay: in arrival order ($moved): $out"
 
+# a recording that stopped mid-run (a full disk, the size limit) between a frame's twist and its
+# image, which the recorder queues a moment later: with the recorder's "recording_stopped"
+# record the twist is counted apart and the replay is identical; without it, it is unanswered
+for meta in "" --no-metadata; do
+  out=$(node "$src/tests/interop/mcap/stopped_before_its_image.mjs" "$build/mcap-check" "$mcap" "$tmp/stopped.mcap" 20 $meta) ||
+    fail "stopped_before_its_image.mjs: $out"
+  if out=$("$bin/servo" replay "$tmp/stopped.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical); then
+    [ -z "$meta" ] && grep -q "the recording stopped before the run ended (stopped at the size limit (a test))" <<<"$out" &&
+      grep -q "0 recorded twists not answered, .*; 1 recorded twists answer images past the cut" <<<"$out" ||
+      fail "stopped before its image${meta:+ ($meta)}: $out"
+  else
+    [ -n "$meta" ] && grep -q "1 recorded twists not answered" <<<"$out" || fail "stopped before its image${meta:+ ($meta)}: $out"
+  fi
+  rm -f "$tmp/stopped.mcap"
+done
+echo "replay: a recording stopped between a twist and its image: its twist counted apart when the file says it stopped"
+
+# the live servo's LOST notice (no image for 500 ms on a loaded machine: a LOST status and a
+# zero twist at the last frame's stamp) answers no image: counted apart, never compared
+out=$(node "$src/tests/interop/mcap/lost_notice.mjs" "$build/mcap-check" "$mcap" "$tmp/lost.mcap" 30) || fail "lost_notice.mjs: $out"
+out=$("$bin/servo" replay "$tmp/lost.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical) &&
+  grep -q "0 recorded twists not answered, .*; LOST notices (not compared): 1 recorded, 0 replayed" <<<"$out" ||
+  fail "a recorded LOST notice: $out"
+rm -f "$tmp/lost.mcap"
+echo "replay: a recorded LOST notice counted apart: $out"
+
 # another configuration commands otherwise, on the same frames
 out=$("$bin/servo" replay "$mcap" --pattern "$pattern" --z-hat 0.6 --robust huber -o "$tmp/other" --no-plot) ||
   fail "servo replay --z-hat 0.6: $out"
@@ -157,6 +183,8 @@ grep -q "session ended: converged" "$tmp/f_sim.log" || fail "the run with a full
 grep -q "size limit" "$tmp/f_sim.log" && fail "a full disk was called the size limit: $(grep recorded "$tmp/f_sim.log")"
 out=$("$bin/servo" replay "$tmp/full.mcap" --pattern "$pattern" --z-hat 0.9 --no-plot --expect-identical 2>&1) ||
   fail "the recording of a full disk does not replay: $out"
+grep -q "the recording stopped before the run ended (.*full.mcap: write failed: File too large" <<<"$out" ||
+  fail "the replay does not say the recording of a full disk stopped: $out"
 echo "record: a full disk: converged, exit 0, said once; the recording replays: $(tail -1 <<<"$out")"
 
 # a recording never replaces a file: an existing one, a scenario, stays as it was

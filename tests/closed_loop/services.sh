@@ -39,6 +39,16 @@ converged_at_goal() {
   [ -n "$mm" ] && awk -v m="$mm" -v d="$deg" 'BEGIN{exit !(m < 1 && d < 0.1)}'
 }
 
+# ended_at_goal EXIT_CODE SIM_LOG: cellsim exited 0 and its summary says converged_at_goal;
+# sets `final` whatever the outcome ("no final error" when the summary has none), for the
+# message that says why not
+ended_at_goal() {
+  local at_goal=0
+  converged_at_goal "$2" && at_goal=1
+  final=${final:-no final error}
+  [ "$1" -eq 0 ] && [ "$at_goal" -eq 1 ]
+}
+
 # A test's own cell: loopback discovery whatever the caller's environment, no static peers,
 # no enclave override, and a domain no other test of this machine holds (ROS_DOMAIN_ID).
 isolated_cell_domain() {

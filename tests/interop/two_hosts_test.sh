@@ -59,8 +59,8 @@ if ! ip netns exec "$b" timeout 150 "$client" "$ROS_DOMAIN_ID" 120 > "$tmp/clien
 fi
 for _ in $(seq 1 1200); do kill -0 "$sim" 2>/dev/null || break; sleep 0.1; done
 wait "$sim"; rc=$?; sim=""
-if [ "$rc" -ne 0 ] || ! converged_at_goal "$tmp/sim.log"; then
+if ! ended_at_goal "$rc" "$tmp/sim.log"; then
   echo "FAIL ($mode): cellsim did not converge across the two namespaces (exit $rc, $final)"
-  tail -3 "$tmp/sim.log" "$tmp/servo.log"; exit 1
+  tail -n 8 "$tmp/sim.log" "$tmp/servo.log"; exit 1
 fi
 echo "two hosts ($mode): $(tail -1 "$tmp/client.log"); converged across the veth: $final"

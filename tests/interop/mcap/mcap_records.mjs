@@ -1,5 +1,6 @@
 // Reading a recording's records and writing them back, for the scripts that rewrite a recorded
-// run into an order the live cell can produce (ready_after_first_frame.mjs, arrival_order.mjs).
+// run into an order the live cell can produce (ready_after_first_frame.mjs, arrival_order.mjs,
+// stopped_before_its_image.mjs).
 import { createRequire } from "node:module";
 import { readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
@@ -20,8 +21,9 @@ export function readRecords(modulesDir, file) {
   return out;
 }
 
-// A new chunked MCAP file of those records, `messages` in the order given.
-export async function writeRecords(modulesDir, file, { header, schemas, channels }, messages, library) {
+// A new chunked MCAP file of those records, `messages` in the order given, then the metadata
+// records given ({name, metadata: Map}).
+export async function writeRecords(modulesDir, file, { header, schemas, channels }, messages, library, metadata = []) {
   const require = createRequire(path.resolve(modulesDir, "package.json"));
   const { McapWriter } = require("@mcap/core");
   const parts = [];
@@ -39,6 +41,7 @@ export async function writeRecords(modulesDir, file, { header, schemas, channels
       topic: c.topic, messageEncoding: c.messageEncoding, schemaId: schemaIds.get(c.schemaId) ?? 0, metadata: c.metadata,
     }));
   for (const m of messages) await writer.addMessage({ ...m, channelId: channelIds.get(m.channelId) });
+  for (const m of metadata) await writer.addMetadata(m);
   await writer.end();
   writeFileSync(file, Buffer.concat(parts));
 }

@@ -289,6 +289,8 @@ std::filesystem::path write_in_child(const std::string& name, int n, rlim_t fsiz
       }
     }
     if (!close) ::_exit(0);  // no close, no destructor: what SIGKILL leaves
+    // the record that says why still fits: the failed chunk was cut off the file
+    if (failures > 0) w.add_metadata("recording_stopped", {{"reason", "full"}});
     // space back, or none at all: not even for the summary
     rlimit now{space_back ? RLIM_INFINITY : static_cast<rlim_t>(std::filesystem::file_size(w.partial_file())),
                RLIM_INFINITY};
@@ -347,6 +349,7 @@ TEST(Mcap, AFullDiskKeepsAReadableFileAndSaysWhy) {
   EXPECT_GE(back.messages, 8u);
   EXPECT_LT(back.messages, 20u);
   EXPECT_EQ(back.stated_messages, back.messages);
+  EXPECT_EQ(back.metadata.at("recording_stopped").at("reason"), "full");  // written after the failed write
   // full to the end: a file cut at its last complete record, read as truncated
   write_in_child("full.mcap", 60, 20000, true, false);
   EXPECT_EQ(last_child_code, 1 | 4 | 8);

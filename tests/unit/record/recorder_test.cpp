@@ -115,6 +115,43 @@ TEST(Recorder, MessagesReadBackAsTheSamplesRecordedAndImagesCanBeLeftOut) {
   }
 }
 
+// A recording stopped by its size limit says so in the file: the twist of the frame whose
+// image did not fit may be in it (servo replay counts such twists apart when it reads this)
+TEST(Recorder, ARecordingStoppedAtItsSizeLimitSaysWhyInTheFile) {
+  const auto dir = std::filesystem::temp_directory_path() / ("recorder_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  cell_record::RecordOptions o;
+  o.file = dir / "limited.mcap";
+  std::filesystem::remove(o.file);
+  o.max_bytes = 64u << 10;
+  cell_record::Recorder r(o, {{"scenario", "plane"}});
+  cell_msgs::msg::dds_::SimStatus_ st;
+  st.frame(7);
+  sensor_msgs::msg::dds_::Image_ img;
+  img.width(256);
+  img.height(128);
+  img.encoding("rgb8");
+  img.step(768);
+  img.data(std::vector<std::uint8_t>(768u * 128u, 9));  // 96 kB: past the limit
+  r.record<cell_msgs::msg::dds_::SimStatus_PubSubType>("rt/sim/status", cell_dds::Stream::kFrame, st, 6);
+  r.record<sensor_msgs::msg::dds_::Image_PubSubType>("rt/camera/image_raw", cell_dds::Stream::kFrame, img, 7);
+  const mcap::WriteSummary w = r.close();
+  EXPECT_TRUE(w.complete);
+  EXPECT_EQ(w.messages, 1u);
+  const mcap::ReadSummary s = mcap::read_mcap_file(o.file, nullptr);
+  ASSERT_EQ(s.metadata.count(cell_record::kStoppedMetadata), 1u);
+  EXPECT_NE(s.metadata.at(cell_record::kStoppedMetadata).at("reason").find("size limit"), std::string::npos);
+  EXPECT_NE(r.describe(w).find("stopped at the size limit"), std::string::npos) << r.describe(w);
+  // a recording that ran to its end has no such record
+  o.file = dir / "whole.mcap";
+  std::filesystem::remove(o.file);
+  o.max_bytes = 16ull << 30;
+  cell_record::Recorder whole(o, {{"scenario", "plane"}});
+  whole.record<sensor_msgs::msg::dds_::Image_PubSubType>("rt/camera/image_raw", cell_dds::Stream::kFrame, img, 7);
+  whole.close();
+  EXPECT_EQ(mcap::read_mcap_file(o.file, nullptr).metadata.count(cell_record::kStoppedMetadata), 0u);
+}
+
 // Issue 40, item 10: --record-no-images leaves out the camera's topic exactly; under the valid
 // namespace "camera/image_raw" every topic contains that text, and all were once left out.
 TEST(Recorder, NoImagesLeavesOutTheImageTopicExactlyUnderAnyNamespace) {

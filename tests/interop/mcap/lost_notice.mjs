@@ -1,0 +1,43 @@
+// Rewrites a recorded bin/demo run as one where the live servo said LOST once: on a loaded
+// machine no image reached it for --lost-ms after frame FRAME, and it published a LOST status
+// and a zero twist at that frame's stamp, right after its answer. Those come from the servo's
+// clock, not from an image: `servo replay --expect-identical` must count them apart.
+//
+//   node lost_notice.mjs MODULES_DIR IN.mcap OUT.mcap FRAME
+import { readRecords, writeRecords } from "./mcap_records.mjs";
+
+const [modulesDir, input, output, frameText] = process.argv.slice(2);
+const frame = Number(frameText);
+if (!modulesDir || !input || !output || !(frame >= 1)) {
+  console.error("usage: lost_notice.mjs MODULES_DIR IN.mcap OUT.mcap FRAME");
+  process.exit(2);
+}
+function fail(what) {
+  console.error(`lost_notice: ${input}: ${what}`);
+  process.exit(1);
+}
+const records = readRecords(modulesDir, input);
+const { messages } = records;
+const topicOf = new Map(records.channels.map((c) => [c.id, c.topic]));
+const on = (m, topic) => topicOf.get(m.channelId).endsWith(topic);
+// CDR, little endian: 4 bytes of encapsulation, the header's stamp (sec, nanosec), its frame_id
+// (a 4-byte length, then the bytes and their NUL); a ServoStatus's state is the byte after it
+const stamp = (m) => Buffer.from(m.data.subarray(4, 12)).toString("hex");
+if (messages.some((m) => m.data[1] !== 1)) fail("a message not in little-endian CDR");
+
+const image = messages.filter((m) => on(m, "/camera/image_raw"))[frame];
+if (!image) fail(`no image ${frame}`);
+const twistAt = messages.findIndex((m) => on(m, "/servo/cmd_twist") && stamp(m) === stamp(image));
+const status = messages.find((m) => on(m, "/servo/status") && stamp(m) === stamp(image));
+if (twistAt < 0 || !status) fail(`no twist and status for image ${frame}`);
+const lostStatus = new Uint8Array(status.data);
+const idLength = new DataView(lostStatus.buffer).getUint32(12, true);
+lostStatus[16 + idLength] = 4;  // ServoStatus.LOST
+const zero = new Uint8Array(messages[twistAt].data);
+zero.fill(0, zero.length - 48);  // the twist's 6 doubles
+const t = messages[twistAt].logTime;
+messages.splice(twistAt + 1, 0,
+  { ...status, data: lostStatus, logTime: t + 1n, publishTime: t + 1n },
+  { ...messages[twistAt], data: zero, logTime: t + 2n, publishTime: t + 2n });
+await writeRecords(modulesDir, output, records, messages, "lost_notice.mjs");
+console.log(`a LOST status and zero twist after image ${frame}'s answer`);

@@ -5,13 +5,10 @@
 // `servo replay --expect-identical` must reproduce the twists of that recording too.
 //
 //   node arrival_order.mjs MODULES_DIR IN.mcap OUT.mcap   (prints how many it moved)
-import { readRecords, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
 
-const [modulesDir, input, output] = process.argv.slice(2);
-if (!modulesDir || !input || !output) {
-  console.error("usage: arrival_order.mjs MODULES_DIR IN.mcap OUT.mcap");
-  process.exit(2);
-}
+const { args } = scriptArgs("arrival_order", "MODULES_DIR IN.mcap OUT.mcap", (a) => a.length === 3);
+const [modulesDir, input, output] = args;
 const records = readRecords(modulesDir, input);
 const { channels, messages } = records;
 const topicOf = new Map(channels.map((c) => [c.id, c.topic]));

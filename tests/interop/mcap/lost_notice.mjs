@@ -4,18 +4,12 @@
 // clock, not from an image: `servo replay --expect-identical` must count them apart.
 //
 //   node lost_notice.mjs MODULES_DIR IN.mcap OUT.mcap FRAME
-import { readRecords, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
 
-const [modulesDir, input, output, frameText] = process.argv.slice(2);
-const frame = Number(frameText);
-if (!modulesDir || !input || !output || !(frame >= 1)) {
-  console.error("usage: lost_notice.mjs MODULES_DIR IN.mcap OUT.mcap FRAME");
-  process.exit(2);
-}
-function fail(what) {
-  console.error(`lost_notice: ${input}: ${what}`);
-  process.exit(1);
-}
+const { args, fail } = scriptArgs("lost_notice", "MODULES_DIR IN.mcap OUT.mcap FRAME",
+  (a) => a.length === 4 && Number(a[3]) >= 1);
+const [modulesDir, input, output] = args;
+const frame = Number(args[3]);
 const records = readRecords(modulesDir, input);
 const { messages } = records;
 const topicOf = new Map(records.channels.map((c) => [c.id, c.topic]));

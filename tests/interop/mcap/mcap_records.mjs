@@ -5,6 +5,22 @@ import { createRequire } from "node:module";
 import { readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
 
+// A script's arguments after `node SCRIPT`, checked: its usage line and exit 2 unless `valid`
+// says they are right; and fail(what), one line naming the script and its input (the second
+// argument), exit 1.
+export function scriptArgs(script, usage, valid) {
+  const args = process.argv.slice(2);
+  if (!valid(args)) {
+    console.error(`usage: ${script}.mjs ${usage}`);
+    process.exit(2);
+  }
+  const fail = (what) => {
+    console.error(`${script}: ${args[1]}: ${what}`);
+    process.exit(1);
+  };
+  return { args, fail };
+}
+
 // The header, schemas, channels and messages of an MCAP file, read as a stream (CRCs checked).
 export function readRecords(modulesDir, file) {
   const require = createRequire(path.resolve(modulesDir, "package.json"));

@@ -6,17 +6,10 @@
 // zeroed. `servo replay --expect-identical` must reproduce that recording too.
 //
 //   node ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap
-import { readRecords, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
 
-const [modulesDir, input, output] = process.argv.slice(2);
-if (!modulesDir || !input || !output) {
-  console.error("usage: ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap");
-  process.exit(2);
-}
-function fail(what) {
-  console.error(`ready_after_first_frame: ${input}: ${what}`);
-  process.exit(1);
-}
+const { args, fail } = scriptArgs("ready_after_first_frame", "MODULES_DIR IN.mcap OUT.mcap", (a) => a.length === 3);
+const [modulesDir, input, output] = args;
 const records = readRecords(modulesDir, input);
 const { header, schemas, channels, messages } = records;
 if (!header) fail("no header");

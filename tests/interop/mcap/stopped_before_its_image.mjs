@@ -7,18 +7,12 @@
 // unanswered when it does not.
 //
 //   node stopped_before_its_image.mjs MODULES_DIR IN.mcap OUT.mcap FRAME [--no-metadata]
-import { readRecords, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
 
-const [modulesDir, input, output, frameText, flag] = process.argv.slice(2);
-const frame = Number(frameText);
-if (!modulesDir || !input || !output || !(frame >= 2) || (flag !== undefined && flag !== "--no-metadata")) {
-  console.error("usage: stopped_before_its_image.mjs MODULES_DIR IN.mcap OUT.mcap FRAME [--no-metadata]");
-  process.exit(2);
-}
-function fail(what) {
-  console.error(`stopped_before_its_image: ${input}: ${what}`);
-  process.exit(1);
-}
+const { args, fail } = scriptArgs("stopped_before_its_image", "MODULES_DIR IN.mcap OUT.mcap FRAME [--no-metadata]",
+  (a) => (a.length === 4 || (a.length === 5 && a[4] === "--no-metadata")) && Number(a[3]) >= 2);
+const [modulesDir, input, output, , flag] = args;
+const frame = Number(args[3]);
 const records = readRecords(modulesDir, input);
 const { messages } = records;
 const topicOf = new Map(records.channels.map((c) => [c.id, c.topic]));

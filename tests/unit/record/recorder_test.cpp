@@ -71,13 +71,19 @@ typename PubSubType::type decode(const mcap::MessageView& m) {
   return out;
 }
 
-TEST(Recorder, MessagesReadBackAsTheSamplesRecordedAndImagesCanBeLeftOut) {
-  const auto dir = std::filesystem::temp_directory_path() / ("recorder_test_" + std::to_string(::getpid()));
+// Options for a new recording FILE in a folder of this test process's own
+cell_record::RecordOptions new_recording(const std::string& folder, const std::string& file) {
+  const auto dir = std::filesystem::temp_directory_path() / (folder + "_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
+  cell_record::RecordOptions o;
+  o.file = dir / file;
+  std::filesystem::remove(o.file);
+  return o;
+}
+
+TEST(Recorder, MessagesReadBackAsTheSamplesRecordedAndImagesCanBeLeftOut) {
   for (const bool images : {true, false}) {
-    cell_record::RecordOptions o;
-    o.file = dir / (images ? "with.mcap" : "without.mcap");
-    std::filesystem::remove(o.file);
+    cell_record::RecordOptions o = new_recording("recorder_test", images ? "with.mcap" : "without.mcap");
     o.images = images;
     cell_record::Recorder r(o, {{"scenario", "plane"}});
     sensor_msgs::msg::dds_::Image_ img;
@@ -118,11 +124,7 @@ TEST(Recorder, MessagesReadBackAsTheSamplesRecordedAndImagesCanBeLeftOut) {
 // A recording stopped by its size limit says so in the file: the twist of the frame whose
 // image did not fit may be in it (servo replay counts such twists apart when it reads this)
 TEST(Recorder, ARecordingStoppedAtItsSizeLimitSaysWhyInTheFile) {
-  const auto dir = std::filesystem::temp_directory_path() / ("recorder_test_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  cell_record::RecordOptions o;
-  o.file = dir / "limited.mcap";
-  std::filesystem::remove(o.file);
+  cell_record::RecordOptions o = new_recording("recorder_test", "limited.mcap");
   o.max_bytes = 64u << 10;
   cell_record::Recorder r(o, {{"scenario", "plane"}});
   cell_msgs::msg::dds_::SimStatus_ st;
@@ -143,9 +145,7 @@ TEST(Recorder, ARecordingStoppedAtItsSizeLimitSaysWhyInTheFile) {
   EXPECT_NE(s.metadata.at(cell_record::kStoppedMetadata).at("reason").find("size limit"), std::string::npos);
   EXPECT_NE(r.describe(w).find("stopped at the size limit"), std::string::npos) << r.describe(w);
   // a recording that ran to its end has no such record
-  o.file = dir / "whole.mcap";
-  std::filesystem::remove(o.file);
-  o.max_bytes = 16ull << 30;
+  o = new_recording("recorder_test", "whole.mcap");
   cell_record::Recorder whole(o, {{"scenario", "plane"}});
   whole.record<sensor_msgs::msg::dds_::Image_PubSubType>("rt/camera/image_raw", cell_dds::Stream::kFrame, img, 7);
   whole.close();
@@ -155,11 +155,7 @@ TEST(Recorder, ARecordingStoppedAtItsSizeLimitSaysWhyInTheFile) {
 // Issue 40, item 10: --record-no-images leaves out the camera's topic exactly; under the valid
 // namespace "camera/image_raw" every topic contains that text, and all were once left out.
 TEST(Recorder, NoImagesLeavesOutTheImageTopicExactlyUnderAnyNamespace) {
-  const auto dir = std::filesystem::temp_directory_path() / ("recorder_ns_test_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  cell_record::RecordOptions o;
-  o.file = dir / "ns.mcap";
-  std::filesystem::remove(o.file);
+  cell_record::RecordOptions o = new_recording("recorder_ns_test", "ns.mcap");
   o.images = false;
   const std::string ns = "camera/image_raw";
   o.image_topic = cell_dds::namespaced(ns, cell_dds::kImageTopic);

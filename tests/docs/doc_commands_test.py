@@ -160,7 +160,7 @@ FIG5_RUNS = [("desired-constant-depth", 4, [r"\b536 iterations"]),
 
 # Not run here, each with why.
 NOT_RUN = {
-    "bin/demo": "the main job: closed_loop.demo runs it",
+    "bin/demo": "the main job: closed_loop.record_replay runs it (bin/demo plane --record)",
     "bin/test": "this suite",
     "build/bin/cellsim decode-sweep sim/scenarios/ham.yaml --poses 1000": "1000 poses: minutes (cli.decode_* run 100)",
     "build/bin/cellsim study sim/scenarios/plane.yaml --axis offset_scale=0.5,1,1.5,2": "160 runs: minutes",
@@ -173,7 +173,7 @@ NOT_RUN = {
     "build/bin/cellsim study sim/scenarios/plane.yaml --axis visual_features": "54 runs: 36 s on both cores",
     "build/bin/cellsim study sim/scenarios/plane.yaml --axis outliers": "18 runs of up to 900 iterations",
     "bin/compare-features": "12 studies of 72 runs: 18 min",
-    "bin/decode-heldout": "96 sweeps: 1.5 min (cli.decode_heldout runs a subset)",
+    "bin/decode-heldout": "132 sweeps: 3 min (cli.decode_heldout runs a subset)",
     "ROS_DOMAIN_ID=": "the services, each in a terminal of its own (the closed_loop tests run them)",
     "ROS_SECURITY_KEYSTORE=": "the demo under DDS-Security (closed_loop.security runs it)",
     "build/bin/render_bench": "a benchmark: minutes, and timings are not asserted",

@@ -5,16 +5,13 @@
 // `servo replay --expect-identical` must reproduce the twists of that recording too.
 //
 //   node arrival_order.mjs MODULES_DIR IN.mcap OUT.mcap   (prints how many it moved)
-import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, stampKey as stamp, topicTest, writeRecords } from "./mcap_records.mjs";
 
 const { args } = scriptArgs("arrival_order", "MODULES_DIR IN.mcap OUT.mcap", (a) => a.length === 3);
 const [modulesDir, input, output] = args;
 const records = readRecords(modulesDir, input);
-const { channels, messages } = records;
-const topicOf = new Map(channels.map((c) => [c.id, c.topic]));
-const is = (m, t) => topicOf.get(m.channelId).endsWith(t);
-// every message here begins with its header: 4 bytes of CDR encapsulation, then the stamp
-const stamp = (m) => Buffer.from(m.data.subarray(4, 12)).toString("hex");
+const { messages } = records;
+const is = topicTest(records);
 
 const moved = messages.filter((m) => is(m, "/sim/status") || is(m, "/sim/camera_pose"));
 const rest = messages.filter((m) => !(is(m, "/sim/status") || is(m, "/sim/camera_pose")));

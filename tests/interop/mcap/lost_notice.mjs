@@ -4,7 +4,7 @@
 // clock, not from an image: `servo replay --expect-identical` must count them apart.
 //
 //   node lost_notice.mjs MODULES_DIR IN.mcap OUT.mcap FRAME
-import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, stampKey as stamp, topicTest, writeRecords } from "./mcap_records.mjs";
 
 const { args, fail } = scriptArgs("lost_notice", "MODULES_DIR IN.mcap OUT.mcap FRAME",
   (a) => a.length === 4 && Number(a[3]) >= 1);
@@ -12,11 +12,9 @@ const [modulesDir, input, output] = args;
 const frame = Number(args[3]);
 const records = readRecords(modulesDir, input);
 const { messages } = records;
-const topicOf = new Map(records.channels.map((c) => [c.id, c.topic]));
-const on = (m, topic) => topicOf.get(m.channelId).endsWith(topic);
+const on = topicTest(records);
 // CDR, little endian: 4 bytes of encapsulation, the header's stamp (sec, nanosec), its frame_id
 // (a 4-byte length, then the bytes and their NUL); a ServoStatus's state is the byte after it
-const stamp = (m) => Buffer.from(m.data.subarray(4, 12)).toString("hex");
 if (messages.some((m) => m.data[1] !== 1)) fail("a message not in little-endian CDR");
 
 const image = messages.filter((m) => on(m, "/camera/image_raw"))[frame];

@@ -1,6 +1,6 @@
 // Reading a recording's records and writing them back, for the scripts that rewrite a recorded
 // run into an order the live cell can produce (ready_after_first_frame.mjs, arrival_order.mjs,
-// stopped_before_its_image.mjs).
+// stopped_before_its_image.mjs, lost_notice.mjs).
 import { createRequire } from "node:module";
 import { readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
@@ -20,6 +20,17 @@ export function scriptArgs(script, usage, valid) {
   };
   return { args, fail };
 }
+
+// on(m, "/servo/cmd_twist"): whether the message is on that topic, under any namespace
+export function topicTest({ channels }) {
+  const topicOf = new Map(channels.map((c) => [c.id, c.topic]));
+  return (m, topic) => topicOf.get(m.channelId).endsWith(topic);
+}
+
+// Every message of the cell begins with its header: 4 bytes of CDR encapsulation, then the
+// stamp (sec, nanosec). The stamp's 8 bytes as a key, and whether they are zero.
+export const stampKey = (m) => Buffer.from(m.data.subarray(4, 12)).toString("hex");
+export const stampIsZero = (m) => m.data.subarray(4, 12).every((b) => b === 0);
 
 // The header, schemas, channels and messages of an MCAP file, read as a stream (CRCs checked).
 export function readRecords(modulesDir, file) {

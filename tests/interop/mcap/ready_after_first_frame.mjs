@@ -6,19 +6,17 @@
 // zeroed. `servo replay --expect-identical` must reproduce that recording too.
 //
 //   node ready_after_first_frame.mjs MODULES_DIR IN.mcap OUT.mcap
-import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, stampIsZero, topicTest, writeRecords } from "./mcap_records.mjs";
 
 const { args, fail } = scriptArgs("ready_after_first_frame", "MODULES_DIR IN.mcap OUT.mcap", (a) => a.length === 3);
 const [modulesDir, input, output] = args;
 const records = readRecords(modulesDir, input);
-const { header, schemas, channels, messages } = records;
+const { header, messages } = records;
 if (!header) fail("no header");
-const topicOf = new Map(channels.map((c) => [c.id, c.topic]));
-const isTwist = (m) => topicOf.get(m.channelId).endsWith("/servo/cmd_twist");
-const isImage = (m) => topicOf.get(m.channelId).endsWith("/camera/image_raw");
-// a TwistStamped and an Image in CDR: 4 bytes of encapsulation, then the stamp (sec, nanosec);
-// the twist's 6 doubles are its last 48 bytes
-const stampIsZero = (m) => m.data.subarray(4, 12).every((b) => b === 0);
+const on = topicTest(records);
+const isTwist = (m) => on(m, "/servo/cmd_twist");
+const isImage = (m) => on(m, "/camera/image_raw");
+// (a TwistStamped's 6 doubles are its last 48 bytes)
 
 if (!messages.some(isImage)) fail("no image");
 const firstTwist = messages.findIndex(isTwist);

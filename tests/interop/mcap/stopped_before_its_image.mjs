@@ -7,7 +7,7 @@
 // unanswered when it does not.
 //
 //   node stopped_before_its_image.mjs MODULES_DIR IN.mcap OUT.mcap FRAME [--no-metadata]
-import { readRecords, scriptArgs, writeRecords } from "./mcap_records.mjs";
+import { readRecords, scriptArgs, stampKey as stamp, topicTest, writeRecords } from "./mcap_records.mjs";
 
 const { args, fail } = scriptArgs("stopped_before_its_image", "MODULES_DIR IN.mcap OUT.mcap FRAME [--no-metadata]",
   (a) => (a.length === 4 || (a.length === 5 && a[4] === "--no-metadata")) && Number(a[3]) >= 2);
@@ -15,11 +15,9 @@ const [modulesDir, input, output, , flag] = args;
 const frame = Number(args[3]);
 const records = readRecords(modulesDir, input);
 const { messages } = records;
-const topicOf = new Map(records.channels.map((c) => [c.id, c.topic]));
-const isTwist = (m) => topicOf.get(m.channelId).endsWith("/servo/cmd_twist");
-const isImage = (m) => topicOf.get(m.channelId).endsWith("/camera/image_raw");
-// a TwistStamped's and an Image's stamp: the 8 bytes after the 4 of CDR encapsulation
-const stamp = (m) => Buffer.from(m.data.subarray(4, 12)).toString("hex");
+const on = topicTest(records);
+const isTwist = (m) => on(m, "/servo/cmd_twist");
+const isImage = (m) => on(m, "/camera/image_raw");
 
 const images = messages.filter(isImage);
 if (images.length <= frame) fail(`${images.length} images, not more than ${frame}`);

@@ -17,6 +17,14 @@ grep -q "^| step | " "$tmp/h/decode.md" && grep -q "^| wedge | " "$tmp/h/decode.
 head -1 "$tmp/h/decode.csv" | grep -q ",lost_border,.*,lost_nearer_line" || fail "decode.csv lacks the loss causes"
 grep -q "^| set | shape | no id | border | dropped |" "$tmp/h/decode.md" && grep -q "| nearer line |" "$tmp/h/decode.md" ||
   fail "decode.md lacks the loss tables: $(cat "$tmp/h/decode.md")"
+# how far a labelling could go: the table, and decode-sweep's accounting behind it (a segmented
+# readable spot is identified or lost for exactly one cause, so none is named beyond the blobs)
+grep -q "^\*\*What a labelling could name\*\*" "$tmp/h/decode.md" && grep -q "^| step | .* / .* % |" "$tmp/h/decode.md" ||
+  fail "decode.md lacks what a labelling could name: $(cat "$tmp/h/decode.md")"
+unaccounted=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+  { lost = 0; for (k in col) if (k ~ /^lost_/) lost += $col[k]
+    if ($col["segmented"] != $col["identified"] + lost) print $col["shape"], $col["condition"] }' "$tmp/h/decode.csv")
+[ -z "$unaccounted" ] || fail "segmented readable spots neither identified nor lost for a cause: $unaccounted"
 one_line_error "an existing output folder" "exists" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2
 one_line_error "an unknown condition" "unknown" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/c" --conditions grey,shiny
 [ ! -e "$tmp/c" ] || fail "an unknown condition made its output folder"

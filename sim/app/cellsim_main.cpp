@@ -190,6 +190,10 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
               "mislocated, %d right, %d wrong)\n",
               o.projector ? "the calibration's" : "fitted to each frame's spots", s.total_off_line,
               s.total_off_line_partial, s.total_off_line_mislocated, s.total_off_line_right, s.total_off_line_wrong);
+  std::printf("  reaching the control law (on their lines, their ids among the %d the servo names at the desired "
+              "pose, s*): %d ids (%d right, %d mislocated, %d partial, %d wrong)\n",
+              s.taught, s.total_to_law, s.total_to_law_right, s.total_to_law_mislocated, s.total_to_law_partial,
+              s.total_to_law_wrong);
   std::printf("  against the decodable spots (visible, in a fully visible 3 x 3 window): %d of %d identified "
               "(mean rate %.1f %%); against all visible: %d of %d\n",
               s.total_correct_decodable, s.total_decodable, 100 * s.mean_decodable_rate, s.total_correct,

@@ -100,10 +100,11 @@ bool on_named_light(const sim::SpotTruth& named, double u, double v) {
   return cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(u), static_cast<float>(v)), true) >= -kPartialPx;
 }
 
-// Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong.
+// Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong;
+// and whether it reaches the law (on its line, its id in `taught`, per pattern spot).
 // Returns which spots were named right; the wrong ones are appended to `wrong`.
 std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, double tolerance_px,
-                            std::vector<WrongId>& wrong) {
+                            const std::vector<char>& taught, std::vector<WrongId>& wrong) {
   std::vector<char> right(truth.spots.size(), 0), named(truth.spots.size(), 0);
   const auto at = [&](int id_row, int id_col) { return static_cast<std::size_t>(id_row) * truth.cols + id_col; };
   for (const auto& d : r.decoded) named[at(d.row, d.col)] = 1;
@@ -115,6 +116,8 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
     return true;
   };
   for (const auto& d : r.decoded) {
+    const bool to_law = !d.off_line && taught[at(d.row, d.col)];
+    row.to_law += to_law;
     const sim::SpotTruth* nearest = nullptr;
     double best = 1e18;
     for (const auto& t : truth.spots) {
@@ -129,18 +132,22 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
       ++row.partial;
       row.partial_interior += interior(d.row, d.col);
       row.off_line_partial += d.off_line;
+      row.to_law_partial += to_law;
     } else if (!nearest_is_named) {
       ++row.wrong;
       row.off_line_wrong += d.off_line;
+      row.to_law_wrong += to_law;
       wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
                        nearest ? best : -1, named_spot.visible, std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v),
                        static_cast<int>(d.by)});
     } else if (best > tolerance_px) {
       ++row.mislocated;
       row.off_line_mislocated += d.off_line;
+      row.to_law_mislocated += to_law;
     } else {
       ++row.correct;
       row.off_line_right += d.off_line;
+      row.to_law_right += to_law;
       right[at(d.row, d.col)] = 1;
     }
   }
@@ -276,6 +283,11 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     s.total_off_line_mislocated += r.off_line_mislocated;
     s.total_off_line_partial += r.off_line_partial;
     s.total_off_line_wrong += r.off_line_wrong;
+    s.total_to_law += r.to_law;
+    s.total_to_law_right += r.to_law_right;
+    s.total_to_law_mislocated += r.to_law_mislocated;
+    s.total_to_law_partial += r.to_law_partial;
+    s.total_to_law_wrong += r.to_law_wrong;
     s.total_visible += r.visible;
     ms.push_back(r.decode_ms);
     if (r.visible > 0) {
@@ -315,7 +327,8 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
          "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart";
   for (const char* cause : kLossCauseNames) csv << ',' << cause;
-  csv << ",off_line,off_line_right,off_line_mislocated,off_line_partial,off_line_wrong\n";
+  csv << ",off_line,off_line_right,off_line_mislocated,off_line_partial,off_line_wrong";
+  csv << ",to_law,to_law_right,to_law_mislocated,to_law_partial,to_law_wrong\n";
   for (const auto& r : rows) {
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
@@ -326,7 +339,9 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
         << r.correct_readable_one_object << ',' << r.readable_apart << ',' << r.correct_readable_apart;
     for (const int n : r.lost) csv << ',' << n;
     csv << ',' << r.off_line << ',' << r.off_line_right << ',' << r.off_line_mislocated << ',' << r.off_line_partial << ','
-        << r.off_line_wrong << '\n';
+        << r.off_line_wrong;
+    csv << ',' << r.to_law << ',' << r.to_law_right << ',' << r.to_law_mislocated << ',' << r.to_law_partial << ','
+        << r.to_law_wrong << '\n';
   }
 }
 
@@ -339,6 +354,30 @@ void write_failure_images(const cv::Mat& img, const vision::DecodeResult& r, int
   cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + "_frame.png")).string(), bgr);
 }
 
+// A frame decoded as the sweep decodes: with the calibration's lines at the camera's pose, or
+// without them (the lines fitted to the frame's own spots mark the ids off them).
+vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const cv::Mat& img, const SweepOptions& o,
+                                  const calibration::CameraIntrinsics& camera, const Eigen::Isometry3d& world_T_camera) {
+  if (!o.projector) return decoder.decode_uncalibrated(img, camera);
+  const vision::EpipolarGeometry geometry(camera, *o.projector, world_T_camera, o.decoder.epipolar.tolerance_px);
+  return decoder.decode(img, &geometry);
+}
+
+// The ids of s*, per pattern spot: those the servo names on their lines at the scenario's
+// desired pose, where it teaches (the frame rendered with the scenario camera's own noise).
+std::vector<char> taught_ids(const sim::Cell& cell, const SweepOptions& o, const vision::DecoderOptions& decoder_options,
+                             const calibration::CameraIntrinsics& camera) {
+  const sim::Scenario& sc = cell.scenario;
+  const pattern::MArray& pattern = cell.projector->pattern();
+  sim::RenderScratch scratch;
+  const cv::Mat img = sim::render_image(cell, sc.world_T_desired, sim::frame_seed(o.seed ^ 0x7465616368ull, 0), &scratch);
+  const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), decoder_options);
+  std::vector<char> taught(static_cast<std::size_t>(pattern.rows) * pattern.cols, 0);
+  for (const vision::DecodedSpot& d : decode_frame(decoder, img, o, camera, sc.world_T_desired).decoded)
+    if (!d.off_line) taught[static_cast<std::size_t>(d.row) * pattern.cols + d.col] = 1;
+  return taught;
+}
+
 }  // namespace
 
 SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
@@ -349,6 +388,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   vision::DecoderOptions decoder_options = o.decoder;
   decoder_options.segmentation.crosstalk = o.told_crosstalk.value_or(sc.camera.crosstalk);
   const pattern::MArray& pattern = cell.projector->pattern();
+  const std::vector<char> taught = taught_ids(cell, o, decoder_options, camera);
   std::atomic<int> next{0}, done{0};
   std::mutex io;
   common::Progress progress("decode-sweep " + sc.name, static_cast<std::size_t>(o.poses), "poses");
@@ -371,9 +411,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
                                       &sensor);
       const auto spots = sim::compute_truth(cell, wTc);
       const auto t0 = std::chrono::steady_clock::now();
-      std::optional<vision::EpipolarGeometry> geometry;
-      if (o.projector) geometry.emplace(camera, *o.projector, wTc, o.decoder.epipolar.tolerance_px);
-      vision::DecodeResult r = geometry ? decoder.decode(img, &*geometry) : decoder.decode_uncalibrated(img, camera);
+      const vision::DecodeResult r = decode_frame(decoder, img, o, camera, wTc);
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
       const FrameTruth truth{spots, pattern.rows, pattern.cols};
@@ -387,7 +425,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       wrong.clear();
-      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, wrong);
+      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, taught, wrong);
       loss_funnel(row, r, truth, pattern, readable, right, o.match_tolerance_px);
       for (std::size_t i = 0; i < spots.size(); ++i) {
         row.decodable += decodable[i];
@@ -412,6 +450,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   for (auto& t : threads) t.join();
 
   SweepSummary s = summarize(rows);
+  s.taught = static_cast<int>(std::count(taught.begin(), taught.end(), 1));
   if (!o.out_dir.empty()) {
     write_wrong_ids(wrong_ids, o.out_dir / "wrong_ids.csv");
     write_sweep_csv(rows, o.out_dir / "sweep.csv");

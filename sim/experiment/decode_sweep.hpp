@@ -69,6 +69,10 @@ struct SweepRow {
   // With the calibration, the ids the decoder found off their epipolar lines and keeps from the
   // control law (DecodedSpot::off_line), in all and by what the truth says they are
   int off_line = 0, off_line_right = 0, off_line_mislocated = 0, off_line_partial = 0, off_line_wrong = 0;
+  // The ids that reach the control law, in all and by what the truth says they are: on their
+  // lines, and taught: the law matches s with s* by id, and s* holds the ids the servo named on
+  // their lines at the desired pose (SweepSummary::taught, decoded as the sweep decodes)
+  int to_law = 0, to_law_right = 0, to_law_mislocated = 0, to_law_partial = 0, to_law_wrong = 0;
   // decodable: visible, and in some 3 x 3 window of the pattern whose nine spots are all
   // visible (its id can be read from what the camera sees); correct_decodable: of those, the
   // ones decoded right
@@ -101,6 +105,9 @@ struct SweepSummary {
   int total_partial_interior = 0;
   int total_off_line = 0, total_off_line_right = 0, total_off_line_mislocated = 0, total_off_line_partial = 0,
       total_off_line_wrong = 0;
+  int total_to_law = 0, total_to_law_right = 0, total_to_law_mislocated = 0, total_to_law_partial = 0,
+      total_to_law_wrong = 0;
+  int taught = 0;  // the ids of s*: named on their lines at the desired pose
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;
   int total_readable_segmented = 0, total_readable_linked = 0, total_readable_windowed = 0;

@@ -25,6 +25,14 @@ unaccounted=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
   { lost = 0; for (k in col) if (k ~ /^lost_/) lost += $col[k]
     if ($col["segmented"] != $col["identified"] + lost) print $col["shape"], $col["condition"] }' "$tmp/h/decode.csv")
 [ -z "$unaccounted" ] || fail "segmented readable spots neither identified nor lost for a cause: $unaccounted"
+# what reaches the control law: the table, and every id that reaches it counted once by what it is
+grep -q "^\*\*What reaches the control law\*\*" "$tmp/h/decode.md" && grep -q "^| step | [0-9]* of [0-9]* · [0-9]* of [0-9]* |" "$tmp/h/decode.md" ||
+  fail "decode.md lacks what reaches the law: $(cat "$tmp/h/decode.md")"
+miscounted=$(awk -F, '{ sub(/\r$/, "") }  # (the csv module ends its lines in CR LF)
+  NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+  { if ($col["to_law"] != $col["to_law_right"] + $col["to_law_mislocated"] + $col["to_law_partial"] + $col["to_law_wrong"] ||
+        $col["to_law_partial"] > $col["partial"] || $col["to_law_wrong"] > $col["wrong_ids"]) print $col["shape"], $col["condition"] }' "$tmp/h/decode.csv")
+[ -z "$miscounted" ] || fail "ids reaching the law not counted once by kind: $miscounted"
 one_line_error "an existing output folder" "exists" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2
 one_line_error "an unknown condition" "unknown" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/c" --conditions grey,shiny
 [ ! -e "$tmp/c" ] || fail "an unknown condition made its output folder"

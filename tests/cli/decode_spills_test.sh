@@ -56,3 +56,23 @@ out=$("$build/bin/cellsim" decode-sweep "$src/sim/scenarios/ham.yaml" --poses 40
 grep -q "off their epipolar lines (the calibration's), kept from the control law: [0-9]* ids" <<<"$out" ||
   fail "no off-line count: $out"
 check_off_line "ham with the calibration" "$tmp/ham_calibrated/sweep.csv"
+
+# What reaches the control law: the ids on their lines whose id the servo names at the desired
+# pose (s*, the law matches by id). Every id counted once by what it is; none off its line or
+# outside s*; and on the ham with the calibration (40 poses, seed 7) no spill and no wrong id.
+to_law() {  # SWEEP_CSV: to_law, the sum of its kinds, the most it can be, spills and wrong ids reaching the law
+  awk -F, 'NR == 1 {for (i = 1; i <= NF; i++) col[$i] = i; next}
+    {t += $col["to_law"]; k += $col["to_law_right"] + $col["to_law_mislocated"] + $col["to_law_partial"] + $col["to_law_wrong"]
+     most += $col["decoded"] - $col["off_line"]; p += $col["to_law_partial"]; w += $col["to_law_wrong"]}
+    END {if (!("to_law" in col)) print "missing"; else print t, k, most, p, w}' "$1"
+}
+for sweep in ham ham_calibrated; do
+  read -r law kinds most spills wrong <<<"$(to_law "$tmp/$sweep/sweep.csv")"
+  [ "$law" != missing ] || fail "$sweep: sweep.csv has no to_law column"
+  echo "$sweep: $law ids reach the law (of $most on their lines), $spills spills, $wrong wrong"
+  [ "$law" -eq "$kinds" ] || fail "$sweep: $law ids reach the law but $kinds counted by kind"
+  [ "$law" -gt 0 ] && [ "$law" -lt "$most" ] || fail "$sweep: $law ids reach the law of $most on their lines"
+done
+[ "$spills" -eq 0 ] && [ "$wrong" -eq 0 ] || fail "ham with the calibration: $spills spills and $wrong wrong ids reach the law"
+grep -q "reaching the control law (on their lines, their ids among the [0-9]* the servo names at the desired pose" <<<"$out" ||
+  fail "no count of what reaches the law: $out"

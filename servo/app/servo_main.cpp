@@ -415,7 +415,7 @@ struct ServoConfigFlags {
   std::string config_file, model, projector_file, robust, features;
   double z_hat = 0, gain = 0, divergence_ratio = -1;
   int points = -1;
-  bool interior_points = false, fitted_lines = false;
+  bool interior_points = false, fitted_lines = false, taught_points = false;
   bool no_epipolar = false;
   double crosstalk = -1;
   void add(CLI::App* c) {
@@ -440,6 +440,9 @@ struct ServoConfigFlags {
     c->add_flag("--interior-points", interior_points,
                 "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
                 "when they are at least half of them (config key interior_points)");
+    c->add_flag("--taught-points", taught_points,
+                "with --projector: hold each id to the point its spot lit at teaching; a spot away from it is no "
+                "feature (config key taught_points; docs/decoding.md)");
     c->add_flag("--fitted-lines", fitted_lines,
                 "without --projector: decode each frame again on the epipolar lines fitted to its first decoding's "
                 "spots, as with a calibration (config key fitted_lines; docs/decoding.md)");
@@ -468,6 +471,7 @@ struct ServoConfigFlags {
     if (crosstalk >= 0) config.decoder.segmentation.crosstalk = crosstalk;
     if (points >= 0) config.points = points;
     if (interior_points) config.interior_points = true;
+    if (taught_points) config.taught_points = true;
     if (fitted_lines) config.decoder.epipolar.fitted_lines = true;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
     if (!robust.empty()) config.law.robust = control::parse_robust_estimator(robust);

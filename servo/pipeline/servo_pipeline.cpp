@@ -69,6 +69,10 @@ std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpo
 int ServoPipeline::teach(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& wTc) {
   reference_ = features(spots, wTc);
   selected_.clear();
+  taught_.clear();
+  // the lit points are fixed in the world only for a static projector
+  if (config_.taught_points && wTc && config_.projector && !config_.projector->on_camera)
+    taught_ = taught_points(reference_, *wTc);
   if (config_.points > 0 && reference_.size() > static_cast<std::size_t>(config_.points)) {
     // s = s* at the desired pose: the subset is chosen on the matrix the law will start from
     // near convergence, and kept, so the features do not change from one iteration to the next
@@ -84,6 +88,15 @@ StepResult ServoPipeline::step(const std::vector<ImageSpot>& spots, const std::o
   StepResult r;
   r.decoded = static_cast<int>(spots.size());
   r.features = features(spots, wTc);
+  if (!taught_.empty() && wTc) {
+    const TaughtCheck held = check_taught(r.features, taught_, *wTc, config_.camera.fx, config_.camera.fy,
+                                          config_.decoder.epipolar.grown_limit);
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < r.features.size(); ++i)
+      if (!held.off[i]) r.features[kept++] = r.features[i];
+    r.features.resize(kept);
+    r.held_by_taught = held.kept_out;
+  }
   r.matched = control::match_features(r.features, reference_);
   if (config_.interior_points)
     r.matched = control::interior_points(r.matched, config_.interior_min_share, config_.law.min_points);

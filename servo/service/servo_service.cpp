@@ -263,7 +263,7 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     top.only_keys({"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps", "min_points",
                    "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant", "epipolar_px",
                    "segment_length", "propagate_sources", "points", "interior_points", "divergence_ratio", "robust",
-                   "visual_features", "crosstalk", "fitted_lines"});
+                   "visual_features", "crosstalk", "fitted_lines", "taught_points"});
     constexpr double kDeg = 3.14159265358979323846 / 180;
     if (top.has("model")) {
       const Reader m = top.at("model");
@@ -300,6 +300,8 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     if (top.has("crosstalk")) c.decoder.segmentation.crosstalk = top.at("crosstalk").in_range(0, vision::kMaxCrosstalk);
     if (top.has("points")) c.points = top.at("points").integer_in(0, 4096);
     if (top.has("interior_points")) c.interior_points = top.at("interior_points").boolean();
+    // with a projector calibration: each id held to the point its spot lit at teaching
+    if (top.has("taught_points")) c.taught_points = top.at("taught_points").boolean();
     // without a projector calibration: decode again on each frame's fitted lines
     if (top.has("fitted_lines")) c.decoder.epipolar.fitted_lines = top.at("fitted_lines").boolean();
     if (top.has("divergence_ratio")) c.divergence_ratio = top.at("divergence_ratio").in_range(0, 1e6);

@@ -194,6 +194,11 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
               "pose, s*): %d ids (%d right, %d mislocated, %d partial, %d wrong)\n",
               s.taught, s.total_to_law, s.total_to_law_right, s.total_to_law_mislocated, s.total_to_law_partial,
               s.total_to_law_wrong);
+  if (o.projector && o.taught_points)
+    std::printf("  held to their taught points: %d more ids kept from the law (%d right, %d mislocated, %d partial, "
+                "%d wrong)\n",
+                s.total_off_taught, s.total_off_taught_right, s.total_off_taught_mislocated, s.total_off_taught_partial,
+                s.total_off_taught_wrong);
   std::printf("  against the decodable spots (visible, in a fully visible 3 x 3 window): %d of %d identified "
               "(mean rate %.1f %%); against all visible: %d of %d\n",
               s.total_correct_decodable, s.total_decodable, 100 * s.mean_decodable_rate, s.total_correct,
@@ -231,7 +236,7 @@ struct LawFlags {
   double converge_deg = control::ControlLawOptions{}.convergence_rotation_rad * 180 / 3.14159265358979323846;
   bool epipolar = false, fitted_lines = false;
   int points = 0;
-  bool interior = false;
+  bool interior = false, taught_points = false;
   std::string robust = "none";
   std::string features;  // empty: the scenario's (points; plane for a projector on the camera)
 
@@ -243,6 +248,7 @@ struct LawFlags {
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
     add_interior(c);
+    add_taught_points(c);
     add_fitted_lines(c);
     c->add_flag("--epipolar", epipolar,
                 "decode with the projector's calibration (epipolar check and the grown lattice), as `servo run "
@@ -274,6 +280,7 @@ struct LawFlags {
     cfg.decoder.epipolar.fitted_lines = fitted_lines;
     cfg.points = points;
     cfg.interior_points = interior;
+    cfg.taught_points = taught_points;
     cfg.law.robust = control::parse_robust_estimator(robust);
     cfg.law.features = experiment::visual_features_or_default(features, cfg);
   }
@@ -281,6 +288,11 @@ struct LawFlags {
     c->add_flag("--interior-points", interior,
                 "servo on the interior of the matched spots: those whose four pattern neighbours are matched too, "
                 "when they are at least half of them (docs/results.md)");
+  }
+  void add_taught_points(CLI::App* c) {
+    c->add_flag("--taught-points", taught_points,
+                "with --epipolar: hold each id to the point its spot lit at teaching; a spot away from it is no "
+                "feature (docs/decoding.md)");
   }
   void add_fitted_lines(CLI::App* c) {
     c->add_flag("--fitted-lines", fitted_lines,
@@ -371,6 +383,7 @@ struct CampaignFlags {
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
     law.add_interior(c);
+    law.add_taught_points(c);
     law.add_fitted_lines(c);
     c->add_flag("--epipolar", law.epipolar, "decode with the projector's calibration");
     c->add_option("--robust", law.robust, "tukey | huber | none: M-estimator weights on the points")->capture_default_str();
@@ -540,6 +553,9 @@ struct DecodeSweepCommand {
                   "with --projector: the camera crosstalk the decoder is told (default: the scenario camera's; "
                   "another value is a crosstalk calibration that far off)")
         ->check(common::finite_in(0, vision::kMaxCrosstalk));
+    c->add_flag("--taught-points", sweep.taught_points,
+                "with --projector: hold each id to the point it lit at the desired pose, as `servo run "
+                "--taught-points` does (those away from it do not reach the law)");
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")

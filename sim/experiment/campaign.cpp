@@ -510,6 +510,7 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
                      {"z_hat_m", law.z_hat_m},
                      {"points", o.base.points},
                      {"interior_points", o.base.interior_points},
+                     {"taught_points", o.base.taught_points},
                      {"divergence_ratio", o.divergence_ratio},
                      {"convergence_translation_m", law.convergence_translation_m},
                      {"convergence_rotation_rad", law.convergence_rotation_rad},

@@ -12,6 +12,8 @@
 #include <random>
 #include <thread>
 
+#include "servo/control/triangulation.hpp"
+#include "servo/pipeline/taught_points.hpp"
 #include "servo/vision/overlay.hpp"
 #include "sim/experiment/experiment.hpp"
 
@@ -100,11 +102,19 @@ bool on_named_light(const sim::SpotTruth& named, double u, double v) {
   return cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(u), static_cast<float>(v)), true) >= -kPartialPx;
 }
 
+// What the servo teaches at the desired pose: the ids of s* (per pattern spot) and, with
+// SweepOptions::taught_points, the points they light.
+struct Taught {
+  std::vector<char> ids;
+  std::vector<servo::TaughtPoint> points;
+};
+
 // Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong;
-// and whether it reaches the law (on its line, its id in `taught`, per pattern spot).
+// and whether it reaches the law (on its line, its id taught, not held out by its taught point:
+// `off_taught` per decoded id, or empty).
 // Returns which spots were named right; the wrong ones are appended to `wrong`.
 std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, double tolerance_px,
-                            const std::vector<char>& taught, std::vector<WrongId>& wrong) {
+                            const Taught& taught, const std::vector<char>& off_taught, std::vector<WrongId>& wrong) {
   std::vector<char> right(truth.spots.size(), 0), named(truth.spots.size(), 0);
   const auto at = [&](int id_row, int id_col) { return static_cast<std::size_t>(id_row) * truth.cols + id_col; };
   for (const auto& d : r.decoded) named[at(d.row, d.col)] = 1;
@@ -115,9 +125,12 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
     }
     return true;
   };
-  for (const auto& d : r.decoded) {
-    const bool to_law = !d.off_line && taught[at(d.row, d.col)];
+  for (std::size_t k = 0; k < r.decoded.size(); ++k) {
+    const vision::DecodedSpot& d = r.decoded[k];
+    const bool held = !off_taught.empty() && off_taught[k];
+    const bool to_law = !d.off_line && taught.ids[at(d.row, d.col)] && !held;
     row.to_law += to_law;
+    row.off_taught += held;
     const sim::SpotTruth* nearest = nullptr;
     double best = 1e18;
     for (const auto& t : truth.spots) {
@@ -133,10 +146,12 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
       row.partial_interior += interior(d.row, d.col);
       row.off_line_partial += d.off_line;
       row.to_law_partial += to_law;
+      row.off_taught_partial += held;
     } else if (!nearest_is_named) {
       ++row.wrong;
       row.off_line_wrong += d.off_line;
       row.to_law_wrong += to_law;
+      row.off_taught_wrong += held;
       wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
                        nearest ? best : -1, named_spot.visible, std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v),
                        static_cast<int>(d.by)});
@@ -144,10 +159,12 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
       ++row.mislocated;
       row.off_line_mislocated += d.off_line;
       row.to_law_mislocated += to_law;
+      row.off_taught_mislocated += held;
     } else {
       ++row.correct;
       row.off_line_right += d.off_line;
       row.to_law_right += to_law;
+      row.off_taught_right += held;
       right[at(d.row, d.col)] = 1;
     }
   }
@@ -288,6 +305,11 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
     s.total_to_law_mislocated += r.to_law_mislocated;
     s.total_to_law_partial += r.to_law_partial;
     s.total_to_law_wrong += r.to_law_wrong;
+    s.total_off_taught += r.off_taught;
+    s.total_off_taught_right += r.off_taught_right;
+    s.total_off_taught_mislocated += r.off_taught_mislocated;
+    s.total_off_taught_partial += r.off_taught_partial;
+    s.total_off_taught_wrong += r.off_taught_wrong;
     s.total_visible += r.visible;
     ms.push_back(r.decode_ms);
     if (r.visible > 0) {
@@ -328,7 +350,8 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
          "readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart";
   for (const char* cause : kLossCauseNames) csv << ',' << cause;
   csv << ",off_line,off_line_right,off_line_mislocated,off_line_partial,off_line_wrong";
-  csv << ",to_law,to_law_right,to_law_mislocated,to_law_partial,to_law_wrong\n";
+  csv << ",to_law,to_law_right,to_law_mislocated,to_law_partial,to_law_wrong";
+  csv << ",off_taught,off_taught_right,off_taught_mislocated,off_taught_partial,off_taught_wrong\n";
   for (const auto& r : rows) {
     csv << r.pose << ',' << r.noise_sigma;
     for (double x : r.offset) csv << ',' << x;
@@ -341,7 +364,9 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
     csv << ',' << r.off_line << ',' << r.off_line_right << ',' << r.off_line_mislocated << ',' << r.off_line_partial << ','
         << r.off_line_wrong;
     csv << ',' << r.to_law << ',' << r.to_law_right << ',' << r.to_law_mislocated << ',' << r.to_law_partial << ','
-        << r.to_law_wrong << '\n';
+        << r.to_law_wrong;
+    csv << ',' << r.off_taught << ',' << r.off_taught_right << ',' << r.off_taught_mislocated << ','
+        << r.off_taught_partial << ',' << r.off_taught_wrong << '\n';
   }
 }
 
@@ -363,19 +388,55 @@ vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const cv::
   return decoder.decode(img, &geometry);
 }
 
-// The ids of s*, per pattern spot: those the servo names on their lines at the scenario's
-// desired pose, where it teaches (the frame rendered with the scenario camera's own noise).
-std::vector<char> taught_ids(const sim::Cell& cell, const SweepOptions& o, const vision::DecoderOptions& decoder_options,
-                             const calibration::CameraIntrinsics& camera) {
+// The law's features of a frame, as servo::ServoPipeline::features makes them: its ids on their
+// lines, normalised, with their depths triangulated; `index` their places in r.decoded.
+std::vector<control::Feature> law_features(const vision::DecodeResult& r, const calibration::CameraIntrinsics& camera,
+                                           const calibration::ProjectorModel& projector,
+                                           const Eigen::Isometry3d& world_T_camera, std::vector<std::size_t>& index) {
+  std::vector<control::Feature> out;
+  index.clear();
+  for (std::size_t k = 0; k < r.decoded.size(); ++k) {
+    const vision::DecodedSpot& d = r.decoded[k];
+    if (d.off_line) continue;
+    const Eigen::Vector2d xy = calibration::normalise(camera, {d.u, d.v});
+    out.push_back({d.row, d.col, xy.x(), xy.y(), control::triangulate_depth(xy, d.row, d.col, projector, world_T_camera),
+                   std::nullopt});
+    index.push_back(k);
+  }
+  return out;
+}
+
+// What the servo teaches at the scenario's desired pose: the ids it names there on their lines
+// (the frame rendered with the scenario camera's own noise) and, asked for, their points.
+Taught teach(const sim::Cell& cell, const SweepOptions& o, const vision::DecoderOptions& decoder_options,
+             const calibration::CameraIntrinsics& camera) {
   const sim::Scenario& sc = cell.scenario;
   const pattern::MArray& pattern = cell.projector->pattern();
   sim::RenderScratch scratch;
   const cv::Mat img = sim::render_image(cell, sc.world_T_desired, sim::frame_seed(o.seed ^ 0x7465616368ull, 0), &scratch);
   const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), decoder_options);
-  std::vector<char> taught(static_cast<std::size_t>(pattern.rows) * pattern.cols, 0);
-  for (const vision::DecodedSpot& d : decode_frame(decoder, img, o, camera, sc.world_T_desired).decoded)
-    if (!d.off_line) taught[static_cast<std::size_t>(d.row) * pattern.cols + d.col] = 1;
-  return taught;
+  const vision::DecodeResult r = decode_frame(decoder, img, o, camera, sc.world_T_desired);
+  Taught t;
+  t.ids.assign(static_cast<std::size_t>(pattern.rows) * pattern.cols, 0);
+  for (const vision::DecodedSpot& d : r.decoded)
+    if (!d.off_line) t.ids[static_cast<std::size_t>(d.row) * pattern.cols + d.col] = 1;
+  std::vector<std::size_t> index;
+  if (o.projector && o.taught_points)
+    t.points = servo::taught_points(law_features(r, camera, *o.projector, sc.world_T_desired, index), sc.world_T_desired);
+  return t;
+}
+
+// Which of a frame's ids the servo holds out by their taught points (per r.decoded; empty: none).
+std::vector<char> held_by_taught_points(const vision::DecodeResult& r, const Taught& taught, const SweepOptions& o,
+                                        const calibration::CameraIntrinsics& camera, const Eigen::Isometry3d& world_T_camera,
+                                        const vision::GrownLimit& limit) {
+  if (taught.points.empty()) return {};
+  std::vector<std::size_t> index;
+  const std::vector<control::Feature> f = law_features(r, camera, *o.projector, world_T_camera, index);
+  const servo::TaughtCheck c = servo::check_taught(f, taught.points, world_T_camera, camera.fx, camera.fy, limit);
+  std::vector<char> off(r.decoded.size(), 0);
+  for (std::size_t i = 0; i < f.size(); ++i) off[index[i]] = c.off[i];
+  return off;
 }
 
 }  // namespace
@@ -388,7 +449,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   vision::DecoderOptions decoder_options = o.decoder;
   decoder_options.segmentation.crosstalk = o.told_crosstalk.value_or(sc.camera.crosstalk);
   const pattern::MArray& pattern = cell.projector->pattern();
-  const std::vector<char> taught = taught_ids(cell, o, decoder_options, camera);
+  const Taught taught = teach(cell, o, decoder_options, camera);
   std::atomic<int> next{0}, done{0};
   std::mutex io;
   common::Progress progress("decode-sweep " + sc.name, static_cast<std::size_t>(o.poses), "poses");
@@ -425,7 +486,9 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       wrong.clear();
-      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, taught, wrong);
+      const std::vector<char> held =
+          held_by_taught_points(r, taught, o, camera, wTc, decoder_options.epipolar.grown_limit);
+      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, taught, held, wrong);
       loss_funnel(row, r, truth, pattern, readable, right, o.match_tolerance_px);
       for (std::size_t i = 0; i < spots.size(); ++i) {
         row.decodable += decodable[i];
@@ -450,7 +513,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   for (auto& t : threads) t.join();
 
   SweepSummary s = summarize(rows);
-  s.taught = static_cast<int>(std::count(taught.begin(), taught.end(), 1));
+  s.taught = static_cast<int>(std::count(taught.ids.begin(), taught.ids.end(), 1));
   if (!o.out_dir.empty()) {
     write_wrong_ids(wrong_ids, o.out_dir / "wrong_ids.csv");
     write_sweep_csv(rows, o.out_dir / "sweep.csv");

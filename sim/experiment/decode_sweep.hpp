@@ -27,6 +27,9 @@ struct SweepOptions {
   // calibration the segmentation's levels follow it): unset, the scenario camera's; set, a
   // crosstalk calibration off by that much
   std::optional<double> told_crosstalk;
+  // with the calibration: the servo holds each id to its taught point (ServoConfig::taught_points,
+  // servo/pipeline/taught_points.hpp), and the ids it keeps out do not reach the law
+  bool taught_points = false;
   double match_tolerance_px = 2.0;
   std::filesystem::path out_dir;   // sweep.csv (and failure overlays) go here when set
   int threads = 2;
@@ -73,6 +76,9 @@ struct SweepRow {
   // lines, and taught: the law matches s with s* by id, and s* holds the ids the servo named on
   // their lines at the desired pose (SweepSummary::taught, decoded as the sweep decodes)
   int to_law = 0, to_law_right = 0, to_law_mislocated = 0, to_law_partial = 0, to_law_wrong = 0;
+  // With SweepOptions::taught_points, the ids on their lines and in s* that lie away from their
+  // taught point, kept from the law, by what they are
+  int off_taught = 0, off_taught_right = 0, off_taught_mislocated = 0, off_taught_partial = 0, off_taught_wrong = 0;
   // decodable: visible, and in some 3 x 3 window of the pattern whose nine spots are all
   // visible (its id can be read from what the camera sees); correct_decodable: of those, the
   // ones decoded right
@@ -107,6 +113,8 @@ struct SweepSummary {
       total_off_line_wrong = 0;
   int total_to_law = 0, total_to_law_right = 0, total_to_law_mislocated = 0, total_to_law_partial = 0,
       total_to_law_wrong = 0;
+  int total_off_taught = 0, total_off_taught_right = 0, total_off_taught_mislocated = 0, total_off_taught_partial = 0,
+      total_off_taught_wrong = 0;
   int taught = 0;  // the ids of s*: named on their lines at the desired pose
   int total_decodable = 0, total_correct = 0, total_correct_decodable = 0;
   int total_resolved = 0, total_readable = 0, total_correct_readable = 0;

@@ -38,8 +38,8 @@ one_line_error "corrupt mesh" "broken.obj: line 3: face corner '7' refers to no 
 out=$("$cellsim" decode-sweep "$src/sim/scenarios/plane.yaml" --poses 4 -o "$tmp/sweep") || fail "decode-sweep: $out"
 grep -q "against the decodable spots (visible, in a fully visible 3 x 3 window): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no decodable rate: $out"
-head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart,lost_other_id,lost_border,lost_no_growth,lost_dropped,lost_unlike_claim,lost_dissent,lost_no_direct,lost_few_sources,lost_unlike_sources,lost_taken,lost_residual,lost_neighbour_fits,lost_nearer_line,lost_alone,lost_unclaimed,off_line,off_line_right,off_line_mislocated,off_line_partial,off_line_wrong$" ||
-  fail "sweep.csv lacks the decodable, loss and off-line columns"
+head -1 "$tmp/sweep/sweep.csv" | grep -q ",decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,readable_windowed,readable_one_object,correct_readable_one_object,readable_apart,correct_readable_apart,lost_other_id,lost_border,lost_no_growth,lost_dropped,lost_unlike_claim,lost_dissent,lost_no_direct,lost_few_sources,lost_unlike_sources,lost_taken,lost_residual,lost_neighbour_fits,lost_nearer_line,lost_alone,lost_unclaimed,off_line,off_line_right,off_line_mislocated,off_line_partial,off_line_wrong,to_law,to_law_right,to_law_mislocated,to_law_partial,to_law_wrong,off_taught,off_taught_right,off_taught_mislocated,off_taught_partial,off_taught_wrong$" ||
+  fail "sweep.csv lacks the decodable, loss, off-line, to-the-law and taught-point columns"
 grep -q "against the readable spots" <<<"$out" || fail "no readable rate: $out"
 grep -q "against the readable spots apart in the image (.*): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no rate against the readable spots apart in the image: $out"

@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 
+#include "servo/pipeline/servo_pipeline.hpp"
 #include "servo/vision/epipolar.hpp"
 #include "servo/vision/spot_decoder.hpp"
 #include "sim/cell/build_cell.hpp"
@@ -624,6 +625,46 @@ TEST(EpipolarDecoding, CalibratedDecodingNamesNoFewerSpotsOnTheCurvedObjectsAndN
       EXPECT_TRUE(nearest->row == d.row && nearest->col == d.col) << name << " " << d.row << "," << d.col;
     }
   }
+}
+
+// The servo holding each id to the point its spot lit at teaching (ServoConfig::taught_points),
+// on the ham's rendered frames with the projector's calibration: at the initial pose nearly
+// every matched spot lies where its taught point projects (the ham's right ids lie a few
+// hundredths of a pixel off); a spot moved 3 px along anything, as a spill past a silhouette
+// lies, is no feature; without the option it still is.
+TEST(EpipolarDecoding, TheServoHoldsEachIdToItsTaughtPoint) {
+  const Frame desired = render("ham", false), initial = render("ham", true);
+  servo::ServoConfig c;
+  c.camera = intrinsics_of(*desired.cell);
+  c.projector = calibration_of(*desired.cell);
+  c.law.z_hat_m = 0.9;
+  c.taught_points = true;
+  servo::ServoPipeline held(pattern::WindowTable(desired.cell->projector->pattern(), {3, 3}), c);
+  c.taught_points = false;
+  servo::ServoPipeline free(pattern::WindowTable(desired.cell->projector->pattern(), {3, 3}), c);
+  const std::vector<servo::ImageSpot> taught = held.locate(desired.rgb, desired.wTc);
+  ASSERT_GT(held.teach(taught, desired.wTc), 150);
+  free.teach(taught, desired.wTc);
+  std::vector<servo::ImageSpot> spots = held.locate(initial.rgb, initial.wTc);
+  const servo::StepResult as_seen = held.step(spots, initial.wTc);
+  ASSERT_GT(as_seen.matched.size(), 100u);
+  EXPECT_LE(as_seen.held_by_taught, 2) << "of " << as_seen.matched.size() << " matched";
+  const auto moved = std::find_if(spots.begin(), spots.end(), [&](const servo::ImageSpot& s) {
+    return !s.off_line && std::any_of(as_seen.matched.begin(), as_seen.matched.end(),
+                                      [&](const control::MatchedPoint& m) { return m.row == s.row && m.col == s.col; });
+  });
+  ASSERT_NE(moved, spots.end());
+  moved->u += 3.0;
+  const servo::StepResult r = held.step(spots, initial.wTc);
+  EXPECT_EQ(r.held_by_taught, as_seen.held_by_taught + 1);
+  for (const auto& m : r.matched) EXPECT_FALSE(m.row == moved->row && m.col == moved->col) << "the moved spot served";
+  const servo::StepResult f = free.step(spots, initial.wTc);
+  EXPECT_EQ(f.held_by_taught, 0);
+  EXPECT_TRUE(std::any_of(f.matched.begin(), f.matched.end(),
+                          [&](const control::MatchedPoint& m) { return m.row == moved->row && m.col == moved->col; }));
+  // s* given from a file has no pose with it: nothing is held
+  held.set_reference(held.reference());
+  EXPECT_EQ(held.step(spots, initial.wTc).held_by_taught, 0);
 }
 
 }  // namespace

@@ -467,6 +467,10 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
     std::printf("  path: %.1f mm for %.1f mm away (%.2fx the straight line); condition of L: median %.3g, largest %.3g\n",
                 1e3 * r.path_length_m, 1e3 * r.straight_line_m, r.path_length_m / r.straight_line_m, r.condition_median,
                 r.condition_max);
+  if (ran && o.source == loop::FeatureSource::kDecoded)
+    std::printf("  features off their spot's centre (over 2 px from it or hidden, the simulator's truth) that the law "
+                "took: %lld over the run, at most %d in one iteration\n",
+                r.off_centre_total, r.off_centre_max);
   if (!out_dir.empty() && ran) {
     // the plots are named only when they were drawn (--no-plot, or no Python: none)
     const bool plotted = plot && experiment::plot_experiment(

@@ -62,6 +62,10 @@ struct ModelStats {
   double median_iterations = 0, median_translation_mm = 0, median_rotation_deg = 0;  // converged runs
   double worst_translation_mm = 0, worst_rotation_deg = 0;                           // converged runs
   double median_error_rise = 0;                                                      // all runs
+  // decoded features: the runs whose law took a point off its spot's centre (the simulator's
+  // truth: ExperimentResult::off_centre_max), and the most in one iteration of any run
+  int off_centre_runs = 0;
+  long long off_centre_max = 0;
 };
 std::vector<ModelStats> campaign_stats(const std::filesystem::path& dir);
 

@@ -132,7 +132,8 @@ calibration::ProjectorModel believed_projector(const calibration::ProjectorModel
 namespace {
 
 // features.jsonl: the points the law used at one iteration, with their depths and weights
-nlohmann::json features_line(int k, const ExperimentOptions& o, const loop::LoopExchange& x) {
+nlohmann::json features_line(int k, const ExperimentOptions& o, const loop::LoopExchange& x,
+                             const std::vector<char>& off_centre) {
   const servo::StepResult& step = *x.reply.step;
   nlohmann::json j;
   j["k"] = k;
@@ -147,6 +148,7 @@ nlohmann::json features_line(int k, const ExperimentOptions& o, const loop::Loop
     p["z_model"] = std::isfinite(z) ? nlohmann::json(z) : nlohmann::json(nullptr);
     if (o.outlier_fraction > 0)
       p["swapped"] = std::find(x.wrong.begin(), x.wrong.end(), std::make_pair(m.row, m.col)) != x.wrong.end();
+    if (i < off_centre.size()) p["off_centre"] = off_centre[i] != 0;
     // the robust law's weight of the point (only with one: the plain law's are all 1)
     if (o.servo.law.robust != control::RobustEstimator::kNone) {
       const double w = i < step.control.weights.size() ? step.control.weights[i] : std::nan("");
@@ -157,6 +159,31 @@ nlohmann::json features_line(int k, const ExperimentOptions& o, const loop::Loop
   j["v"] = std::vector<double>(step.control.twist.data(), step.control.twist.data() + 6);
   if (o.outlier_fraction > 0) j["swapped"] = x.swapped;
   return j;
+}
+
+// Which of the points the law took lie off the true centre of the spot their id names (more
+// than kMatchTolerancePx, in the servo's own normalised coordinates scaled by its focal
+// lengths), or name a spot the camera does not see: the truth of this frame.
+std::vector<char> off_centre_of(const sim::Cell& cell, const loop::LoopExchange& x,
+                                const calibration::CameraIntrinsics& camera) {
+  constexpr double kMatchTolerancePx = 2.0;  // decode-sweep's: a right id within it
+  const servo::StepResult& step = *x.reply.step;
+  std::vector<char> off(step.matched.size(), 0);
+  if (step.matched.empty()) return off;
+  const std::vector<sim::SpotTruth> truth =
+      sim::compute_truth(cell, x.frame.scene_world_T_camera, &x.frame.scene_world_T_links);
+  const int cols = cell.projector->pattern().cols;
+  for (std::size_t i = 0; i < step.matched.size(); ++i) {
+    const control::MatchedPoint& m = step.matched[i];
+    const sim::SpotTruth& t = truth[static_cast<std::size_t>(m.row) * cols + m.col];
+    if (!t.visible) {
+      off[i] = 1;
+      continue;
+    }
+    const Eigen::Vector2d xy = calibration::normalise(camera, t.uv);
+    off[i] = std::hypot(camera.fx * (xy.x() - m.x), camera.fy * (xy.y() - m.y)) > kMatchTolerancePx;
+  }
+  return off;
 }
 
 }  // namespace
@@ -270,6 +297,7 @@ class Experiment {
     if (!step_extras_.empty()) {
       rec.feature_rms = step_extras_.front().feature_rms;
       rec.swapped = step_extras_.front().swapped;
+      rec.off_centre = step_extras_.front().off_centre;
       rec.condition = step_extras_.front().condition;
       step_extras_.pop_front();
     }
@@ -328,8 +356,13 @@ class Experiment {
   void stepped(const loop::LoopExchange& x) {
     if (k_ == 0) res_.decoded_initial = static_cast<int>(x.reply.decoded);
     if (k_ == 0) write_overlay(x, "initial.png");
+    // the truth of what the law took (decoded features only: ideal ones are the truth)
+    const std::vector<char> off_centre = o_.source == loop::FeatureSource::kDecoded && x.reply.step
+                                             ? off_centre_of(cell_, x, loop_.servo().pipeline().config().camera)
+                                             : std::vector<char>{};
     step_extras_.push_back({x.reply.step ? x.reply.step->control.feature_rms : 0.0, x.swapped,
-                            x.reply.step ? x.reply.step->control.condition : 0.0});
+                            x.reply.step ? x.reply.step->control.condition : 0.0,
+                            static_cast<int>(std::count(off_centre.begin(), off_centre.end(), 1))});
     const Eigen::Vector3d at = x.frame.world_T_camera.translation();
     if (k_ == 0) res_.straight_line_m = (at - scenario().world_T_desired.translation()).norm();
     if (last_position_) res_.path_length_m += (at - *last_position_).norm();
@@ -344,7 +377,7 @@ class Experiment {
       }
       occlusion_ << k_ * scenario().dt_s << ',' << visible << ',' << hidden << ',' << on_arm << '\n';
     }
-    if (features_.is_open() && x.reply.step) features_ << features_line(k_, o_, x).dump() << '\n';
+    if (features_.is_open() && x.reply.step) features_ << features_line(k_, o_, x, off_centre).dump() << '\n';
     ++k_;
     if (progress_) progress_->at(static_cast<std::size_t>(k_));
   }
@@ -375,6 +408,10 @@ class Experiment {
       for (const auto& r : res_.trace) top = std::max(top, r.error_norm);
       res_.max_error_ratio = top / res_.trace.front().error_norm;
     }
+    for (const auto& r : res_.trace) {
+      res_.off_centre_max = std::max(res_.off_centre_max, r.off_centre);
+      res_.off_centre_total += r.off_centre;
+    }
     std::vector<double> conditions;
     for (const auto& r : res_.trace)
       if (r.condition > 0 && std::isfinite(r.condition)) conditions.push_back(r.condition);
@@ -402,6 +439,7 @@ class Experiment {
     double feature_rms;
     int swapped;
     double condition;
+    int off_centre;
   };
   std::deque<StepExtras> step_extras_;  // per applied step, in order
   std::optional<Eigen::Vector3d> last_position_;  // the camera's, at the last applied frame

@@ -51,6 +51,10 @@ struct IterationRecord {
   double translation_error_m = 0, rotation_error_deg = 0;
   std::uint32_t robot_limits = 0;  // why the robot limited this step's motion (sim::RobotLimit bits)
   int swapped = 0;                 // spots given a wrong id by the outlier injection
+  // decoded features: of the points the law took, those more than 2 px from the true centre of
+  // the spot their id names, or whose spot the camera does not see (a wrong id, a spill, a
+  // split spot: the simulator's truth, which the servo never sees)
+  int off_centre = 0;
   double condition = 0;            // the condition number of the law's interaction matrix (0: no law step)
 };
 
@@ -77,6 +81,9 @@ struct ExperimentResult {
   double error_rise = 0;
   // the largest |e| of the run over its first: > 1 when the error ever rose above where it began
   double max_error_ratio = 0;
+  // IterationRecord::off_centre over the run: the most in one iteration, and the sum
+  int off_centre_max = 0;
+  long long off_centre_total = 0;
   std::vector<IterationRecord> trace;
 };
 

@@ -251,6 +251,9 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
   d["rotation_error_deg"] = column<double>(tr, [](const I& i) { return i.rotation_error_deg; });
   d["decoded"] = column<int>(tr, [](const I& i) { return i.decoded; });
   d["matched"] = column<int>(tr, [](const I& i) { return i.matched; });
+  // the points the law took off their spot's centre (the simulator's truth; decoded features)
+  d["off_centre"] = column<int>(tr, [](const I& i) { return i.off_centre; });
+  d["off_centre_max"] = r.off_centre_max;
   d["condition"] = column<double>(tr, [](const I& i) { return i.condition; });
   return d;
 }

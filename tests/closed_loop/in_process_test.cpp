@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/experiment.hpp"
@@ -76,6 +77,40 @@ TEST(InProcessLoop, RobustLawConvergesWithTenPercentOfTheMatchesSwapped) {
     EXPECT_NE(line.find("\"swapped\":true"), std::string::npos) << line.substr(0, 200);
     std::filesystem::remove_all(o.out_dir);
   }
+}
+
+// Issue 41: the truth of what the law takes. With 10 % of the decoded spots' ids swapped at
+// every frame on the plane, the points the experiment finds off their spot's centre (the
+// simulator's truth, ExperimentResult::off_centre_*) are the swapped ones, iteration by
+// iteration and point by point in features.jsonl; without swaps the plane's law takes none.
+TEST(InProcessLoop, ThePointsTheLawTakesOffTheirSpotsCentreAreTheSwappedOnes) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string("plane.yaml")));
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.max_iterations = 12;
+  const auto clean = experiment::run_experiment(*cell, o);
+  ASSERT_EQ(clean.trace.size(), 12U);
+  EXPECT_EQ(clean.off_centre_total, 0);
+  o.outlier_fraction = 0.1;
+  o.out_dir = std::filesystem::temp_directory_path() / "_test_off_centre";
+  const auto swapped = experiment::run_experiment(*cell, o);
+  ASSERT_EQ(swapped.trace.size(), 12U);
+  long long total = 0;
+  for (const auto& r : swapped.trace) {
+    EXPECT_GT(r.swapped, 0);
+    EXPECT_EQ(r.off_centre, r.swapped) << "an iteration whose law took other points off centre than the swapped ones";
+    total += r.off_centre;
+  }
+  EXPECT_EQ(swapped.off_centre_total, total);
+  std::ifstream f(o.out_dir / "features.jsonl");
+  int lines = 0;
+  for (std::string line; std::getline(f, line); ++lines) {
+    const nlohmann::json j = nlohmann::json::parse(line);
+    for (const auto& p : j.at("points")) EXPECT_EQ(p.at("off_centre"), p.at("swapped")) << j.at("k") << " " << p.dump();
+  }
+  EXPECT_EQ(lines, 12);
+  std::filesystem::remove_all(o.out_dir);
 }
 
 // Issue 44: decoding losses. drop_spots drops the share asked, the same ones for the same seed,

@@ -76,6 +76,8 @@ def test_an_experiment_returns_the_trace_as_arrays(plane):
     assert r["converged"] and r["iterations"] == len(r["t"]) and r["twist"].shape == (len(r["t"]), 6)
     assert r["final_translation_error_m"] < 1e-3
     assert r["error_norm"][-1] < r["error_norm"][0]
+    # the truth of what the law took: on the plane no point off its spot's centre
+    assert len(r["off_centre"]) == len(r["t"]) and r["off_centre_max"] == 0 and r["off_centre"].sum() == 0
 
 
 def test_an_experiment_can_servo_on_the_image_moments(plane):

@@ -17,6 +17,12 @@ ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
   // spots cast from the camera show the surface and nothing more: the surface's three moments
   // would servo the degrees of freedom they cannot see (points and moments take the riding
   // spots' own rows, interaction_matrix.hpp)
+  // the taught points are triangulated, and fixed in the world only for a static projector
+  if (config_.taught_points && !config_.projector)
+    throw std::invalid_argument("taught points need the projector's calibration to triangulate them: give --projector");
+  if (config_.taught_points && config_.projector->on_camera)
+    throw std::invalid_argument("taught points: the projector rides on the camera (mount: camera), so the points its "
+                                "spots light move with it; there is nothing to hold them to");
   if (config_.projector && config_.projector->on_camera && f == control::VisualFeatures::kSurface)
     throw std::invalid_argument("the projector rides on the camera (mount: camera): its spots show the surface alone, "
                                 "not the motion along it that the surface's moments servo; use --visual-features "
@@ -70,9 +76,7 @@ int ServoPipeline::teach(const std::vector<ImageSpot>& spots, const std::optiona
   reference_ = features(spots, wTc);
   selected_.clear();
   taught_.clear();
-  // the lit points are fixed in the world only for a static projector
-  if (config_.taught_points && wTc && config_.projector && !config_.projector->on_camera)
-    taught_ = taught_points(reference_, *wTc);
+  if (config_.taught_points && wTc) taught_ = taught_points(reference_, *wTc);  // (a static projector: checked at start)
   if (config_.points > 0 && reference_.size() > static_cast<std::size_t>(config_.points)) {
     // s = s* at the desired pose: the subset is chosen on the matrix the law will start from
     // near convergence, and kept, so the features do not change from one iteration to the next

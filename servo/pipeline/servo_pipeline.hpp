@@ -34,9 +34,9 @@ struct ServoConfig {
   // the same. Below half, the matched set is mostly edge (a sparse decoding) and all serve.
   bool interior_points = false;
   double interior_min_share = 0.5;
-  // With the projector's calibration (static: not riding on the camera) and the camera's pose:
-  // each id held to the point its spot lit at teaching (taught_points.hpp); a spot away from
-  // its taught point's projection is no feature. Measured (docs/decoding.md, What reaches the
+  // With the projector's calibration (static: not riding on the camera; refused at start
+  // otherwise) and the camera's pose: each id held to the point its spot lit at teaching
+  // (taught_points.hpp); a spot away from its taught point's projection is no feature. Measured (docs/decoding.md, What reaches the
   // control law): of the spills that reach the law, 14 of 16 held out on the tuning sweeps and
   // the sphere's and step's all, for 0.5 % of the right ids; off by default, as the paper's
   // law takes every matched spot.

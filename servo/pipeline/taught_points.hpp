@@ -11,7 +11,7 @@
 // (vision::GrownLimit, no number of its own): a multiple of the median residual of the frame's
 // checked spots, so a calibration error or a pose's latency, which moves every spot alike,
 // loosens it rather than emptying the law. With a projector riding on the camera the lit
-// points move with it: there is nothing to hold them to.
+// points move with it: there is nothing to hold them to (ServoPipeline refuses the option).
 #pragma once
 
 #include <Eigen/Geometry>

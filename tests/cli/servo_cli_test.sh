@@ -56,6 +56,8 @@ cfg 'visual_features: lines\n' "visual_features: must be points, moments, surfac
 cfg 'visual_features: moments\nrobust: tukey\n' "robust weights are per point"
 one_line_error "--visual-features" "visual-features" "$servo" run --pattern "$pattern" --visual-features lines
 one_line_error "surface without depths" "need the spots' depths" "$servo" run --pattern "$pattern" --visual-features surface
+one_line_error "taught points without depths" "need the projector's calibration" "$servo" run --pattern "$pattern" --taught-points
+cfg 'taught_points: true\n' "need the projector's calibration"
 cal() { printf '%b' "$1" > "$tmp/p.yaml"; one_line_error "calibration: $1" "$2" "$servo" run --pattern "$pattern" --projector "$tmp/p.yaml"; }
 good='fx: 1500\nfy: 1500\ncx: 511.5\ncy: 383.5\nspot_pitch_px: 15\nposition_m: [0, 0, 0]\n'
 cal "${good}rows: 20\ncols: 20\norientation_xyzw: [0, 0, 0, 0]\n" "orientation_xyzw: must be a unit quaternion"

@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Plots a campaign folder's campaign.csv: campaign.png, one column per model: the share of runs
-that converged, the iterations of the converged runs, and every run's final pose error.
+that converged, the iterations of the converged runs, every run's final pose error and, for
+decoded features, the points each run's law took off their spot's centre (the simulator's truth).
 Usage: plot_campaign.py DIR [--title TITLE]. Needs Debian's python3-matplotlib (bin/setup)."""
 import csv
+import json
 import math
 import os
 import sys
@@ -21,7 +23,10 @@ def main():
     if not rows:
         sys.exit(f"plot_campaign: {path} has no runs")
     models = list(dict.fromkeys(r["model"] for r in rows))
-    fig, axes = plt.subplots(3, len(models), figsize=(max(3.2 * len(models), 6.4), 7.5), squeeze=False)
+    # the truth of what the law took, for decoded features (ideal ones are the truth)
+    truth = "off_centre_total" in rows[0] and decoded(a.dir)
+    panels = 4 if truth else 3
+    fig, axes = plt.subplots(panels, len(models), figsize=(max(3.2 * len(models), 6.4), 2.5 * panels), squeeze=False)
     # one scale per row across the models, so that 40 mm and 0.09 mm do not look alike
     shown = [max(float(r["final_translation_mm"]), 1e-3) if math.isfinite(float(r["final_translation_mm"])) else 1e3
              for r in rows]
@@ -53,6 +58,8 @@ def main():
         ax.set_xlabel("run")
         ax.set_ylabel("final translation error (mm)")
         ax.grid(True, which="major", alpha=0.3)
+        if truth:
+            off_centre_panel(axes[3][c], runs, col)
     from matplotlib.lines import Line2D
     axes[2][0].legend(handles=[Line2D([], [], ls="", marker="o", color="tab:green", label="converged"),
                                Line2D([], [], ls="", marker="o", color="tab:red", label="not converged")],
@@ -62,6 +69,23 @@ def main():
     out = os.path.join(a.dir, "campaign.png")
     save(fig, out, dpi=100, top=0.95 if a.title else 1.0)
     print(f"plot_campaign: {out}")
+
+
+def decoded(folder):
+    """Whether the campaign in `folder` ran on decoded features (campaign.json says)."""
+    try:
+        with open(os.path.join(folder, "campaign.json")) as f:
+            return json.load(f).get("features") == "decoded"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def off_centre_panel(ax, runs, colours):
+    """Per run, the points its law took off their spot's centre, summed over its iterations."""
+    ax.bar(range(len(runs)), [int(r["off_centre_total"]) for r in runs], color=colours)
+    ax.set_xlabel("run")
+    ax.set_ylabel("law's points off their\nspot's centre (run total)")
+    ax.grid(True, axis="y", alpha=0.3)
 
 
 if __name__ == "__main__":

@@ -40,6 +40,16 @@ bool is_latency(const std::string& name) {
   return std::find(n.begin(), n.end(), name) != n.end();
 }
 
+// An axis that switches an option: 1 on, 0 off (`off` says what 0 means); anything else refused.
+bool switched_on(const std::string& name, double v, const char* off) {
+  if (v != 0 && v != 1) {
+    char m[160];
+    std::snprintf(m, sizeof m, "study axis %s: %.6g is neither 0 (%s) nor 1", name.c_str(), v, off);
+    throw std::invalid_argument(m);
+  }
+  return v != 0;
+}
+
 // Sets one axis value; throws std::invalid_argument when it is out of range.
 void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions& c) {
   const auto within = [&](double lo, double hi) {
@@ -68,12 +78,10 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
     c.base.law.features = static_cast<control::VisualFeatures>(static_cast<int>(v));
   } else if (name == "interior_points") {
     // 1: the law on the interior of the matched spots (ServoConfig::interior_points), 0: on all
-    if (v != 0 && v != 1) {
-      char m[120];
-      std::snprintf(m, sizeof m, "study axis interior_points: %.6g is neither 0 (all matched spots) nor 1", v);
-      throw std::invalid_argument(m);
-    }
-    c.base.interior_points = v != 0;
+    c.base.interior_points = switched_on(name, v, "all matched spots");
+  } else if (name == "taught_points") {
+    // 1: each id held to the point its spot lit at teaching (ServoConfig::taught_points)
+    c.base.taught_points = switched_on(name, v, "not held");
   } else if (name == "losses") {
     // the fraction of the decoded spots dropped at every frame (decoding losses, issue 44)
     within(0, 0.9);
@@ -145,7 +153,7 @@ double depth_spread(const sim::Cell& cell) {
 std::vector<std::string> study_axis_names() {
   std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
                              "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "losses", "visual_features",
-                             "interior_points"};
+                             "interior_points", "taught_points"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;

@@ -65,4 +65,10 @@ out=$("$cellsim" study "$src/sim/scenarios/plane.yaml" --axis interior_points=0,
 grep -q "^| 0 | " <<<"$out" && grep -q "^| 1 | " <<<"$out" || fail "a study over interior_points has no row per value: $out"
 one_line_error "interior_points=0.5" "study axis interior_points" \
   "$cellsim" study "$src/sim/scenarios/plane.yaml" --axis interior_points=0.5 -o "$tmp/z"
+# the taught points as an axis, 0 or 1
+out=$("$cellsim" study "$src/sim/scenarios/plane.yaml" --axis taught_points=0,1 --models current --runs 1 \
+  --max-iterations 50 --no-plot -o "$tmp/taught" 2>/dev/null) || fail "a study over taught_points: exit $?"
+grep -q "^| 0 | " <<<"$out" && grep -q "^| 1 | " <<<"$out" || fail "a study over taught_points has no row per value: $out"
+one_line_error "taught_points=2" "study axis taught_points" \
+  "$cellsim" study "$src/sim/scenarios/plane.yaml" --axis taught_points=2 -o "$tmp/t2"
 echo "studies: tables and plots written, fig5 search reproducible, errors and delays applied, bad values refused"

@@ -156,6 +156,8 @@ nlohmann::json features_line(int k, const ExperimentOptions& o, const loop::Loop
     }
     j["points"].push_back(p);
   }
+  // the features held out by their taught points (ServoConfig::taught_points): not among the points
+  if (o.servo.taught_points) j["held_by_taught"] = step.held_by_taught;
   j["v"] = std::vector<double>(step.control.twist.data(), step.control.twist.data() + 6);
   if (o.outlier_fraction > 0) j["swapped"] = x.swapped;
   return j;

@@ -113,6 +113,32 @@ TEST(InProcessLoop, ThePointsTheLawTakesOffTheirSpotsCentreAreTheSwappedOnes) {
   std::filesystem::remove_all(o.out_dir);
 }
 
+// With the taught points (ServoConfig::taught_points) the ids swapped at every frame lie away
+// from the points their ids lit at teaching: the law holds them out, features.jsonl says how
+// many at each iteration, and no point it takes is off its spot's centre.
+TEST(InProcessLoop, TheTaughtPointsHoldOutTheSwappedIds) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string("plane.yaml")));
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.servo.taught_points = true;
+  o.max_iterations = 12;
+  o.outlier_fraction = 0.1;
+  o.out_dir = std::filesystem::temp_directory_path() / "_test_taught_points";
+  const auto r = experiment::run_experiment(*cell, o);
+  ASSERT_EQ(r.trace.size(), 12U);
+  EXPECT_EQ(r.off_centre_total, 0) << "a swapped id reached the law";
+  std::ifstream f(o.out_dir / "features.jsonl");
+  int lines = 0;
+  for (std::string line; std::getline(f, line); ++lines) {
+    const nlohmann::json j = nlohmann::json::parse(line);
+    EXPECT_GE(j.at("held_by_taught").get<int>(), j.at("swapped").get<int>() - 1) << j.at("k");
+    for (const auto& p : j.at("points")) EXPECT_FALSE(p.at("swapped").get<bool>()) << j.at("k") << " " << p.dump();
+  }
+  EXPECT_EQ(lines, 12);
+  std::filesystem::remove_all(o.out_dir);
+}
+
 // Issue 44: decoding losses. drop_spots drops the share asked, the same ones for the same seed,
 // the others kept in their order; a run with 30 % of the spots dropped at every frame steps on
 // about 70 % of them and still converges on the plane.

@@ -14,15 +14,15 @@ ServoPipeline::ServoPipeline(pattern::WindowTable table, ServoConfig config)
   if (triangulated && !config_.projector)
     throw std::invalid_argument("visual features '" + control::to_string(f) +
                                 "' need the spots' depths: give the projector's calibration (--projector)");
-  // spots cast from the camera show the surface and nothing more: the surface's three moments
-  // would servo the degrees of freedom they cannot see (points and moments take the riding
-  // spots' own rows, interaction_matrix.hpp)
   // the taught points are triangulated, and fixed in the world only for a static projector
   if (config_.taught_points && !config_.projector)
     throw std::invalid_argument("taught points need the projector's calibration to triangulate them: give --projector");
   if (config_.taught_points && config_.projector->on_camera)
     throw std::invalid_argument("taught points: the projector rides on the camera (mount: camera), so the points its "
                                 "spots light move with it; there is nothing to hold them to");
+  // spots cast from the camera show the surface and nothing more: the surface's three moments
+  // would servo the degrees of freedom they cannot see (points and moments take the riding
+  // spots' own rows, interaction_matrix.hpp)
   if (config_.projector && config_.projector->on_camera && f == control::VisualFeatures::kSurface)
     throw std::invalid_argument("the projector rides on the camera (mount: camera): its spots show the surface alone, "
                                 "not the motion along it that the surface's moments servo; use --visual-features "

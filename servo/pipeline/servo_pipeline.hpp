@@ -36,10 +36,11 @@ struct ServoConfig {
   double interior_min_share = 0.5;
   // With the projector's calibration (static: not riding on the camera; refused at start
   // otherwise) and the camera's pose: each id held to the point its spot lit at teaching
-  // (taught_points.hpp); a spot away from its taught point's projection is no feature. Measured (docs/decoding.md, What reaches the
-  // control law): of the spills that reach the law, 14 of 16 held out on the tuning sweeps and
-  // the sphere's and step's all, for 0.5 % of the right ids; off by default, as the paper's
-  // law takes every matched spot.
+  // (taught_points.hpp); a spot away from its taught point's projection is no feature.
+  // Measured (docs/decoding.md, What reaches the control law; docs/results.md): of the spills
+  // that reach the law, 14 of 16 held out on the tuning sweeps and the sphere's and step's
+  // all, for 0.5 % of the right ids; ids swapped at every frame held out up to 30 % of them.
+  // Off by default: the egg's loop ends farther, and the paper's law takes every matched spot.
   bool taught_points = false;
   // > 0: the servo stops (zero twist, state STOPPED, reason "diverging") when |e| rises above
   // this x its first value after START or teaching (issue 13); 0: never

@@ -667,16 +667,17 @@ TEST(EpipolarDecoding, TheServoHoldsEachIdToItsTaughtPoint) {
   EXPECT_EQ(held.step(spots, initial.wTc).held_by_taught, 0);
   // refused at start: without the calibration nothing is triangulated; a projector riding on
   // the camera lights points that move with it
-  c.taught_points = true;
-  std::optional<calibration::ProjectorModel> projector = c.projector;
-  c.projector.reset();
-  EXPECT_THROW(servo::ServoPipeline(pattern::WindowTable(desired.cell->projector->pattern(), {3, 3}), c),
+  servo::ServoConfig none;
+  none.taught_points = true;
+  EXPECT_THROW(servo::ServoPipeline(pattern::WindowTable(desired.cell->projector->pattern(), {3, 3}), none),
                std::invalid_argument);
-  c.projector = projector;
-  c.projector->on_camera = Eigen::Isometry3d::Identity();
-  c.law.features = control::VisualFeatures::kPlane;
+  servo::ServoConfig riding = none;
+  calibration::ProjectorModel on_camera = calibration_of(*desired.cell);
+  on_camera.on_camera = Eigen::Isometry3d::Identity();
+  riding.projector = on_camera;
+  riding.law.features = control::VisualFeatures::kPlane;
   try {
-    servo::ServoPipeline p(pattern::WindowTable(desired.cell->projector->pattern(), {3, 3}), c);
+    servo::ServoPipeline p(pattern::WindowTable(desired.cell->projector->pattern(), {3, 3}), riding);
     ADD_FAILURE() << "taught points accepted with the projector on the camera";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("rides on the camera"), std::string::npos) << e.what();

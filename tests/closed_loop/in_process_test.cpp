@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <unistd.h>
 
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/experiment.hpp"
@@ -79,64 +80,62 @@ TEST(InProcessLoop, RobustLawConvergesWithTenPercentOfTheMatchesSwapped) {
   }
 }
 
+// 12 iterations on the plane with `outliers` of the decoded ids swapped at every frame (and,
+// asked, the taught points): the result, and features.jsonl's lines parsed.
+struct PlaneRun {
+  experiment::ExperimentResult result;
+  std::vector<nlohmann::json> features;
+};
+PlaneRun plane_run(double outliers, bool taught_points) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string("plane.yaml")));
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
+  o.servo.law.z_hat_m = 0.9;
+  o.servo.taught_points = taught_points;
+  o.max_iterations = 12;
+  o.outlier_fraction = outliers;
+  o.out_dir = std::filesystem::temp_directory_path() / ("_test_plane_run_" + std::to_string(::getpid()));
+  PlaneRun run{experiment::run_experiment(*cell, o), {}};
+  std::ifstream f(o.out_dir / "features.jsonl");
+  for (std::string line; std::getline(f, line);) run.features.push_back(nlohmann::json::parse(line));
+  std::filesystem::remove_all(o.out_dir);
+  return run;
+}
+
 // Issue 41: the truth of what the law takes. With 10 % of the decoded spots' ids swapped at
 // every frame on the plane, the points the experiment finds off their spot's centre (the
 // simulator's truth, ExperimentResult::off_centre_*) are the swapped ones, iteration by
 // iteration and point by point in features.jsonl; without swaps the plane's law takes none.
 TEST(InProcessLoop, ThePointsTheLawTakesOffTheirSpotsCentreAreTheSwappedOnes) {
-  const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string("plane.yaml")));
-  experiment::ExperimentOptions o;
-  o.servo = experiment::servo_config_for(*cell);
-  o.servo.law.z_hat_m = 0.9;
-  o.max_iterations = 12;
-  const auto clean = experiment::run_experiment(*cell, o);
-  ASSERT_EQ(clean.trace.size(), 12U);
-  EXPECT_EQ(clean.off_centre_total, 0);
-  o.outlier_fraction = 0.1;
-  o.out_dir = std::filesystem::temp_directory_path() / "_test_off_centre";
-  const auto swapped = experiment::run_experiment(*cell, o);
-  ASSERT_EQ(swapped.trace.size(), 12U);
+  const PlaneRun clean = plane_run(0, false);
+  ASSERT_EQ(clean.result.trace.size(), 12U);
+  EXPECT_EQ(clean.result.off_centre_total, 0);
+  const PlaneRun swapped = plane_run(0.1, false);
+  ASSERT_EQ(swapped.result.trace.size(), 12U);
   long long total = 0;
-  for (const auto& r : swapped.trace) {
+  for (const auto& r : swapped.result.trace) {
     EXPECT_GT(r.swapped, 0);
     EXPECT_EQ(r.off_centre, r.swapped) << "an iteration whose law took other points off centre than the swapped ones";
     total += r.off_centre;
   }
-  EXPECT_EQ(swapped.off_centre_total, total);
-  std::ifstream f(o.out_dir / "features.jsonl");
-  int lines = 0;
-  for (std::string line; std::getline(f, line); ++lines) {
-    const nlohmann::json j = nlohmann::json::parse(line);
+  EXPECT_EQ(swapped.result.off_centre_total, total);
+  ASSERT_EQ(swapped.features.size(), 12U);
+  for (const auto& j : swapped.features)
     for (const auto& p : j.at("points")) EXPECT_EQ(p.at("off_centre"), p.at("swapped")) << j.at("k") << " " << p.dump();
-  }
-  EXPECT_EQ(lines, 12);
-  std::filesystem::remove_all(o.out_dir);
 }
 
 // With the taught points (ServoConfig::taught_points) the ids swapped at every frame lie away
 // from the points their ids lit at teaching: the law holds them out, features.jsonl says how
 // many at each iteration, and no point it takes is off its spot's centre.
 TEST(InProcessLoop, TheTaughtPointsHoldOutTheSwappedIds) {
-  const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string("plane.yaml")));
-  experiment::ExperimentOptions o;
-  o.servo = experiment::servo_config_for(*cell);
-  o.servo.law.z_hat_m = 0.9;
-  o.servo.taught_points = true;
-  o.max_iterations = 12;
-  o.outlier_fraction = 0.1;
-  o.out_dir = std::filesystem::temp_directory_path() / "_test_taught_points";
-  const auto r = experiment::run_experiment(*cell, o);
-  ASSERT_EQ(r.trace.size(), 12U);
-  EXPECT_EQ(r.off_centre_total, 0) << "a swapped id reached the law";
-  std::ifstream f(o.out_dir / "features.jsonl");
-  int lines = 0;
-  for (std::string line; std::getline(f, line); ++lines) {
-    const nlohmann::json j = nlohmann::json::parse(line);
+  const PlaneRun r = plane_run(0.1, true);
+  ASSERT_EQ(r.result.trace.size(), 12U);
+  EXPECT_EQ(r.result.off_centre_total, 0) << "a swapped id reached the law";
+  ASSERT_EQ(r.features.size(), 12U);
+  for (const auto& j : r.features) {
     EXPECT_GE(j.at("held_by_taught").get<int>(), j.at("swapped").get<int>() - 1) << j.at("k");
     for (const auto& p : j.at("points")) EXPECT_FALSE(p.at("swapped").get<bool>()) << j.at("k") << " " << p.dump();
   }
-  EXPECT_EQ(lines, 12);
-  std::filesystem::remove_all(o.out_dir);
 }
 
 // Issue 44: decoding losses. drop_spots drops the share asked, the same ones for the same seed,

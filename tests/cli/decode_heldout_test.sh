@@ -7,7 +7,7 @@ src="$1"; build="$2"
 source "$(dirname "$0")/lib.sh"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2 2>&1) || fail "bin/decode-heldout: $out"
-for f in decode.csv decode.md decode.png losses.png; do [ -s "$tmp/h/$f" ] || fail "no $f"; done
+for f in decode.csv decode.md decode.png losses.png law.png; do [ -s "$tmp/h/$f" ] || fail "no $f"; done
 rows=$(($(wc -l <"$tmp/h/decode.csv") - 1))
 [ "$rows" -eq 132 ] || fail "$rows cases in decode.csv, not 11 scenes x 6 conditions x 2"
 grep -q "^heldout,box,printed," "$tmp/h/decode.csv" || fail "no printed box: $(head -3 "$tmp/h/decode.csv")"

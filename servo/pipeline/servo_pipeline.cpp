@@ -88,13 +88,18 @@ int ServoPipeline::teach(const std::vector<ImageSpot>& spots, const std::optiona
   return static_cast<int>(reference_.size());
 }
 
+TaughtCheck ServoPipeline::hold_to_taught(const std::vector<control::Feature>& f,
+                                          const std::optional<Eigen::Isometry3d>& wTc) const {
+  if (taught_.empty() || !wTc) return {std::vector<char>(f.size(), 0), 0, 0, 0};
+  return check_taught(f, taught_, *wTc, config_.camera.fx, config_.camera.fy, config_.decoder.epipolar.grown_limit);
+}
+
 StepResult ServoPipeline::step(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& wTc) const {
   StepResult r;
   r.decoded = static_cast<int>(spots.size());
   r.features = features(spots, wTc);
-  if (!taught_.empty() && wTc) {
-    const TaughtCheck held = check_taught(r.features, taught_, *wTc, config_.camera.fx, config_.camera.fy,
-                                          config_.decoder.epipolar.grown_limit);
+  const TaughtCheck held = hold_to_taught(r.features, wTc);
+  if (held.kept_out > 0) {
     std::size_t kept = 0;
     for (std::size_t i = 0; i < r.features.size(); ++i)
       if (!held.off[i]) r.features[kept++] = r.features[i];

@@ -96,6 +96,11 @@ class ServoPipeline {
   const std::vector<control::Feature>& reference() const { return reference_; }
   bool taught() const { return !reference_.empty(); }
 
+  // With taught_points, taught and given a pose: which of `features` lie away from their
+  // taught points (taught_points.hpp); otherwise nothing is held.
+  TaughtCheck hold_to_taught(const std::vector<control::Feature>& features,
+                             const std::optional<Eigen::Isometry3d>& world_T_camera) const;
+
   // One iteration of the control law from located spots.
   StepResult step(const std::vector<ImageSpot>& spots, const std::optional<Eigen::Isometry3d>& world_T_camera) const;
 

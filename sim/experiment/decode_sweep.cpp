@@ -6,14 +6,14 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <memory>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <thread>
 
-#include "servo/control/triangulation.hpp"
-#include "servo/pipeline/taught_points.hpp"
+#include "servo/pipeline/servo_pipeline.hpp"
 #include "servo/vision/overlay.hpp"
 #include "sim/experiment/experiment.hpp"
 
@@ -103,10 +103,10 @@ bool on_named_light(const sim::SpotTruth& named, double u, double v) {
 }
 
 // What the servo teaches at the desired pose: the ids of s* (per pattern spot) and, with
-// SweepOptions::taught_points, the points they light.
+// SweepOptions::taught_points, the servo's own pipeline taught there, holding them to their points.
 struct Taught {
   std::vector<char> ids;
-  std::vector<servo::TaughtPoint> points;
+  std::unique_ptr<servo::ServoPipeline> holding;
 };
 
 // Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong;
@@ -388,21 +388,11 @@ vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const cv::
   return decoder.decode(img, &geometry);
 }
 
-// The law's features of a frame, as servo::ServoPipeline::features makes them: its ids on their
-// lines, normalised, with their depths triangulated; `index` their places in r.decoded.
-std::vector<control::Feature> law_features(const vision::DecodeResult& r, const calibration::CameraIntrinsics& camera,
-                                           const calibration::ProjectorModel& projector,
-                                           const Eigen::Isometry3d& world_T_camera, std::vector<std::size_t>& index) {
-  std::vector<control::Feature> out;
-  index.clear();
-  for (std::size_t k = 0; k < r.decoded.size(); ++k) {
-    const vision::DecodedSpot& d = r.decoded[k];
-    if (d.off_line) continue;
-    const Eigen::Vector2d xy = calibration::normalise(camera, {d.u, d.v});
-    out.push_back({d.row, d.col, xy.x(), xy.y(), control::triangulate_depth(xy, d.row, d.col, projector, world_T_camera),
-                   std::nullopt});
-    index.push_back(k);
-  }
+// A frame's ids as the servo locates them (ServoPipeline::locate's output).
+std::vector<servo::ImageSpot> image_spots(const vision::DecodeResult& r) {
+  std::vector<servo::ImageSpot> out;
+  out.reserve(r.decoded.size());
+  for (const vision::DecodedSpot& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line});
   return out;
 }
 
@@ -420,22 +410,29 @@ Taught teach(const sim::Cell& cell, const SweepOptions& o, const vision::Decoder
   t.ids.assign(static_cast<std::size_t>(pattern.rows) * pattern.cols, 0);
   for (const vision::DecodedSpot& d : r.decoded)
     if (!d.off_line) t.ids[static_cast<std::size_t>(d.row) * pattern.cols + d.col] = 1;
-  std::vector<std::size_t> index;
-  if (o.projector && o.taught_points)
-    t.points = servo::taught_points(law_features(r, camera, *o.projector, sc.world_T_desired, index), sc.world_T_desired);
+  if (o.projector && o.taught_points) {
+    servo::ServoConfig config;
+    config.decoder = decoder_options;
+    config.camera = camera;
+    config.projector = *o.projector;
+    config.taught_points = true;
+    t.holding = std::make_unique<servo::ServoPipeline>(pattern::WindowTable(pattern, {3, 3}), config);
+    t.holding->teach(image_spots(r), sc.world_T_desired);
+  }
   return t;
 }
 
 // Which of a frame's ids the servo holds out by their taught points (per r.decoded; empty: none).
-std::vector<char> held_by_taught_points(const vision::DecodeResult& r, const Taught& taught, const SweepOptions& o,
-                                        const calibration::CameraIntrinsics& camera, const Eigen::Isometry3d& world_T_camera,
-                                        const vision::GrownLimit& limit) {
-  if (taught.points.empty()) return {};
-  std::vector<std::size_t> index;
-  const std::vector<control::Feature> f = law_features(r, camera, *o.projector, world_T_camera, index);
-  const servo::TaughtCheck c = servo::check_taught(f, taught.points, world_T_camera, camera.fx, camera.fy, limit);
+std::vector<char> held_by_taught_points(const vision::DecodeResult& r, const Taught& taught,
+                                        const Eigen::Isometry3d& world_T_camera) {
+  if (!taught.holding) return {};
+  // the servo's features are its ids on their lines, in order
+  const std::vector<control::Feature> f = taught.holding->features(image_spots(r), world_T_camera);
+  const servo::TaughtCheck c = taught.holding->hold_to_taught(f, world_T_camera);
   std::vector<char> off(r.decoded.size(), 0);
-  for (std::size_t i = 0; i < f.size(); ++i) off[index[i]] = c.off[i];
+  std::size_t i = 0;
+  for (std::size_t k = 0; k < r.decoded.size(); ++k)
+    if (!r.decoded[k].off_line) off[k] = c.off[i++];
   return off;
 }
 
@@ -486,8 +483,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
       wrong.clear();
-      const std::vector<char> held =
-          held_by_taught_points(r, taught, o, camera, wTc, decoder_options.epipolar.grown_limit);
+      const std::vector<char> held = held_by_taught_points(r, taught, wTc);
       const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, taught, held, wrong);
       loss_funnel(row, r, truth, pattern, readable, right, o.match_tolerance_px);
       for (std::size_t i = 0; i < spots.size(); ++i) {

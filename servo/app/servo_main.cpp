@@ -246,15 +246,42 @@ void write_decode_json(const std::string& json_file, const std::string& image, c
 // first image is decoded once before its timed run); prints one line per image and, for
 // several, the median and maximum per-frame time (the first image excluded). A bad image is
 // one line and the others still go; the exit code says whether all went.
-int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const std::string& json_out,
-               const std::string& json_dir, const std::string& overlay_out, const vision::DecoderOptions& options,
-               const EpipolarInputs& epipolar) {
+struct DecodeFiles {
+  std::string json_out, json_dir, overlay_out;
+  std::string white;  // the white reference frame of the one image (vision::normalise_by_white)
+};
+
+// The image decoded alone, or with its white reference frame (`white` not empty).
+vision::DecodeResult decode_one(const vision::SpotDecoder& decoder, const cv::Mat& rgb, const cv::Mat& white,
+                                const vision::EpipolarGeometry* g, const EpipolarInputs& epipolar) {
+  return !g && epipolar.camera_given ? decoder.decode_uncalibrated(rgb, white, epipolar.camera)
+                                     : decoder.decode(rgb, white, g);
+}
+
+// The white reference frame of the one image (empty without --white), refused in one line
+// naming both files when its size is not the image's.
+cv::Mat read_white(const std::string& white_file, const std::vector<std::filesystem::path>& images) {
+  if (white_file.empty()) return {};
+  const cv::Mat white = read_rgb(white_file);
+  const cv::Mat first = read_rgb(images.at(0).string());
+  if (first.size() != white.size())
+    throw std::runtime_error("--white " + common::printable(white_file, 200) + ": " + std::to_string(white.cols) +
+                             " x " + std::to_string(white.rows) + " px, but " +
+                             common::printable(images[0].string(), 200) + " is " + std::to_string(first.cols) + " x " +
+                             std::to_string(first.rows));
+  return white;
+}
+
+int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const DecodeFiles& files,
+               const vision::DecoderOptions& options, const EpipolarInputs& epipolar) {
+  const std::string &json_out = files.json_out, &json_dir = files.json_dir, &overlay_out = files.overlay_out;
   const pattern::MArray marray = servo::load_decodable_pattern(pattern_file);
   if (epipolar.projector) calibration::check_projector_against_pattern(*epipolar.projector, marray, pattern_file);
   const vision::SpotDecoder decoder(pattern::WindowTable(marray, {3, 3}), options);
   const std::vector<std::filesystem::path> images = image_list(args);
-  if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty()))
-    throw std::runtime_error("--json and --overlay take one image; for several, --json-dir DIR");
+  if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty() || !files.white.empty()))
+    throw std::runtime_error("--json, --overlay and --white take one image; for several, --json-dir DIR");
+  const cv::Mat white = read_white(files.white, images);
   if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
   std::vector<double> times;
   std::set<std::string> written;
@@ -286,12 +313,11 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
     }
     const vision::EpipolarGeometry* g = geometry ? &*geometry : nullptr;
     if (!warm) {
-      decoder.decode(rgb, g);  // the first decode allocates; every time below is a warm one
+      decode_one(decoder, rgb, white, g, epipolar);  // the first decode allocates; every time below is a warm one
       warm = true;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const vision::DecodeResult r =
-        !g && epipolar.camera_given ? decoder.decode_uncalibrated(rgb, epipolar.camera) : decoder.decode(rgb, g);
+    const vision::DecodeResult r = decode_one(decoder, rgb, white, g, epipolar);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     times.push_back(ms);
     std::string json_file = json_out;
@@ -336,7 +362,8 @@ void add_crosstalk_option(CLI::App* c, double& value) {
 
 // One struct per subcommand: its flags, and what it runs once they are parsed.
 struct DecodeCommand {
-  std::string pattern_file, json_out, json_dir, overlay_out, projector;
+  std::string pattern_file, projector;
+  DecodeFiles files;
   std::vector<std::string> images;
   bool tolerant = false, fitted_lines = false;
   int min_votes = vision::DecoderOptions{}.min_votes;
@@ -347,9 +374,12 @@ struct DecodeCommand {
     auto* c = app.add_subcommand("decode", "segment and decode the coded spots of images (files or folders)");
     c->add_option("images", images, "image files (PNG, JPEG, ...) or folders of them")->required();
     c->add_option("--pattern", pattern_file, "pattern file")->required();
-    c->add_option("--json", json_out, "decoded spots as JSON (one image)");
-    c->add_option("--json-dir", json_dir, "one JSON per image, named after it, with its warm decoding time_ms");
-    c->add_option("--overlay", overlay_out, "image with the decoded ids drawn on it");
+    c->add_option("--json", files.json_out, "decoded spots as JSON (one image)");
+    c->add_option("--json-dir", files.json_dir, "one JSON per image, named after it, with its warm decoding time_ms");
+    c->add_option("--overlay", files.overlay_out, "image with the decoded ids drawn on it");
+    c->add_option("--white", files.white,
+                  "the white reference frame taken at the image's pose (the projector casting white; `cellsim render "
+                  "--white`): the image is decoded as its ratio to it, the surface's albedo divided out (one image)");
     c->add_flag("--tolerant", tolerant, "error-tolerant window reading (beyond the paper)");
     c->add_option("--min-votes", min_votes, "windows that must name a spot (1: the paper)")
         ->check(CLI::Range(1, 9))
@@ -405,7 +435,7 @@ struct DecodeCommand {
       throw std::runtime_error("--fitted-lines needs --camera and no --projector (the calibration's lines serve then)");
     options.epipolar.fitted_lines = fitted_lines;
     options.segmentation.crosstalk = crosstalk;
-    return run_decode(images, pattern_file, json_out, json_dir, overlay_out, options, epi);
+    return run_decode(images, pattern_file, files, options, epi);
   }
 };
 

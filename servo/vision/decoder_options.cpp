@@ -47,7 +47,8 @@ std::vector<Field> fields(DecoderOptions& o) {
           {"growth.faintest", &g.faintest}, {"growth.tight_slack", &g.tight_slack},
           {"growth.on_line_stretch", &g.on_line_stretch}, {"growth.alike", &g.alike},
           {"edge_run.nearest", &r.nearest}, {"edge_run.aside", &r.aside},
-          {"edge_run.length", &r.length}, {"edge_run.largest", &r.largest}, {"edge_run.gaps", &r.gaps}};
+          {"edge_run.length", &r.length}, {"edge_run.largest", &r.largest}, {"edge_run.gaps", &r.gaps},
+          {"reference.full_level", &o.reference.full_level, 1, 255}};
 }
 
 }  // namespace

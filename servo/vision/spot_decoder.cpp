@@ -180,7 +180,12 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
 }
 
 DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const {
-  Segmentation seg = segment(rgb, false);
+  return decode_uncalibrated(rgb, cv::Mat(), camera);
+}
+
+DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const cv::Mat& white,
+                                              const calibration::CameraIntrinsics& camera) const {
+  Segmentation seg = segment(rgb, white, false);
   const EpipolarOptions& e = options_.epipolar;
   DecodeResult r = decode_spots(e.fitted_lines ? seg.spots : std::move(seg.spots), nullptr);
   r.rejected_blobs = seg.rejected;
@@ -198,7 +203,7 @@ DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibrat
   return r;
 }
 
-Segmentation SpotDecoder::segment(const cv::Mat& rgb, bool calibrated) const {
+Segmentation SpotDecoder::segment(const cv::Mat& rgb, const cv::Mat& white, bool calibrated) const {
   // The chroma levels follow the camera's crosstalk with the calibration only: without it the
   // peak level is all that keeps the wash of a far surface's spots from the windows, and at a
   // crosstalk of 0.2 the scaled levels let an egg's windows name a table spot past its top
@@ -207,11 +212,19 @@ Segmentation SpotDecoder::segment(const cv::Mat& rgb, bool calibrated) const {
   // docs/decoding.md, Decisions.
   SegmentationOptions levels = options_.segmentation;
   if (!calibrated) levels.crosstalk = kLevelsCrosstalk;
-  return segment_spots(rgb, levels, &scratch_);
+  if (white.empty()) return segment_spots(rgb, levels, &scratch_);
+  normalise_by_white(rgb, white, ratio_, options_.reference, &white_mean_);
+  Segmentation seg = segment_spots(ratio_, levels, &scratch_);
+  strengths_as_shown(seg.spots, white, options_.reference);
+  return seg;
 }
 
 DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry) const {
-  Segmentation seg = segment(rgb, geometry != nullptr);
+  return decode(rgb, cv::Mat(), geometry);
+}
+
+DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const cv::Mat& white, const EpipolarGeometry* geometry) const {
+  Segmentation seg = segment(rgb, white, geometry != nullptr);
   DecodeResult r = decode_spots(std::move(seg.spots), geometry);
   r.rejected_blobs = seg.rejected;
   return r;

@@ -24,7 +24,9 @@
 //  5b. restore_window_spots:       with the calibration, last: window-read    consistency.cpp
 //                                  spots condemned by a link across a
 //                                  silhouette within one region
-// SpotDecoder runs them in order (spot_decoder.cpp), 5b after 7.
+// SpotDecoder runs them in order (spot_decoder.cpp), 5b after 7, on the blobs segment_spots
+// finds (segmentation.cpp); given a white reference frame, on the pattern frame's ratio to it
+// (normalise_by_white, then strengths_as_shown: reference.cpp).
 #pragma once
 
 #include <algorithm>
@@ -35,6 +37,7 @@
 
 #include "servo/pattern/window_table.hpp"
 #include "servo/vision/epipolar.hpp"
+#include "servo/vision/reference.hpp"
 #include "servo/vision/segmentation.hpp"
 #include "servo/vision/spot.hpp"
 
@@ -451,6 +454,7 @@ struct DecoderOptions {
   double speck_area = 0.2;
   CellShape cell_shape;
   EpipolarOptions epipolar;  // used when decode() is given the frame's geometry
+  ReferenceOptions reference;  // used when decode() is given a white reference frame
 };
 
 // Without the calibration (the closed loop decodes so unless told `--projector`): the reported
@@ -481,6 +485,11 @@ class SpotDecoder {
   // `geometry` (optional): the frame's camera-projector geometry, for the epipolar steps; with
   // it the segmentation's chroma levels follow the camera's crosstalk (SegmentationOptions).
   DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr) const;
+  // With the white reference frame taken at the same pose (reference.hpp): the blobs are
+  // segmented on the pattern frame's ratio to it, the surface's albedo divided out, and keep the
+  // strength the pattern frame shows (strengths_as_shown). Throws std::invalid_argument when the
+  // two frames' sizes differ or either is not RGB8.
+  DecodeResult decode(const cv::Mat& rgb, const cv::Mat& white, const EpipolarGeometry* geometry = nullptr) const;
   DecodeResult decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry = nullptr) const;
   // Without the projector's calibration, knowing the camera's intrinsics: decode() without a
   // geometry, then either the spots off the frame's own fitted lines marked (mark_off_fitted_lines)
@@ -489,18 +498,23 @@ class SpotDecoder {
   // calibration, each spot off its line marked. Where no lines can be fitted (under 9 spots
   // named), the first decoding, marked.
   DecodeResult decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const;
+  // the same with a white reference frame (decode's above); an empty `white`: none
+  DecodeResult decode_uncalibrated(const cv::Mat& rgb, const cv::Mat& white,
+                                   const calibration::CameraIntrinsics& camera) const;
   const DecoderOptions& options() const { return options_; }
   const pattern::WindowTable& table() const { return table_; }
   // the pattern's minimum window distance, read at construction
   int pattern_distance() const { return distance_; }
 
  private:
-  // the frame's blobs, the chroma levels following the camera's crosstalk when `calibrated`
-  Segmentation segment(const cv::Mat& rgb, bool calibrated) const;
+  // the frame's blobs, the chroma levels following the camera's crosstalk when `calibrated`;
+  // with a white frame (not empty), segmented on the ratio
+  Segmentation segment(const cv::Mat& rgb, const cv::Mat& white, bool calibrated) const;
   pattern::WindowTable table_;
   DecoderOptions options_;
   int distance_ = 1;
   mutable SegmentationScratch scratch_;
+  mutable cv::Mat ratio_, white_mean_;  // the pattern frame over the white one (reused from frame to frame)
 };
 
 }  // namespace vision

@@ -112,7 +112,8 @@ cv::Mat exposed_for_observer(const sim::Cell& cell, const Eigen::Isometry3d& vie
 }
 
 int run_render(const ScenarioArg& scenario_arg, const std::string& pose_spec, const std::string& out_png,
-               const std::string& truth_file, std::uint64_t frame, const std::vector<double>& observer) {
+               const std::string& truth_file, std::uint64_t frame, const std::vector<double>& observer,
+               const std::string& white_png) {
   const sim::ResolvedScenario scenario = scenario_arg.load();
   const Eigen::Isometry3d wTc = sim::resolve_pose(scenario, pose_spec);
   const auto cell = sim::build_cell(scenario);
@@ -133,6 +134,9 @@ int run_render(const ScenarioArg& scenario_arg, const std::string& pose_spec, co
   cv::Mat image = sim::render_image(*cell, view, sim::frame_seed(scenario.seed, frame), nullptr, nullptr, &links);
   if (observer.size() == 6) image = exposed_for_observer(*cell, view, sim::frame_seed(scenario.seed, frame), links, image);
   write_png_rgb(out_png, image);
+  if (!white_png.empty())
+    write_png_rgb(white_png, sim::render_image(*cell, view, sim::white_frame_seed(sim::frame_seed(scenario.seed, frame)),
+                                               nullptr, nullptr, &links, sim::Cast::kWhite));
   const auto truth = sim::compute_truth(*cell, wTc, &links);
   int visible = 0;
   for (const auto& t : truth) visible += t.visible;
@@ -490,7 +494,7 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
 // One struct per subcommand: its flags, and what it runs once they are parsed.
 struct RenderCommand {
   ScenarioArg scenario;
-  std::string pose = "desired", out, truth;
+  std::string pose = "desired", out, truth, white;
   std::uint64_t frame = 0;
   std::vector<double> observer;
   CLI::App* add(CLI::App& app) {
@@ -504,6 +508,9 @@ struct RenderCommand {
         ->capture_default_str();
     c->add_option("-o,--output", out, "PNG image to write")->required();
     c->add_option("--truth", truth, "ground-truth JSON to write");
+    c->add_option("--white", white,
+                  "PNG to write the white reference frame to: the same pose, the projector casting white wherever "
+                  "its spots can reach (`servo decode --white` divides the surface's albedo out with it)");
     c->add_option("--frame", frame, "frame index (selects the noise draw)")->capture_default_str();
     c->add_option("--observer", observer,
                   "render from an observer camera instead (eye x y z, target x y z, metres): the arm in view")
@@ -511,7 +518,7 @@ struct RenderCommand {
         ->check(CLI::Range(-100.0, 100.0));
     return c;
   }
-  int run() const { return run_render(scenario, pose, out, truth, frame, observer); }
+  int run() const { return run_render(scenario, pose, out, truth, frame, observer, white); }
 };
 
 struct DecodeSweepCommand {
@@ -560,6 +567,9 @@ struct DecodeSweepCommand {
     c->add_flag("--taught-points", sweep.taught_points,
                 "with --projector: hold each id to the point it lit at the desired pose, as `servo run "
                 "--taught-points` does (those away from it do not reach the law)");
+    c->add_flag("--white-frame", sweep.white_frame,
+                "beside each pattern frame take the white reference frame at the same pose (the projector casting "
+                "white) and decode their ratio: the surface's albedo divided out (docs/decoding.md)");
     c->add_option("--threads", sweep.threads, "worker threads")->capture_default_str();
     c->add_option("--max-translation-cm", sweep.max_translation_cm,
                   "draw each translation component in +-this (default: the scenario's initial offset per axis)")

@@ -379,13 +379,30 @@ void write_failure_images(const cv::Mat& img, const vision::DecodeResult& r, int
   cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + "_frame.png")).string(), bgr);
 }
 
-// A frame decoded as the sweep decodes: with the calibration's lines at the camera's pose, or
-// without them (the lines fitted to the frame's own spots mark the ids off them).
-vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const cv::Mat& img, const SweepOptions& o,
+// What the camera takes at a pose: the pattern frame and, with SweepOptions::white_frame, the
+// white reference frame beside it (its own noise draw).
+struct Shot {
+  cv::Mat pattern, white;
+};
+
+Shot take(const sim::Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t seed, sim::RenderScratch* scratch,
+          const sim::CameraSpec* sensor, bool white_frame) {
+  Shot shot;
+  shot.pattern = sim::render_image(cell, world_T_camera, seed, scratch, sensor);
+  if (white_frame)
+    shot.white = sim::render_image(cell, world_T_camera, sim::white_frame_seed(seed), scratch, sensor, nullptr,
+                                   sim::Cast::kWhite);
+  return shot;
+}
+
+// A frame decoded as the sweep decodes: the pattern frame, or its ratio to the white frame;
+// with the calibration's lines at the camera's pose, or without them (the lines fitted to the
+// frame's own spots mark the ids off them).
+vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const Shot& shot, const SweepOptions& o,
                                   const calibration::CameraIntrinsics& camera, const Eigen::Isometry3d& world_T_camera) {
-  if (!o.projector) return decoder.decode_uncalibrated(img, camera);
+  if (!o.projector) return decoder.decode_uncalibrated(shot.pattern, shot.white, camera);
   const vision::EpipolarGeometry geometry(camera, *o.projector, world_T_camera, o.decoder.epipolar.tolerance_px);
-  return decoder.decode(img, &geometry);
+  return decoder.decode(shot.pattern, shot.white, &geometry);
 }
 
 // A frame's ids as the servo locates them (ServoPipeline::locate's output).
@@ -403,9 +420,10 @@ Taught teach(const sim::Cell& cell, const SweepOptions& o, const vision::Decoder
   const sim::Scenario& sc = cell.scenario;
   const pattern::MArray& pattern = cell.projector->pattern();
   sim::RenderScratch scratch;
-  const cv::Mat img = sim::render_image(cell, sc.world_T_desired, sim::frame_seed(o.seed ^ 0x7465616368ull, 0), &scratch);
+  const Shot shot = take(cell, sc.world_T_desired, sim::frame_seed(o.seed ^ 0x7465616368ull, 0), &scratch, nullptr,
+                         o.white_frame);
   const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), decoder_options);
-  const vision::DecodeResult r = decode_frame(decoder, img, o, camera, sc.world_T_desired);
+  const vision::DecodeResult r = decode_frame(decoder, shot, o, camera, sc.world_T_desired);
   Taught t;
   t.ids.assign(static_cast<std::size_t>(pattern.rows) * pattern.cols, 0);
   for (const vision::DecodedSpot& d : r.decoded)
@@ -465,11 +483,11 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
                                                      sc.offset_frame_rotation_deg);
       sim::CameraSpec sensor = sc.camera;
       sensor.noise_sigma = row.noise_sigma;
-      cv::Mat img = sim::render_image(cell, wTc, sim::frame_seed(o.seed, static_cast<std::uint64_t>(k)), &scratch,
-                                      &sensor);
+      const Shot shot = take(cell, wTc, sim::frame_seed(o.seed, static_cast<std::uint64_t>(k)), &scratch, &sensor,
+                             o.white_frame);
       const auto spots = sim::compute_truth(cell, wTc);
       const auto t0 = std::chrono::steady_clock::now();
-      const vision::DecodeResult r = decode_frame(decoder, img, o, camera, wTc);
+      const vision::DecodeResult r = decode_frame(decoder, shot, o, camera, wTc);
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
       const FrameTruth truth{spots, pattern.rows, pattern.cols};
@@ -500,7 +518,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       if (row.wrong == 0) continue;
       std::lock_guard<std::mutex> lock(io);
       wrong_ids.insert(wrong_ids.end(), wrong.begin(), wrong.end());
-      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(img, r, k, o.out_dir);
+      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(shot.pattern, r, k, o.out_dir);
     }
   };
   std::vector<std::thread> threads;

@@ -30,6 +30,9 @@ struct SweepOptions {
   // with the calibration: the servo holds each id to its taught point (ServoConfig::taught_points,
   // servo/pipeline/taught_points.hpp), and the ids it keeps out do not reach the law
   bool taught_points = false;
+  // beside each pattern frame the camera takes the white reference frame at the same pose, and
+  // the decoder reads their ratio (vision::normalise_by_white): the surface's albedo divided out
+  bool white_frame = false;
   double match_tolerance_px = 2.0;
   std::filesystem::path out_dir;   // sweep.csv (and failure overlays) go here when set
   int threads = 2;

@@ -159,6 +159,7 @@ std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame) {
   return splitmix64(s);
 }
 
+std::uint64_t white_frame_seed(std::uint64_t pattern_seed) { return frame_seed(pattern_seed, 0x5768697465ull); }
 
 namespace {
 
@@ -464,7 +465,7 @@ void lens_and_light(const Cell& cell, const Light& light, const FrameScene& scen
 }  // namespace
 
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
-                     RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links) {
+                     RenderScratch* scratch, const CameraSpec* sensor, const LinkPoses* links, Cast cast) {
   const CameraSpec& cam = sensor ? *sensor : cell.scenario.camera;
   const Intrinsics& k = cell.scenario.camera.intrinsics;  // the lens is the cell's, whatever the sensor
 
@@ -493,6 +494,7 @@ cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, 
   f.outside_from = n_tris;
   std::array<float, shading::kSymbolLut> colour[3]{};
   projector_and_sensor(cell, light, cam, world_T_camera, noise_seed, colour, f);
+  f.white = cast == Cast::kWhite;
 
   const auto shade = shading_kernel(s);
   // Band by band: the z-buffer rows a band of image rows looks up are filled, then shaded

@@ -78,9 +78,14 @@ struct RenderScratch {
 // `sensor`, when given, replaces the scenario camera's exposure, ambient, noise and crosstalk
 // (its intrinsics must be the scenario's): studies over noise levels use it.
 // `links`: the arm's link poses in this frame (drawn, lit, casting shadows).
+// `cast`: what the projector shows. kWhite is the reference frame a cell takes beside a
+// pattern frame (servo/vision/reference.hpp): white wherever a spot's light can reach (the beam
+// window: the pattern's extent widened by a blurred spot's reach), so each pixel
+// gives its surface's albedo per channel as the spots light it.
+enum class Cast { kPattern, kWhite };
 cv::Mat render_image(const Cell& cell, const Eigen::Isometry3d& world_T_camera, std::uint64_t noise_seed,
                      RenderScratch* scratch = nullptr, const CameraSpec* sensor = nullptr,
-                     const LinkPoses* links = nullptr);
+                     const LinkPoses* links = nullptr, Cast cast = Cast::kPattern);
 
 // Per static triangle of the cell (Cell::triangles), 1 where no pixel the camera at
 // world_T_camera gives it can see a point the projector's beam window reaches (Light::beam): such
@@ -122,5 +127,9 @@ std::vector<SpotTruth> compute_truth(const Cell& cell, const Eigen::Isometry3d& 
 
 // Mixes a frame index into a scenario seed (splitmix64), for per-frame noise seeds.
 std::uint64_t frame_seed(std::uint64_t scenario_seed, std::uint64_t frame);
+
+// The noise seed of the white reference frame taken beside the pattern frame of `pattern_seed`
+// (Cast::kWhite): a draw of its own, fixed by the pattern frame's.
+std::uint64_t white_frame_seed(std::uint64_t pattern_seed);
 
 }  // namespace sim

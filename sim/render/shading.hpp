@@ -105,6 +105,10 @@ struct Frame {
   // 0.5 erfc(x / sqrt 2), the blurred disc's edge profile, as kEdgeSegments cubics over
   // [-kEdgeReach, kEdgeReach): segment k's coefficients edge[j][k], p = c0 + t (c1 + t (c2 + t c3))
   const float* edge[4] = {};
+  // true: the projector casts white over its beam window instead of its spots (the
+  // reference frame a real cell takes between two pattern frames: the surface's albedo per
+  // channel, lit as the spots are)
+  bool white = false;
   float qx = 0, qy = 0, qz = 0;        // the projector's centre, camera frame
   float m[3][4] = {};                  // rows: (M_k0, M_k1, M_k2, m_k) above
   // the sensor

@@ -143,6 +143,18 @@ inline void add_spots(const Frame& f, typename L::M lit, typename L::F pu, typen
   }
 }
 
+// The white reference frame (Frame::white): every lit lane takes the projector's full light in
+// all three channels. Lit lanes are those of the beam window (Light::beam), the pattern's extent
+// widened by the farthest a blurred spot reaches: wherever a spot's light can land, the white
+// frame's does, so no defocused rim is divided by the ambient light alone.
+template <class L>
+inline void add_white(typename L::M lit, typename L::F weight, typename L::F& r, typename L::F& g, typename L::F& b) {
+  const typename L::F e = L::sel(lit, weight, L::set(0.0f));
+  r = L::add(r, e);
+  g = L::add(g, e);
+  b = L::add(b, e);
+}
+
 // Lanes whose point the projector's depth `inv_depth` puts in shadow: its nearest surface at `at`
 // (1/z as q) lies before the point (at z) by more than 0.2 % and 2 mm: z q > 1 + 2e-3 + 2e-3 q.
 template <class L>
@@ -432,7 +444,9 @@ CELL_STAGE void expose_row(const Frame& f, int v, int v1, std::size_t first, con
     }
     F r = L::load(rows.ambient + u), g = r, b = r;
     const M lit = L::lei(L::seti(0), L::loadi(rows.lit + u));
-    if (L::any(lit))
+    if (L::any(lit) && f.white)
+      add_white<L>(lit, L::load(rows.weight + u), r, g, b);
+    else if (L::any(lit))
       add_spots<L>(f, lit, L::load(rows.pu + u), L::load(rows.pv + u), L::load(rows.sigma + u), L::load(rows.weight + u),
                    r, g, b);
     if (f.tint || f.texel)

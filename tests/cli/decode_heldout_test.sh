@@ -46,6 +46,13 @@ grep -q -- "--pattern servo/pattern/data/marray_20x20_k3_w3.txt" "$tmp/q/decode.
 one_line_error "a file that is no pattern" "README.md" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/r" \
   --poses 1 --set tuning --conditions grey --pattern "$src/README.md"
 [ "$(($(wc -l <"$tmp/q/decode.csv") - 1))" -eq 12 ] || fail "not 6 scenes x 1 condition x 2 with the paper's pattern"
+# the white reference frame for every sweep: the table says so, and printed cases name more
+out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/w" --poses 2 --set tuning --conditions printed \
+  --white-frame 2>&1) || fail "decode-heldout --white-frame: $out"
+grep -q -- "--white-frame" "$tmp/w/decode.md" || fail "the table does not say the white frame was taken"
+more=$(awk -F, 'NR == FNR { if (FNR > 1) a[$2 "," $3 "," $4] = $7; next } FNR > 1 && $7 > a[$2 "," $3 "," $4] { n++ } END { print n + 0 }' \
+  "$tmp/h/decode.csv" "$tmp/w/decode.csv")
+[ "$more" -ge 8 ] || fail "with the white frame only $more of the 12 printed tuning cases name more spots"
 # a decoder number set for every sweep: the table names it; one that is none stops the first sweep in one line
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/o" --poses 1 --set tuning --conditions grey \
   --decoder-option growth.faintest=0 2>&1) || fail "decode-heldout --decoder-option: $out"

@@ -10,7 +10,7 @@ git rev-parse --git-dir >/dev/null 2>&1 || { echo "SKIP: $src is not a git check
 # the sh blocks of README.md
 block=$(awk '/^```sh$/{on=1; next} /^```$/{on=0} on' README.md)
 [ -n "$block" ] || fail "README.md has no sh block"
-paths=$(grep -oE -- '(-o|--output|--truth|--overlay|--json|--json-dir|--trace) [^ ]+' <<<"$block" | awk '{print $2}')
+paths=$(grep -oE -- '(-o|--output|--truth|--overlay|--json|--json-dir|--trace|--white) [^ ]+' <<<"$block" | awk '{print $2}')
 paths+=$'\n'$(grep -oE 'bin/keystore [^ ]+' <<<"$block" | awk '{print $2}')
 n=0
 while read -r p; do

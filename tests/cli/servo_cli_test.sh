@@ -190,4 +190,24 @@ one_line_error "short sidecar" "broken.json" \
 printf '{"camera_pose": ' > "$tmp/cal/broken.json"
 one_line_error "sidecar not JSON" "broken.json" \
   "$servo" decode "$tmp/cal/broken.png" --pattern "$curved" --projector "$tmp/cyl_proj.yaml" "${cam[@]}"
+# issue 41: the white reference frame (`cellsim render --white`, `servo decode --white`): the
+# printed box decoded as its ratio to it names more spots; a white frame that is not the
+# image's is one line naming it
+"$cellsim" render "$src/sim/scenarios/printed_box.yaml" --pose initial -o "$tmp/box.png" --white "$tmp/box_white.png" \
+  >/dev/null || fail "render --white"
+[ -s "$tmp/box_white.png" ] || fail "render --white wrote no white frame"
+box_pattern=$(sed -n 's/^ *pattern: *//p' "$src/sim/scenarios/printed_box.yaml")
+box_pattern="$src/sim/scenarios/$box_pattern"
+alone=$("$servo" decode "$tmp/box.png" --pattern "$box_pattern" | sed -n 's/.* \([0-9]*\) decoded in.*/\1/p')
+white=$("$servo" decode "$tmp/box.png" --white "$tmp/box_white.png" --pattern "$box_pattern" |
+  sed -n 's/.* \([0-9]*\) decoded in.*/\1/p')
+[ -n "$alone" ] && [ -n "$white" ] && [ "$white" -gt "$alone" ] ||
+  fail "the printed box: $white ids with the white frame, $alone without"
+/usr/bin/python3 -c "from PIL import Image; Image.new('RGB', (320, 240)).save('$tmp/small.png')"
+one_line_error "white frame of another size" "white .*plane.png: 640 x 480 px, but .*small.png is 320 x 240" \
+  "$servo" decode "$tmp/small.png" --white "$tmp/plane.png" --pattern "$pattern"
+one_line_error "white frame unreadable" "cannot read image" \
+  "$servo" decode "$tmp/box.png" --white "$tmp/bad.png" --pattern "$pattern"
+one_line_error "--white with several" "and --white take one image" \
+  "$servo" decode "$tmp/frames" --white "$tmp/plane.png" --pattern "$pattern"
 echo "servo CLI: all checks passed"

@@ -98,6 +98,11 @@ RUN = [
      ["out/pink_ham.png"]),
     ("build/bin/cellsim render sim/scenarios/printed_box.yaml --pose desired -o out/printed_box.png", "README.md", 0, [],
      ["out/printed_box.png"]),
+    ("build/bin/cellsim render sim/scenarios/printed_box.yaml --pose initial -o out/box.png --white out/box_white.png",
+     "README.md", 0, [], ["out/box.png", "out/box_white.png"]),
+    # the printed box as the ratio to its white frame: 67 ids, for 22 from the pattern frame alone
+    ("build/bin/servo decode out/box.png --white out/box_white.png --pattern "
+     "servo/pattern/data/marray_20x20_k3_w3_d3.txt", "README.md", 0, [r"\b67 decoded"], []),
     ("bin/keystore out/ks", "README.md", 0, [r"enclaves cellsim, servo, operator, viewer"], ["out/ks/public/identity_ca.cert.pem", "out/ks/enclaves/servo/permissions.p7s"]),
     ("build/bin/cellsim calibration sim/scenarios/cylinder.yaml -o out/projector.yaml", "README.md", 0, [],
      ["out/projector.yaml"]),

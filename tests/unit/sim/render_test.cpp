@@ -13,6 +13,7 @@
 #include <set>
 #include <random>
 
+#include "servo/pattern/palette.hpp"
 #include "sim/geometry/se3.hpp"
 #include "support/previous_renderer.hpp"
 
@@ -485,6 +486,52 @@ TEST(Render, EveryVectorUnitAndThreadCountGivesTheScalarPathsBytes) {
       }
   });
   std::printf("%d frames equal to the scalar path's, byte for byte\n", frames);
+}
+
+// The white reference frame (Cast::kWhite) is the same surface lit as the spots light it: on
+// the noiseless plane no pixel of it is darker than the pattern frame's in any channel, it is
+// grey where the projector lights it (white through the crosstalk stays white), a spot's centre
+// gets the same light in both frames (its own channel less the crosstalk), and every vector unit gives the
+// scalar path's bytes.
+TEST(Render, TheWhiteFrameLightsWhereTheSpotsDo) {
+  const Scenario s = plane(false);
+  const auto cell = build_cell(sim::resolve(s));
+  RenderScratch scratch;
+  scratch.scalar = true;
+  const cv::Mat pattern = render_image(*cell, s.world_T_desired, 1, &scratch);
+  const cv::Mat white = render_image(*cell, s.world_T_desired, 1, &scratch, nullptr, nullptr, Cast::kWhite);
+  int darker = 0, tinted = 0, lit = 0;
+  for (int v = 0; v < white.rows; ++v)
+    for (int u = 0; u < white.cols; ++u) {
+      const cv::Vec3b w = white.at<cv::Vec3b>(v, u), p = pattern.at<cv::Vec3b>(v, u);
+      for (int c = 0; c < 3; ++c) darker += w[c] < p[c];
+      if (std::max({w[0], w[1], w[2]}) < 60) continue;  // the ambient light alone
+      ++lit;
+      tinted += std::max({w[0], w[1], w[2]}) - std::min({w[0], w[1], w[2]}) > 1;
+    }
+  EXPECT_EQ(darker, 0);
+  EXPECT_EQ(tinted, 0);
+  EXPECT_GT(lit, white.rows * white.cols / 4);
+  int centres = 0;
+  for (const SpotTruth& t : compute_truth(*cell, s.world_T_desired)) {
+    if (!t.visible) continue;
+    const cv::Point at(static_cast<int>(std::lround(t.uv.x())), static_cast<int>(std::lround(t.uv.y())));
+    if (at.x < 0 || at.y < 0 || at.x >= white.cols || at.y >= white.rows) continue;
+    const pattern::Rgb colour = pattern::symbol_colour(cell->projector->pattern().at(t.row, t.col));
+    const int c = colour.r > 0 ? 0 : colour.g > 0 ? 1 : 2;
+    // the sensor's crosstalk keeps 1 - 2x of a primary in its channel, all of white (the
+    // ambient light's 15 levels, grey, make up to 2 of the 4 allowed)
+    const double kept = 1 - 2 * s.camera.crosstalk;
+    EXPECT_NEAR(pattern.at<cv::Vec3b>(at)[c], kept * white.at<cv::Vec3b>(at)[c], 4) << "spot " << t.row << ", " << t.col;
+    ++centres;
+  }
+  EXPECT_GT(centres, 300);
+  for (int unit = 0; unit < 2; ++unit) {
+    scratch.scalar = false;
+    scratch.avx512 = unit == 1;
+    const cv::Mat got = render_image(*cell, s.world_T_desired, 1, &scratch, nullptr, nullptr, Cast::kWhite);
+    EXPECT_EQ(cv::norm(got, white, cv::NORM_INF), 0) << (unit == 1 ? "AVX-512" : "AVX2");
+  }
 }
 
 // Light::never_shadowed lets the kernel skip the shadow lookup on planes that nothing in the

@@ -164,12 +164,16 @@ std::optional<ServoReply> ServoStateMachine::tick(double now_s) {
   return reply(last_stamp_, "no image for " + std::to_string(static_cast<int>(timing_.lost_s * 1e3)) + " ms");
 }
 
-ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
+ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s, const ImageView* white) {
   last_image_s_ = now_s;
   lost_ = false;
   ++images_;
   last_stamp_ = img.stamp;
-  const std::string bad = reject_reason(img, info_);
+  std::string bad = reject_reason(img, info_);
+  if (bad.empty() && white) {
+    bad = reject_reason(*white, info_);
+    if (!bad.empty()) bad = "white frame: " + bad;
+  }
   if (!bad.empty()) {
     ++rejected_;
     return reply(img.stamp, bad);
@@ -181,13 +185,17 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s) {
   cam.cy = info_->k[5];
   for (std::size_t i = 0; i < cam.distortion.size(); ++i) cam.distortion[i] = i < info_->d.size() ? info_->d[i] : 0.0;
 
-  const cv::Mat rgb(static_cast<int>(img.height), static_cast<int>(img.width), CV_8UC3,
-                    const_cast<std::uint8_t*>(img.data), img.step);
+  const auto as_mat = [](const ImageView& v) {
+    return cv::Mat(static_cast<int>(v.height), static_cast<int>(v.width), CV_8UC3, const_cast<std::uint8_t*>(v.data),
+                   v.step);
+  };
+  const cv::Mat rgb = as_mat(img);
+  const cv::Mat reference = white ? as_mat(*white) : cv::Mat();
   int detected = 0;
   std::vector<ImageSpot> spots;
   const std::optional<Eigen::Isometry3d> pose = pose_for(img.stamp);
   try {
-    spots = pipeline_->locate(rgb, pose, &detected);
+    spots = pipeline_->locate(rgb, pose, &detected, white ? &reference : nullptr);
   } catch (const std::exception& e) {
     ++rejected_;
     return reply(img.stamp, "rejected image: " + common::printable(e.what(), 200));

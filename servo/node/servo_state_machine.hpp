@@ -101,8 +101,9 @@ class ServoStateMachine {
   // the app may wait a little for them before calling on_image.
   bool frame_info_complete(const Stamp& stamp) const;
 
-  // One image: checked, decoded, and answered.
-  ServoReply on_image(const ImageView& image, double now_s);
+  // One image: checked, decoded, and answered. `white` (optional): the white reference frame
+  // taken at the same pose (vision/reference.hpp), checked as the image is and held to its size.
+  ServoReply on_image(const ImageView& image, double now_s, const ImageView* white = nullptr);
   // Spots located by someone else (the simulator's truth for the `ideal` feature source, or
   // decoded spots some of whose ids an experiment swapped), answered as an image would be.
   ServoReply on_spots(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected, double now_s);

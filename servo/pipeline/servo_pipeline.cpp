@@ -40,13 +40,16 @@ std::optional<Eigen::Isometry3d> geometry_pose(const std::optional<calibration::
 }  // namespace
 
 std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,
-                                             int* detected) const {
+                                             int* detected, const cv::Mat* white) const {
   std::optional<vision::EpipolarGeometry> geometry;
   const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
   if (at && config_.projector && config_.decoder.epipolar.enabled)
     geometry.emplace(config_.camera, *config_.projector, *at, config_.decoder.epipolar.tolerance_px);
   // without the calibration the frame's own lines, fitted to its spots, tell the spills
-  const vision::DecodeResult r = geometry ? decoder_.decode(rgb, &*geometry) : decoder_.decode_uncalibrated(rgb, config_.camera);
+  const cv::Mat none;
+  const cv::Mat& reference = white ? *white : none;
+  const vision::DecodeResult r = geometry ? decoder_.decode(rgb, reference, &*geometry)
+                                          : decoder_.decode_uncalibrated(rgb, reference, config_.camera);
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());

@@ -76,9 +76,11 @@ class ServoPipeline {
   // calibration, the decoder also checks ids along the epipolar lines and grows the
   // identified lattice; without them, the spots off the lines fitted to the frame's own spots
   // are marked off_line (vision::mark_off_fitted_lines), as the calibration's lines mark them.
-  // Throws std::invalid_argument for a bad image.
+  // `white` (optional): the white reference frame taken at the same pose, the pattern frame
+  // decoded as its ratio to it (vision/reference.hpp). Throws std::invalid_argument for a bad
+  // image, or a white frame that is not the image's size.
   std::vector<ImageSpot> locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& world_T_camera,
-                                int* detected = nullptr) const;
+                                int* detected = nullptr, const cv::Mat* white = nullptr) const;
 
   // Features of located spots: normalised coordinates and, when a camera pose and the
   // projector's calibration are known, triangulated depths. None of a spot off its line.

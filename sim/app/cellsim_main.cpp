@@ -321,6 +321,7 @@ struct ConditionFlags {
   double divergence_ratio = 0;
   double outliers = 0;
   double losses = 0;
+  bool white_frame = false;
 
   void add(CLI::App* c) {
     std::string names;
@@ -344,6 +345,13 @@ struct ConditionFlags {
                   "drop this fraction of the decoded spots at every frame (seeded; decoding losses, issue 44)")
         ->check(common::finite_in(0, 0.9))
         ->capture_default_str();
+    c->add_flag("--white-frame", white_frame,
+                "beside each pattern frame the camera takes the white reference frame (the projector casting white), "
+                "and the servo decodes their ratio: the surface's albedo divided out (docs/decoding.md, Appearance)");
+  }
+  // the white frame is a decoded run's: the ideal features take no image
+  void check_white_frame(const std::string& source) const {
+    if (white_frame && source != "decoded") throw std::invalid_argument("--white-frame needs --features decoded");
   }
   sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
     sim::CalibrationErrors e = sc.errors;
@@ -396,6 +404,7 @@ struct CampaignFlags {
     conditions.add(c);
   }
   experiment::CampaignOptions options(const sim::Cell& cell) const {
+    conditions.check_white_frame(source);
     experiment::CampaignOptions c = o;
     c.source = experiment::parse_feature_source(source);
     c.base = experiment::servo_config_for(cell);
@@ -411,6 +420,7 @@ struct CampaignFlags {
     c.divergence_ratio = conditions.divergence_ratio;
     c.outlier_fraction = conditions.outliers;
     c.loss_fraction = conditions.losses;
+    c.white_frame = conditions.white_frame;
     return c;
   }
 };
@@ -429,6 +439,7 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   o.latency = conditions.latency_for(cell->scenario);
   o.outlier_fraction = conditions.outliers;
   o.loss_fraction = conditions.losses;
+  o.white_frame = conditions.white_frame;
   o.servo = experiment::servo_config_for(*cell);
   o.servo.divergence_ratio = conditions.divergence_ratio;
   law.apply(o.servo, desired_depth(*cell));
@@ -641,6 +652,11 @@ struct ExperimentCommand {
     use_render_threads(render_threads);
     record.images = !no_images;
     if (no_images && record.file.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
+    // a recording carries the pattern frames alone: `servo replay` would decode them without
+    // their white frames and command what this run did not
+    if (conditions.white_frame && !record.file.empty())
+      throw std::invalid_argument("--white-frame: not with --record (the recording carries the pattern frames alone)");
+    conditions.check_white_frame(source);
     return run_experiment_cli(scenario, law, conditions, source, max_iterations, initial, dir, !no_plot, record);
   }
 };

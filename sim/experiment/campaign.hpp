@@ -32,6 +32,7 @@ struct CampaignOptions {
   double divergence_ratio = 0;  // as servo::ServoConfig::divergence_ratio, for every run
   double outlier_fraction = 0;  // as ExperimentOptions
   double loss_fraction = 0;     // as ExperimentOptions
+  bool white_frame = false;     // as ExperimentOptions
 };
 
 // A median or worst value as the summary tables show it: "-" when no run gave one (not "nan").

@@ -48,6 +48,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       source_(setup.source),
       outlier_fraction_(setup.outlier_fraction),
       loss_fraction_(setup.loss_fraction),
+      white_frame_(setup.white_frame),
       cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot), cell.goal_plane),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
@@ -82,10 +83,14 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
   const sim::FrameOrder& f = x.frame;
   const sim::FrameStamp fs = sim::frame_stamp(f.index, cell_.dt());
   const servo::Stamp stamp{static_cast<std::int32_t>(fs.sec), fs.nanosec};
-  cv::Mat rgb;
-  if (source_ == FeatureSource::kDecoded)
-    rgb = sim::render_image(world_, f.scene_world_T_camera, sim::frame_seed(noise_seed_, f.index), &scratch_, nullptr,
-                            &f.scene_world_T_links);
+  cv::Mat rgb, white;
+  if (source_ == FeatureSource::kDecoded) {
+    const std::uint64_t seed = sim::frame_seed(noise_seed_, f.index);
+    rgb = sim::render_image(world_, f.scene_world_T_camera, seed, &scratch_, nullptr, &f.scene_world_T_links);
+    if (white_frame_)
+      white = sim::render_image(world_, f.scene_world_T_camera, sim::white_frame_seed(seed), &scratch_, nullptr,
+                                &f.scene_world_T_links, sim::Cast::kWhite);
+  }
   if (tap_) tap_->on_frame(f, cell_, rgb.empty() ? nullptr : &rgb, now_s_);
   x.image = rgb;  // shared, not copied
   // the order the service publishes in: sim status and pose before the image
@@ -102,22 +107,26 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
       // decoded as the servo would, then some spots dropped and some ids swapped before it
       // steps on them
       int detected = 0;
-      std::vector<servo::ImageSpot> spots = servo_.pipeline().locate(rgb, reported, &detected);
+      std::vector<servo::ImageSpot> spots =
+          servo_.pipeline().locate(rgb, reported, &detected, white.empty() ? nullptr : &white);
       if (loss_fraction_ > 0) drop_spots(spots, loss_fraction_, sim::frame_seed(noise_seed_ ^ 0x6c6f7373ull, f.index + 1));
       if (outlier_fraction_ > 0)
         x.swapped = inject_outliers(spots, outlier_fraction_,
                                     sim::frame_seed(noise_seed_ ^ 0x6f75746c69657273ull, f.index + 1), &x.wrong);
       x.reply = servo_.on_spots(stamp, spots, detected, now_s_);
     } else {
-      const servo::ImageView view{stamp,
-                                  "rgb8",
-                                  static_cast<std::uint32_t>(rgb.cols),
-                                  static_cast<std::uint32_t>(rgb.rows),
-                                  static_cast<std::uint32_t>(rgb.cols * 3),
-                                  0,
-                                  rgb.data,
-                                  rgb.total() * 3};
-      x.reply = servo_.on_image(view, now_s_);
+      const auto view_of = [&](const cv::Mat& m) {
+        return servo::ImageView{stamp,
+                                "rgb8",
+                                static_cast<std::uint32_t>(m.cols),
+                                static_cast<std::uint32_t>(m.rows),
+                                static_cast<std::uint32_t>(m.cols * 3),
+                                0,
+                                m.data,
+                                m.total() * 3};
+      };
+      const servo::ImageView white_view = white.empty() ? servo::ImageView{} : view_of(white);
+      x.reply = servo_.on_image(view_of(rgb), now_s_, white.empty() ? nullptr : &white_view);
     }
   }
   return x;

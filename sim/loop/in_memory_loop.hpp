@@ -36,6 +36,9 @@ struct LoopSetup {
   // decoding losses (issue 44): at every frame this fraction of the decoded spots is dropped
   // (seeded) before the servo steps, as spots a harder scene would not have decoded
   double loss_fraction = 0;
+  // beside each pattern frame the camera takes the white reference frame at the same pose (its
+  // own noise draw), and the servo decodes their ratio (servo/vision/reference.hpp)
+  bool white_frame = false;
   long max_steps = 400;  // the cell's iteration cap
   int render_threads = 0;  // sim::RenderScratch::threads: 0 OpenCV's pool, 1 this thread
 };
@@ -100,6 +103,7 @@ class InMemoryLoop {
   FeatureSource source_;
   double outlier_fraction_;
   double loss_fraction_;
+  bool white_frame_;
   sim::CellStateMachine cell_;
   servo::ServoStateMachine servo_;
   sim::RenderScratch scratch_;

@@ -55,6 +55,24 @@ TEST_F(Frames, OverflowingImageHeaderIsRejectedWithAZeroTwist) {
   EXPECT_EQ(m->rejected(), 3);
 }
 
+// Issue 41: a white reference frame beside the image is checked as the image is (its size
+// against camera_info, its bytes against its header), and a good one is decoded with it.
+TEST_F(Frames, AWhiteFrameIsCheckedAsTheImageIs) {
+  auto m = make();
+  const std::uint8_t two[2] = {1, 2};
+  const ImageView small{at(0), "rgb8", 640, 480, 1920, 0, two, 2};
+  const ServoReply r = m->on_image(view(desired, at(0)), 0, &small);
+  EXPECT_EQ(r.reason.rfind("white frame: rejected image: 2 bytes for 640 x 480", 0), 0u) << r.reason;
+  EXPECT_EQ(m->rejected(), 1);
+  const cv::Mat white = sim::render_image(*cell, cell->scenario.world_T_desired, sim::white_frame_seed(1), nullptr,
+                                          nullptr, nullptr, sim::Cast::kWhite);
+  const ImageView w = view(white, at(1));
+  m->on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
+  const ServoReply taught = m->on_image(view(desired, at(1)), 0, &w);
+  EXPECT_TRUE(taught.taught) << taught.reason;
+  EXPECT_EQ(m->rejected(), 1);
+}
+
 TEST_F(Frames, CameraInfoIsCheckedBeforeItIsUsed) {
   auto m = make();
   CameraInfoMsg bad = info();

@@ -138,15 +138,28 @@ py::dict truth_dict(const std::vector<sim::SpotTruth>& truth) {
   return d;
 }
 
-py::tuple render(const Scenario& s, const py::object& pose_spec, std::uint64_t frame) {
-  const Eigen::Isometry3d wTc = s.pose(pose_spec);
+// The robot placed at a pose: its links, drawn and lit as `cellsim render` draws them.
+sim::LinkPoses links_at(const Scenario& s, const Eigen::Isometry3d& wTc) {
   const std::unique_ptr<sim::Robot> robot = sim::make_robot(*s.cell);
   try {
-    robot->reset(wTc);  // the arm's links drawn, as `cellsim render` draws them
+    robot->reset(wTc);
   } catch (const std::invalid_argument& e) {
     throw py::value_error(s.cell->scenario.file.string() + ": pose: " + e.what());  // the in-collision message names the file
   }
-  const sim::LinkPoses links = robot->world_T_links();
+  return robot->world_T_links();
+}
+
+// The white reference frame beside frame k's pattern frame, as `cellsim render --white` writes it.
+py::array render_white(const Scenario& s, const py::object& pose_spec, std::uint64_t frame) {
+  const Eigen::Isometry3d wTc = s.pose(pose_spec);
+  const sim::LinkPoses links = links_at(s, wTc);
+  return image_array(sim::render_image(*s.cell, wTc, sim::white_frame_seed(sim::frame_seed(s.cell->scenario.seed, frame)),
+                                       nullptr, nullptr, &links, sim::Cast::kWhite));
+}
+
+py::tuple render(const Scenario& s, const py::object& pose_spec, std::uint64_t frame) {
+  const Eigen::Isometry3d wTc = s.pose(pose_spec);
+  const sim::LinkPoses links = links_at(s, wTc);
   const cv::Mat rgb =
       sim::render_image(*s.cell, wTc, sim::frame_seed(s.cell->scenario.seed, frame), nullptr, nullptr, &links);
   return py::make_tuple(image_array(rgb), truth_dict(sim::compute_truth(*s.cell, wTc, &links)));
@@ -181,16 +194,26 @@ struct Servo {
   Scenario scenario;
   servo::ServoPipeline pipeline;
 
-  py::dict decode(const py::array& image) const {
+  // the image's spots, decoded alone or as its ratio to its white frame (None: none)
+  std::vector<servo::ImageSpot> locate(const py::array& image, const py::object& white, int* detected) const {
+    const cv::Mat rgb = image_of(image);
+    if (white.is_none()) return pipeline.locate(rgb, std::nullopt, detected);
+    const cv::Mat w = image_of(white.cast<py::array>());
+    if (w.size() != rgb.size()) throw py::value_error("white: its shape must be the image's");
+    return pipeline.locate(rgb, std::nullopt, detected, &w);
+  }
+  py::dict decode(const py::array& image, const py::object& white) const {
     int detected = 0;
-    const auto spots = pipeline.locate(image_of(image), std::nullopt, &detected);
+    const auto spots = locate(image, white, &detected);
     return spots_dict(spots, detected);
   }
-  int teach(const py::array& image) { return pipeline.teach(pipeline.locate(image_of(image), std::nullopt), std::nullopt); }
-  py::dict step(const py::array& image) const {
+  int teach(const py::array& image, const py::object& white) {
+    return pipeline.teach(locate(image, white, nullptr), std::nullopt);
+  }
+  py::dict step(const py::array& image, const py::object& white) const {
     if (!pipeline.taught()) throw py::value_error("step(): teach() the servo first");
     int detected = 0;
-    const servo::StepResult r = pipeline.step(pipeline.locate(image_of(image), std::nullopt, &detected), std::nullopt);
+    const servo::StepResult r = pipeline.step(locate(image, white, &detected), std::nullopt);
     py::dict d;
     py::array_t<double> twist(6);
     for (int i = 0; i < 6; ++i) twist.mutable_at(i) = r.control.twist[i];
@@ -206,13 +229,16 @@ struct Servo {
 
 py::dict run_experiment_dict(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
                     int max_iterations, const std::string& features, const std::string& visual_features,
-                    bool interior_points, bool fitted_lines) {
+                    bool interior_points, bool fitted_lines, bool white_frame) {
   if (max_iterations < 1 || max_iterations > 100000) throw py::value_error("max_iterations must be in [1, 100000]");
   experiment::ExperimentOptions o;
   o.servo = servo_config(s, model, z_hat, gain, robust, visual_features);
   o.servo.interior_points = interior_points;
   o.servo.decoder.epipolar.fitted_lines = fitted_lines;
   o.source = experiment::parse_feature_source(features);
+  if (white_frame && o.source != loop::FeatureSource::kDecoded)
+    throw py::value_error("white_frame needs features='decoded'");
+  o.white_frame = white_frame;
   o.max_iterations = max_iterations;
   // Ctrl-C stops the run at the next round (a signal reaches Python only when it holds the GIL)
   bool interrupted = false;
@@ -387,6 +413,9 @@ PYBIND11_MODULE(cellsim, m) {
       .def_property_readonly("height", [](const Scenario& s) { return s.cell->scenario.camera.intrinsics.height; })
       .def_property_readonly("desired_pose", [](const Scenario& s) { return matrix4(s.cell->scenario.world_T_desired); })
       .def_property_readonly("initial_pose", [](const Scenario& s) { return matrix4(s.cell->scenario.world_T_initial()); })
+      .def("render_white", &render_white, py::arg("pose") = "desired", py::arg("frame") = 0,
+           "the white reference frame beside render()'s image (H x W x 3 uint8): the projector casting white, as "
+           "`cellsim render --white` writes it")
       .def("render", &render, py::arg("pose") = "desired", py::arg("frame") = 0,
            "(image H x W x 3 uint8, truth dict of arrays) at a pose: 'desired', 'initial', \"x y z rx ry rz\" (cm, "
            "deg) or a 4 x 4 world_T_camera; frame k's noise, as `cellsim render --frame k`")
@@ -401,13 +430,17 @@ PYBIND11_MODULE(cellsim, m) {
       .def(py::init<const Scenario&, const std::string&, double, double, const std::string&>(), py::arg("scenario"),
            py::arg("model") = "desired-constant-depth", py::arg("z_hat") = 0.0, py::arg("gain") = 0.5,
            py::arg("robust") = "none")
-      .def("decode", &Servo::decode, py::arg("image"), "spots of an H x W x 3 uint8 RGB image: dict of row, col, u, v")
-      .def("teach", &Servo::teach, py::arg("image"), "the features of this image become s*; returns how many")
-      .def("step", &Servo::step, py::arg("image"), "one iteration: dict of twist (6), error_norm, decoded, matched");
+      .def("decode", &Servo::decode, py::arg("image"), py::arg("white") = py::none(),
+           "spots of an H x W x 3 uint8 RGB image: dict of row, col, u, v (white: its white reference frame, "
+           "Scenario.render_white, the image decoded as their ratio)")
+      .def("teach", &Servo::teach, py::arg("image"), py::arg("white") = py::none(),
+           "the features of this image become s*; returns how many")
+      .def("step", &Servo::step, py::arg("image"), py::arg("white") = py::none(),
+           "one iteration: dict of twist (6), error_norm, decoded, matched");
   m.def("experiment", &run_experiment_dict, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
         py::arg("features") = "decoded", py::arg("visual_features") = "", py::arg("interior_points") = false,
-        py::arg("fitted_lines") = false,
+        py::arg("fitted_lines") = false, py::arg("white_frame") = false,
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns "
         "(features: where the spots come from, decoded | ideal; visual_features: what the law servoes on, points | "
         "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera; "

@@ -63,6 +63,19 @@ def test_decoding_again_on_the_fitted_lines_names_more_of_the_ham(tmp_path):
         assert abs(u - tu) < 6 and abs(v - tv) < 6
 
 
+def test_the_white_frame_names_more_of_the_printed_box():
+    box = cellsim.Scenario(os.path.join(SRC, "sim", "scenarios", "printed_box.yaml"))
+    image, truth = box.render("initial")
+    white = box.render_white("initial")
+    assert white.shape == image.shape and white.dtype == np.uint8
+    alone, ratio = box.decoder().decode(image), box.decoder().decode(image, white=white)
+    assert len(ratio["row"]) > len(alone["row"]) + 20, (len(alone["row"]), len(ratio["row"]))
+    with pytest.raises(ValueError, match="white: its shape"):
+        box.decoder().decode(image, white=white[:100])
+    with pytest.raises(ValueError, match="white_frame needs features='decoded'"):
+        cellsim.experiment(box, features="ideal", white_frame=True, max_iterations=1)
+
+
 def test_one_servo_iteration_from_python(plane):
     servo = cellsim.Servo(plane, z_hat=0.9)
     assert servo.teach(plane.render("desired")[0]) > 100

@@ -370,13 +370,19 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
   }
 }
 
-// the first frames with a wrong id, drawn and as rendered (to decode again)
-void write_failure_images(const cv::Mat& img, const vision::DecodeResult& r, int pose, const std::filesystem::path& dir) {
+// the first frames with a wrong id, drawn and as rendered (to decode again; with its white
+// frame, `servo decode FRAME --white WHITE`)
+void write_failure_images(const cv::Mat& img, const cv::Mat& white, const vision::DecodeResult& r, int pose,
+                          const std::filesystem::path& dir) {
+  const std::string stem = (dir / ("wrong_pose_" + std::to_string(pose))).string();
   cv::Mat bgr;
   cv::cvtColor(vision::draw_overlay(img, r), bgr, cv::COLOR_RGB2BGR);
-  cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + ".png")).string(), bgr);
+  cv::imwrite(stem + ".png", bgr);
   cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);
-  cv::imwrite((dir / ("wrong_pose_" + std::to_string(pose) + "_frame.png")).string(), bgr);
+  cv::imwrite(stem + "_frame.png", bgr);
+  if (white.empty()) return;
+  cv::cvtColor(white, bgr, cv::COLOR_RGB2BGR);
+  cv::imwrite(stem + "_white.png", bgr);
 }
 
 // What the camera takes at a pose: the pattern frame and, with SweepOptions::white_frame, the
@@ -518,7 +524,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       if (row.wrong == 0) continue;
       std::lock_guard<std::mutex> lock(io);
       wrong_ids.insert(wrong_ids.end(), wrong.begin(), wrong.end());
-      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(shot.pattern, r, k, o.out_dir);
+      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(shot.pattern, shot.white, r, k, o.out_dir);
     }
   };
   std::vector<std::thread> threads;

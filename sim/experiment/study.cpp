@@ -82,6 +82,11 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
   } else if (name == "taught_points") {
     // 1: each id held to the point its spot lit at teaching (ServoConfig::taught_points)
     c.base.taught_points = switched_on(name, v, "not held");
+  } else if (name == "white_frame") {
+    // 1: the white reference frame beside each pattern frame (ExperimentOptions::white_frame)
+    c.white_frame = switched_on(name, v, "the pattern frame alone");
+    if (c.white_frame && c.source != loop::FeatureSource::kDecoded)
+      throw std::invalid_argument("study axis white_frame: needs --features decoded");
   } else if (name == "losses") {
     // the fraction of the decoded spots dropped at every frame (decoding losses, issue 44)
     within(0, 0.9);
@@ -153,7 +158,7 @@ double depth_spread(const sim::Cell& cell) {
 std::vector<std::string> study_axis_names() {
   std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
                              "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "losses", "visual_features",
-                             "interior_points", "taught_points"};
+                             "interior_points", "taught_points", "white_frame"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;
@@ -198,9 +203,23 @@ StudyAxis parse_study_axis(const std::string& spec) {
   return a;
 }
 
-std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
+namespace {
+// The study's axes and folder, and every value checked against its campaign too (the white
+// frame needs decoded features), before a folder is made or a campaign runs.
+void check_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
   if (o.axes.empty() || o.axes.size() > 2) throw std::invalid_argument("study: give one or two --axis");
   if (o.out_dir.empty()) throw std::invalid_argument("study: -o,--output FOLDER is required");
+  for (const StudyAxis& a : o.axes)
+    for (double v : a.values) {
+      sim::Scenario s = scenario;
+      CampaignOptions c = o.campaign;
+      apply(a.name, v, s, c);
+    }
+}
+}  // namespace
+
+std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
+  check_study(scenario, o);
   std::filesystem::create_directories(o.out_dir);
   std::vector<std::vector<double>> grid;
   for (double a : o.axes[0].values) {

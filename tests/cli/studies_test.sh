@@ -43,6 +43,8 @@ one_line_error "white frame, ideal features" "--white-frame needs --features dec
   "$cellsim" experiment "$fig5" --white-frame --features ideal
 one_line_error "white frame, campaign of ideal features" "--white-frame needs --features decoded" \
   "$cellsim" campaign "$fig5" --white-frame --features ideal --runs 1 -o "$tmp/wc"
+one_line_error "white frame axis, ideal features" "study axis white_frame: needs --features decoded" \
+  "$cellsim" study "$fig5" --axis white_frame=0,1 --features ideal -o "$tmp/ws"
 one_line_error "white frame, recorded" "--white-frame: not with --record" \
   "$cellsim" experiment "$fig5" --white-frame --record "$tmp/w.mcap"
 [ ! -e "$tmp/w.mcap" ] && [ ! -e "$tmp/w.mcap.partial" ] || fail "a refused run left a recording"

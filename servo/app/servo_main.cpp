@@ -258,18 +258,13 @@ vision::DecodeResult decode_one(const vision::SpotDecoder& decoder, const cv::Ma
                                      : decoder.decode(rgb, white, g);
 }
 
-// The white reference frame of the one image (empty without --white), refused in one line
-// naming both files when its size is not the image's.
-cv::Mat read_white(const std::string& white_file, const std::vector<std::filesystem::path>& images) {
-  if (white_file.empty()) return {};
-  const cv::Mat white = read_rgb(white_file);
-  const cv::Mat first = read_rgb(images.at(0).string());
-  if (first.size() != white.size())
-    throw std::runtime_error("--white " + common::printable(white_file, 200) + ": " + std::to_string(white.cols) +
-                             " x " + std::to_string(white.rows) + " px, but " +
-                             common::printable(images[0].string(), 200) + " is " + std::to_string(first.cols) + " x " +
-                             std::to_string(first.rows));
-  return white;
+// The white reference frame (none: empty) refused in one line naming both files when its size
+// is not the image's.
+void check_white(const std::string& white_file, const cv::Mat& white, const std::string& image, const cv::Mat& rgb) {
+  if (white.empty() || white.size() == rgb.size()) return;
+  throw std::runtime_error("--white " + common::printable(white_file, 200) + ": " + std::to_string(white.cols) + " x " +
+                           std::to_string(white.rows) + " px, but " + common::printable(image, 200) + " is " +
+                           std::to_string(rgb.cols) + " x " + std::to_string(rgb.rows));
 }
 
 int run_decode(const std::vector<std::string>& args, const std::string& pattern_file, const DecodeFiles& files,
@@ -281,7 +276,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
   const std::vector<std::filesystem::path> images = image_list(args);
   if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty() || !files.white.empty()))
     throw std::runtime_error("--json, --overlay and --white take one image; for several, --json-dir DIR");
-  const cv::Mat white = read_white(files.white, images);
+  const cv::Mat white = files.white.empty() ? cv::Mat() : read_rgb(files.white);
   if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
   std::vector<double> times;
   std::set<std::string> written;
@@ -300,6 +295,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
       ++failed;
       continue;
     }
+    check_white(files.white, white, image, rgb);
     std::optional<vision::EpipolarGeometry> geometry;
     if (epipolar.projector) {
       try {

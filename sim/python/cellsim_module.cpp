@@ -68,18 +68,18 @@ U8Array image_array(const cv::Mat& rgb) {
 // An H x W x 3 uint8 array as the decoder takes it (the servo's own checks on sizes apply).
 // A crop, a flipped view (img[..., ::-1]) or a Fortran-order array is copied to C order: only
 // the dtype is checked (a non-contiguous uint8 array is not an array_t<uint8, c_style>).
-cv::Mat image_of(const py::array& a) {
+cv::Mat image_of(const py::array& a, const std::string& what = "image") {
   if (a.dtype().kind() != 'u' || a.itemsize() != 1)
-    throw py::value_error("image: dtype must be uint8, got " + std::string(py::str(a.dtype())));
+    throw py::value_error(what + ": dtype must be uint8, got " + std::string(py::str(a.dtype())));
   if (a.ndim() != 3 || a.shape(2) != 3)
-    throw py::value_error("image: shape must be (height, width, 3), RGB");
+    throw py::value_error(what + ": shape must be (height, width, 3), RGB");
   if (a.shape(0) < 1 || a.shape(1) < 1 || a.shape(0) > servo::kMaxImageSide || a.shape(1) > servo::kMaxImageSide)
-    throw py::value_error("image: each side must be in [1, " + std::to_string(servo::kMaxImageSide) + "] pixels");
+    throw py::value_error(what + ": each side must be in [1, " + std::to_string(servo::kMaxImageSide) + "] pixels");
   if (static_cast<std::uint64_t>(a.shape(0)) * static_cast<std::uint64_t>(a.shape(1)) > servo::kMaxImagePixels)
-    throw py::value_error("image: " + std::to_string(a.shape(1)) + " x " + std::to_string(a.shape(0)) +
+    throw py::value_error(what + ": " + std::to_string(a.shape(1)) + " x " + std::to_string(a.shape(0)) +
                           " pixels, more than 4096 x 2304");
   const U8Array c = U8Array::ensure(a);  // C-contiguous (a copy when it was not)
-  if (!c) throw py::value_error("image: cannot be read as a C-ordered uint8 array");
+  if (!c) throw py::value_error(what + ": cannot be read as a C-ordered uint8 array");
   return cv::Mat(static_cast<int>(c.shape(0)), static_cast<int>(c.shape(1)), CV_8UC3, const_cast<std::uint8_t*>(c.data()))
       .clone();
 }
@@ -198,7 +198,7 @@ struct Servo {
   std::vector<servo::ImageSpot> locate(const py::array& image, const py::object& white, int* detected) const {
     const cv::Mat rgb = image_of(image);
     if (white.is_none()) return pipeline.locate(rgb, std::nullopt, detected);
-    const cv::Mat w = image_of(white.cast<py::array>());
+    const cv::Mat w = image_of(white.cast<py::array>(), "white");
     if (w.size() != rgb.size()) throw py::value_error("white: its shape must be the image's");
     return pipeline.locate(rgb, std::nullopt, detected, &w);
   }

@@ -12,6 +12,10 @@
 namespace cell_dds {
 
 inline constexpr const char* kImageTopic = "rt/camera/image_raw";
+// the white reference frame (the projector casting white) taken at the pattern frame's pose,
+// with the same stamp, sent before it: `cellsim serve --white-frame`, read by `servo run
+// --white-frame` (docs/decoding.md, Appearance)
+inline constexpr const char* kWhiteImageTopic = "rt/camera/white/image_raw";
 inline constexpr const char* kCameraInfoTopic = "rt/camera/camera_info";
 inline constexpr const char* kTwistTopic = "rt/servo/cmd_twist";
 inline constexpr const char* kCameraPoseTopic = "rt/sim/camera_pose";

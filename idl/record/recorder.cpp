@@ -123,7 +123,7 @@ Recorder::~Recorder() {
 
 bool Recorder::wanted(const std::string& dds_topic) const {
   // the camera's topic exactly: under the namespace "camera/image_raw" every topic contains it
-  return options_.images || dds_topic != options_.image_topic;
+  return options_.images || (dds_topic != options_.image_topic && dds_topic != options_.white_image_topic);
 }
 
 void Recorder::enqueue(Pending&& p) {

@@ -29,8 +29,9 @@ namespace cell_record {
 
 struct RecordOptions {
   std::filesystem::path file;
-  bool images = true;  // false: the image topic is left out (--record-no-images), for long runs
+  bool images = true;  // false: the image topics are left out (--record-no-images), for long runs
   std::string image_topic = cell_dds::kImageTopic;  // the camera's topic, namespaced as the cell's
+  std::string white_image_topic = cell_dds::kWhiteImageTopic;  // its white reference frames, the same
   // recording stops (said once) when the file reaches this size; the run goes on
   std::uint64_t max_bytes = 16ull << 30;
 };

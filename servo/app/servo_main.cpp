@@ -441,7 +441,7 @@ struct ServoConfigFlags {
   std::string config_file, model, projector_file, robust, features;
   double z_hat = 0, gain = 0, divergence_ratio = -1;
   int points = -1;
-  bool interior_points = false, fitted_lines = false, taught_points = false;
+  bool interior_points = false, fitted_lines = false, taught_points = false, white_frame = false;
   bool no_epipolar = false;
   double crosstalk = -1;
   void add(CLI::App* c) {
@@ -474,6 +474,10 @@ struct ServoConfigFlags {
                 "spots, as with a calibration (config key fitted_lines; docs/decoding.md)");
     c->add_flag("--no-epipolar", no_epipolar,
                 "with --projector: triangulate only; decode without the epipolar check and the grown lattice");
+    c->add_flag("--white-frame", white_frame,
+                "decode each image as its ratio to the white reference frame of the same stamp (the projector "
+                "casting white, on rt/camera/white/image_raw: `cellsim serve --white-frame`), the surface's albedo "
+                "divided out; an image without one is rejected (config key white_frame; docs/decoding.md)");
     c->add_option("--visual-features", features,
                   "points (every decoded spot's x, y) | moments (the six image moments of the matched spots) | "
                   "surface (the plane of the triangulated spots and three moments: needs --projector) | plane (its "
@@ -498,6 +502,7 @@ struct ServoConfigFlags {
     if (points >= 0) config.points = points;
     if (interior_points) config.interior_points = true;
     if (taught_points) config.taught_points = true;
+    if (white_frame) config.white_frame = true;
     if (fitted_lines) config.decoder.epipolar.fitted_lines = true;
     if (divergence_ratio >= 0) config.divergence_ratio = divergence_ratio;
     if (!robust.empty()) config.law.robust = control::parse_robust_estimator(robust);
@@ -570,6 +575,9 @@ struct ReplayCommand {
     replay.plot = !no_plot;
     const servo::ReplayResult r = servo::run_replay(replay);
     if (r.truncated) std::printf("servo replay: %s; replayed what it holds\n", r.truncated->c_str());
+    if (r.white_frames && !replay.config.white_frame)
+      std::printf("servo replay: %s holds white reference frames; replayed without them (--white-frame takes them)\n",
+                  replay.recording.c_str());
     if (r.stopped)
       std::printf("servo replay: %s: the recording stopped before the run ended (%s); replayed what it holds\n",
                   replay.recording.c_str(), r.stopped->c_str());

@@ -164,16 +164,29 @@ std::optional<ServoReply> ServoStateMachine::tick(double now_s) {
   return reply(last_stamp_, "no image for " + std::to_string(static_cast<int>(timing_.lost_s * 1e3)) + " ms");
 }
 
+std::string ServoStateMachine::white_problem(const ImageView& img, const ImageView* white) const {
+  if (!white)
+    return pipeline_->config().white_frame ? "rejected image: no white reference frame with its stamp (--white-frame)"
+                                           : std::string();
+  if (!(white->stamp == img.stamp)) {
+    const auto text = [](const Stamp& t) {
+      char b[32];
+      std::snprintf(b, sizeof b, "%d.%09u s", t.sec, t.nanosec);
+      return std::string(b);
+    };
+    return "white frame: rejected image: stamped " + text(white->stamp) + ", the image " + text(img.stamp);
+  }
+  const std::string bad = reject_reason(*white, info_);
+  return bad.empty() ? bad : "white frame: " + bad;
+}
+
 ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s, const ImageView* white) {
   last_image_s_ = now_s;
   lost_ = false;
   ++images_;
   last_stamp_ = img.stamp;
   std::string bad = reject_reason(img, info_);
-  if (bad.empty() && white) {
-    bad = reject_reason(*white, info_);
-    if (!bad.empty()) bad = "white frame: " + bad;
-  }
+  if (bad.empty()) bad = white_problem(img, white);
   if (!bad.empty()) {
     ++rejected_;
     return reply(img.stamp, bad);

@@ -102,7 +102,8 @@ class ServoStateMachine {
   bool frame_info_complete(const Stamp& stamp) const;
 
   // One image: checked, decoded, and answered. `white` (optional): the white reference frame
-  // taken at the same pose (vision/reference.hpp), checked as the image is and held to its size.
+  // taken at the same pose (vision/reference.hpp), checked as the image is, held to its size and
+  // its stamp; with ServoConfig::white_frame an image without one is rejected.
   ServoReply on_image(const ImageView& image, double now_s, const ImageView* white = nullptr);
   // Spots located by someone else (the simulator's truth for the `ideal` feature source, or
   // decoded spots some of whose ids an experiment swapped), answered as an image would be.
@@ -128,6 +129,8 @@ class ServoStateMachine {
 
  private:
   ServoReply reply(const Stamp& stamp, std::string reason) const;
+  // why the white frame beside `image` (none: null) makes it unusable, or ""
+  std::string white_problem(const ImageView& image, const ImageView* white) const;
   // what follows the decoding: teaching, or one step of the control law
   ServoReply answer(const Stamp& stamp, const std::vector<ImageSpot>& spots, int detected,
                     const std::optional<Eigen::Isometry3d>& pose);

@@ -93,6 +93,16 @@ class Replay {
         last_image_ = at;
       pending_ = Pending{std::move(img), key(at), now};
       if (complete(pending_->key)) flush();
+    } else if (is_topic(c.topic, cell_dds::kWhiteImageTopic)) {
+      // a white reference frame, sent before the image of its stamp: kept for it (a few)
+      white_recorded_ = true;
+      if (!o_.config.white_frame) return;
+      auto white = decode<sensor_msgs::msg::dds_::Image_PubSubType>(c, m, file);
+      const Key k = key(to_stamp(white.header().stamp()));
+      whites_.emplace_back(k, std::move(white));
+      if (whites_.size() > kMaxWhites) whites_.pop_front();
+      whites_in_file_ = true;
+      if (pending_ && complete(pending_->key)) flush();
     } else if (is_topic(c.topic, cell_dds::kCameraInfoTopic)) {
       const std::string why = machine_->on_camera_info(to_info(decode<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(c, m, file)));
       if (!why.empty()) std::fprintf(stderr, "servo replay: %s: %s: %s\n", file.c_str(), c.topic.c_str(), why.c_str());
@@ -130,10 +140,14 @@ class Replay {
   // holds answered an image past the cut (the recorder writes the small twist as it comes and
   // the image's megabyte after it: the twist can land in the last complete chunk, the image in
   // the lost one): such twists are counted apart, not as unanswered
+  long images() const { return images_; }
+  bool white_recorded() const { return white_recorded_; }
+
   ReplayResult compare_and_write(bool cut) {
     flush();  // the last image, whatever came of its status
     ReplayResult res;
     res.images = images_;
+    res.white_frames = white_recorded_;
     // replayed twists by stamp, in order (a republished frame is answered again)
     std::map<std::pair<std::int32_t, std::uint32_t>, std::deque<TwistAt>> by_stamp;
     for (const auto& r : replayed_) by_stamp[{r.stamp.sec, r.stamp.nanosec}].push_back(r);
@@ -210,10 +224,15 @@ class Replay {
   void replayed(const ServoReply& r) {
     replayed_.push_back({r.stamp, r.twist, static_cast<int>(r.state), r.error_norm, r.decoded});
   }
-  // the frame's status is there, and its pose when the recording has poses
+  // the frame's status is there, its pose when the recording has poses, and its white frame
+  // when the servo takes them and the recording has them
   bool complete(const Key& k) const {
     return std::find(statuses_.begin(), statuses_.end(), k) != statuses_.end() &&
-           (!poses_in_file_ || std::find(poses_.begin(), poses_.end(), k) != poses_.end());
+           (!poses_in_file_ || std::find(poses_.begin(), poses_.end(), k) != poses_.end()) &&
+           (!whites_in_file_ || white_of(k) != whites_.end());
+  }
+  std::deque<std::pair<Key, sensor_msgs::msg::dds_::Image_>>::const_iterator white_of(const Key& k) const {
+    return std::find_if(whites_.begin(), whites_.end(), [&](const auto& w) { return w.first == k; });
   }
   void seen(std::deque<Key>& keys, const Key& k) {
     keys.push_back(k);
@@ -225,7 +244,9 @@ class Replay {
     if (!pending_) return;
     const Pending p = std::move(*pending_);
     pending_.reset();
-    const ServoReply r = machine_->on_image(image_view(p.image), p.now);
+    const auto w = white_of(p.key);
+    const ImageView white = w == whites_.end() ? ImageView{} : image_view(w->second);
+    const ServoReply r = machine_->on_image(image_view(p.image), p.now, w == whites_.end() ? nullptr : &white);
     if (!r.notice.empty()) std::fprintf(stderr, "servo replay: %s\n", r.notice.c_str());
     if (r.answer) replayed(r);
   }
@@ -244,6 +265,10 @@ class Replay {
   std::optional<Pending> pending_;         // an image waiting for its frame's status and pose
   std::deque<Key> statuses_, poses_;       // the stamps of the latest 64 of each
   bool poses_in_file_ = false;
+  // the latest white reference frames by stamp (the servo's --white-frame), bounded as live
+  static constexpr std::size_t kMaxWhites = 4;
+  std::deque<std::pair<Key, sensor_msgs::msg::dds_::Image_>> whites_;
+  bool whites_in_file_ = false, white_recorded_ = false;
 };
 
 }  // namespace
@@ -258,6 +283,11 @@ ReplayResult run_replay(const ReplayOptions& options) {
     std::fprintf(stderr, "servo replay: %s: profile '%s', not ros2; read as the cell's topics anyway\n",
                  options.recording.c_str(), s.profile.c_str());
   const auto stopped = s.metadata.find(cell_record::kStoppedMetadata);
+  // every image would be rejected: the run was not one with white frames (said before anything is written)
+  if (options.config.white_frame && replay.images() > 0 && !replay.white_recorded())
+    throw std::runtime_error(options.recording.string() + ": no white reference frames (" +
+                             cell_record::ros_topic_name(cell_dds::kWhiteImageTopic) +
+                             ") to replay --white-frame with: the run was recorded without them");
   ReplayResult r = replay.compare_and_write(s.truncated.has_value() || stopped != s.metadata.end());
   r.truncated = s.truncated;
   if (stopped != s.metadata.end()) {

@@ -35,6 +35,7 @@ struct ReplayOptions {
 
 struct ReplayResult {
   long images = 0;              // recorded images fed to the servo
+  bool white_frames = false;    // the recording holds white reference frames (cellsim serve --white-frame)
   long compared = 0;            // recorded twists with a replayed twist of the same stamp
   long differing = 0;           // of those, how many differ in any bit
   double max_difference = 0;    // largest |replayed - recorded| over all components (m/s, rad/s)

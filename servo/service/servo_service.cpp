@@ -2,6 +2,7 @@
 
 #include "common/regular_file.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -78,10 +79,14 @@ namespace {
 
 // What the DDS listener threads hand to the service loop; every queue bounded.
 struct Inbox {
-  static constexpr std::size_t kMaxImages = 2, kMaxCommands = 64, kMaxFrameInfo = 16;
+  static constexpr std::size_t kMaxImages = 2, kMaxWhites = 4, kMaxCommands = 64, kMaxFrameInfo = 16;
   std::mutex m;
   std::condition_variable cv;
   std::deque<Image_> images;  // realtime: never queue stale frames
+  // --white-frame: the white reference frames, each sent before the image of its stamp; a few,
+  // so that realtime's newest image finds its own among those of images dropped before it
+  std::deque<Image_> whites;
+  bool white_seen = false;
   std::deque<SimControl_> commands;
   std::deque<PoseStamped_> poses;
   std::deque<SimStatus_> sim_statuses;
@@ -132,10 +137,21 @@ class ServoService {
         p, topic(o.commands == CommandSource::kSimulator ? cell_dds::kAcceptedTopic : cell_dds::kControlTopic),
         cell_dds::reader_qos(Stream::kCommand),
         [this](SimControl_&& c) { in_.push(in_.commands, std::move(c), Inbox::kMaxCommands); });
+    std::vector<eprosima::fastrtps::rtps::GUID_t> readers{image_in_->guid(), info_in_->guid(), pose_in_->guid(),
+                                                          sim_status_in_->guid(), control_in_->guid()};
+    if (o.config.white_frame) {
+      white_in_ = std::make_unique<cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType>>(
+          p, topic(cell_dds::kWhiteImageTopic), cell_dds::reader_qos(Stream::kFrame), [this](Image_&& i) {
+            {
+              std::lock_guard<std::mutex> l(in_.m);
+              in_.white_seen = true;
+            }
+            in_.push(in_.whites, std::move(i), Inbox::kMaxWhites);
+          });
+      readers.push_back(white_in_->guid());
+    }
     node_ = std::make_unique<cell_dds::NodeAnnouncement>(
-        p, "servo",
-        std::vector<eprosima::fastrtps::rtps::GUID_t>{image_in_->guid(), info_in_->guid(), pose_in_->guid(),
-                                                      sim_status_in_->guid(), control_in_->guid()},
+        p, "servo", readers,
         std::vector<eprosima::fastrtps::rtps::GUID_t>{twist_->guid(), spots_->guid(), status_->guid()}, o.ns.empty() ? std::string("/") : "/" + o.ns);
   }
 
@@ -172,17 +188,17 @@ class ServoService {
       }
       Image_ img = std::move(in_.images.front());
       in_.images.pop_front();
-      // the sim's status and pose for this frame are sent before the image, on other topics:
-      // give them a moment to land (bounded)
-      const Stamp stamp = to_stamp(img.header().stamp());
-      for (int i = 0; i < 20 && !g_stop; ++i) {
-        take_frame_info();
-        if (machine_->frame_info_complete(stamp)) break;
-        in_.cv.wait_for(lock, std::chrono::milliseconds(5));
-      }
-      take_frame_info();
+      const std::optional<Image_> white = wait_for_frame(to_stamp(img.header().stamp()), lock);
+      const bool no_white_yet = white_in_ && !in_.white_seen;
       lock.unlock();
-      const ServoReply r = machine_->on_image(image_view(img), now());
+      if (no_white_yet && !said_no_white_) {  // said once: every image is rejected until one comes
+        said_no_white_ = true;
+        std::fprintf(stderr, "servo: %s: no white reference frame has come (--white-frame): images are rejected "
+                     "until they come with theirs (cellsim serve --white-frame)\n",
+                     topic(cell_dds::kWhiteImageTopic).c_str());
+      }
+      const ImageView white_view = white ? image_view(*white) : ImageView{};
+      const ServoReply r = machine_->on_image(image_view(img), now(), white ? &white_view : nullptr);
       if (!r.notice.empty()) std::fprintf(stderr, "servo: %s\n", r.notice.c_str());
       if (r.taught && !o_.reference.empty()) save_reference(o_.reference, machine_->pipeline().reference());
       if (r.answer) publish(r, true);
@@ -198,6 +214,34 @@ class ServoService {
   }
 
  private:
+  // The sim's status and pose for this frame, and its white frame, are sent before the image, on
+  // other topics: they are given a moment to land (bounded: 100 ms; a white frame, once any has
+  // come, up to kWhiteWaitMs, less than lockstep's republishing). Returns the white frame of
+  // `stamp`, when the servo takes one and it came. Called with the lock held.
+  std::optional<Image_> wait_for_frame(const Stamp& stamp, std::unique_lock<std::mutex>& lock) {
+    const auto white_of_stamp = [&] {
+      return std::find_if(in_.whites.begin(), in_.whites.end(),
+                          [&](const Image_& w) { return to_stamp(w.header().stamp()) == stamp; });
+    };
+    for (int i = 0; i < 20 && !g_stop; ++i) {
+      take_frame_info();
+      if (machine_->frame_info_complete(stamp) && (!white_in_ || white_of_stamp() != in_.whites.end())) break;
+      in_.cv.wait_for(lock, std::chrono::milliseconds(5));
+    }
+    take_frame_info();
+    if (!white_in_) return std::nullopt;
+    const auto deadline = Clock::now() + std::chrono::milliseconds(kWhiteWaitMs);
+    while (in_.white_seen && white_of_stamp() == in_.whites.end() && !g_stop && Clock::now() < deadline)
+      in_.cv.wait_until(lock, deadline);
+    const auto it = white_of_stamp();
+    if (it == in_.whites.end()) return std::nullopt;
+    Image_ white = std::move(*it);
+    in_.whites.erase(in_.whites.begin(), it + 1);  // and those of frames before it
+    return white;
+  }
+  static constexpr int kWhiteWaitMs = 500;
+  bool said_no_white_ = false;
+
   // called with the lock held
   void take_frame_info() {
     for (const auto& s : in_.sim_statuses)
@@ -229,6 +273,7 @@ class ServoService {
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::DecodedSpots_PubSubType>> spots_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::ServoStatus_PubSubType>> status_;
   std::unique_ptr<cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType>> image_in_;
+  std::unique_ptr<cell_dds::Reader<sensor_msgs::msg::dds_::Image_PubSubType>> white_in_;  // --white-frame
   std::unique_ptr<cell_dds::Reader<sensor_msgs::msg::dds_::CameraInfo_PubSubType>> info_in_;
   std::unique_ptr<cell_dds::Reader<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose_in_;
   std::unique_ptr<cell_dds::Reader<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status_in_;
@@ -263,7 +308,7 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     top.only_keys({"model", "z_hat_m", "gain", "gain_adaptive", "max_linear_mps", "max_angular_dps", "min_points",
                    "converge_mm", "converge_deg", "min_votes", "min_island", "tolerant", "epipolar_px",
                    "segment_length", "propagate_sources", "points", "interior_points", "divergence_ratio", "robust",
-                   "visual_features", "crosstalk", "fitted_lines", "taught_points"});
+                   "visual_features", "crosstalk", "fitted_lines", "taught_points", "white_frame"});
     constexpr double kDeg = 3.14159265358979323846 / 180;
     if (top.has("model")) {
       const Reader m = top.at("model");
@@ -302,6 +347,8 @@ void load_servo_config(const std::filesystem::path& file, ServoConfig& c) {
     if (top.has("interior_points")) c.interior_points = top.at("interior_points").boolean();
     // with a projector calibration: each id held to the point its spot lit at teaching
     if (top.has("taught_points")) c.taught_points = top.at("taught_points").boolean();
+    // each image with the white reference frame of its stamp (rt/camera/white/image_raw)
+    if (top.has("white_frame")) c.white_frame = top.at("white_frame").boolean();
     // without a projector calibration: decode again on each frame's fitted lines
     if (top.has("fitted_lines")) c.decoder.epipolar.fitted_lines = top.at("fitted_lines").boolean();
     if (top.has("divergence_ratio")) c.divergence_ratio = top.at("divergence_ratio").in_range(0, 1e6);

@@ -652,10 +652,6 @@ struct ExperimentCommand {
     use_render_threads(render_threads);
     record.images = !no_images;
     if (no_images && record.file.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
-    // a recording carries the pattern frames alone: `servo replay` would decode them without
-    // their white frames and command what this run did not
-    if (conditions.white_frame && !record.file.empty())
-      throw std::invalid_argument("--white-frame: not with --record (the recording carries the pattern frames alone)");
     conditions.check_white_frame(source);
     return run_experiment_cli(scenario, law, conditions, source, max_iterations, initial, dir, !no_plot, record);
   }
@@ -826,6 +822,10 @@ struct ServeCommand {
                   "servo replay; never over a file that exists: written as FILE.partial, renamed when the run ends)")
         ->check(non_empty_file);
     c->add_flag("--record-no-images", no_images, "leave the camera images out of the recording (long runs)");
+    c->add_flag("--white-frame", svc.white_frame,
+                "beside each frame publish the white reference frame (the projector casting white, the same pose, "
+                "its own noise) on rt/camera/white/image_raw, with the frame's stamp and before it, for `servo run "
+                "--white-frame` (docs/decoding.md, Appearance)");
     c->add_option("--foxglove", svc.foxglove_port,
                   "serve the run live in Foxglove on ws://127.0.0.1:PORT (its WebSocket protocol; 0: a free port, printed)");
     c->add_option("--foxglove-address", svc.foxglove_address,

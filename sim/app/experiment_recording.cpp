@@ -56,8 +56,8 @@ void ExperimentRecording::on_accepted(const sim::CommandMsg& c, double now_s) {
   put<cell_msgs::msg::dds_::SimControl_PubSubType>(cell_dds::kAcceptedTopic, Stream::kCommand, sim::wire::control(c), now_s);
 }
 
-void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb,
-                                   double now_s) {
+void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* white,
+                                   const cv::Mat* rgb, double now_s) {
   const auto stamp = cell_dds::stamp_of(f.index, cell.dt());
   const sim::Scenario& s = cell.scenario();
   const auto status = sim::wire::frame_status(f, cell, stamp, {});
@@ -69,6 +69,9 @@ void ExperimentRecording::on_frame(const sim::FrameOrder& f, const sim::CellStat
   if (sim::wire::has_joints(s, f))
     put<sensor_msgs::msg::dds_::JointState_PubSubType>(cell_dds::kJointStatesTopic, Stream::kFrame,
                                                        sim::wire::joint_state(f, stamp), now_s);
+  if (white)
+    put<sensor_msgs::msg::dds_::Image_PubSubType>(cell_dds::kWhiteImageTopic, Stream::kFrame,
+                                                  sim::wire::image(*white, stamp), now_s);
   if (rgb)
     put<sensor_msgs::msg::dds_::Image_PubSubType>(cell_dds::kImageTopic, Stream::kFrame, sim::wire::image(*rgb, stamp), now_s);
   else  // the ideal source: the truth is what the servo stepped on

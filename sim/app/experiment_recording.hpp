@@ -18,7 +18,8 @@ class ExperimentRecording : public loop::LoopTap {
   void on_start(const servo::CameraInfoMsg& info, const sim::CellStateMachine& cell) override;
   void on_command(const sim::CommandMsg& c, double now_s) override;
   void on_accepted(const sim::CommandMsg& c, double now_s) override;
-  void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb, double now_s) override;
+  void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* white, const cv::Mat* rgb,
+                double now_s) override;
   void on_reply(const servo::ServoReply& r, double now_s) override;
   // closes the file; "PATH (N MB, M messages on T topics)" and the count per topic
   std::string close();

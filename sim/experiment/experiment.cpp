@@ -212,7 +212,8 @@ loop::LoopSetup loop_setup(const sim::Cell& cell, const ExperimentOptions& o, st
   setup.source = o.source;
   setup.outlier_fraction = o.outlier_fraction;
   setup.loss_fraction = o.loss_fraction;
-  setup.white_frame = o.white_frame;
+  // the servo, told so, rejects a frame that comes without its white frame (as `servo run --white-frame`)
+  setup.white_frame = setup.servo.white_frame = o.white_frame || o.servo.white_frame;
   setup.max_steps = o.max_iterations;
   setup.render_threads = o.render_threads;
   return setup;

@@ -48,7 +48,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       source_(setup.source),
       outlier_fraction_(setup.outlier_fraction),
       loss_fraction_(setup.loss_fraction),
-      white_frame_(setup.white_frame),
+      white_frame_(setup.white_frame || setup.servo.white_frame),
       cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot), cell.goal_plane),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
@@ -91,7 +91,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
       white = sim::render_image(world_, f.scene_world_T_camera, sim::white_frame_seed(seed), &scratch_, nullptr,
                                 &f.scene_world_T_links, sim::Cast::kWhite);
   }
-  if (tap_) tap_->on_frame(f, cell_, rgb.empty() ? nullptr : &rgb, now_s_);
+  if (tap_) tap_->on_frame(f, cell_, white.empty() ? nullptr : &white, rgb.empty() ? nullptr : &rgb, now_s_);
   x.image = rgb;  // shared, not copied
   // the order the service publishes in: sim status and pose before the image
   servo_.on_sim_status({stamp, f.applies_twist, f.teach, cell_.running() && f.applies_twist});

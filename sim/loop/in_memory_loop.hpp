@@ -37,7 +37,8 @@ struct LoopSetup {
   // (seeded) before the servo steps, as spots a harder scene would not have decoded
   double loss_fraction = 0;
   // beside each pattern frame the camera takes the white reference frame at the same pose (its
-  // own noise draw), and the servo decodes their ratio (servo/vision/reference.hpp)
+  // own noise draw), and the servo decodes their ratio (servo/vision/reference.hpp); so too
+  // when the servo's configuration asks for it (ServoConfig::white_frame)
   bool white_frame = false;
   long max_steps = 400;  // the cell's iteration cap
   int render_threads = 0;  // sim::RenderScratch::threads: 0 OpenCV's pool, 1 this thread
@@ -62,9 +63,10 @@ class LoopTap {
   virtual void on_command(const sim::CommandMsg& c, double now_s) = 0;
   // a command the cell obeyed, as the service says it on rt/sim/accepted
   virtual void on_accepted(const sim::CommandMsg& c, double now_s) = 0;
-  // a frame as cellsim publishes it: status, pose, robot, image (null for the ideal source), clock
-  virtual void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* rgb,
-                        double now_s) = 0;
+  // a frame as cellsim publishes it: status, pose, robot, the white frame (null without one),
+  // the image (null for the ideal source), clock
+  virtual void on_frame(const sim::FrameOrder& f, const sim::CellStateMachine& cell, const cv::Mat* white,
+                        const cv::Mat* rgb, double now_s) = 0;
   // the servo's answer to it (status, twist, spots), when it answered
   virtual void on_reply(const servo::ServoReply& r, double now_s) = 0;
 };

@@ -313,6 +313,9 @@ class SimService {
     using cell_dds::Stream;
     image_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(
         p, topic(cell_dds::kImageTopic), cell_dds::writer_qos(Stream::kFrame));
+    if (o.white_frame)
+      white_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>>(
+          p, topic(cell_dds::kWhiteImageTopic), cell_dds::writer_qos(Stream::kFrame));
     info_ = std::make_unique<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>>(
         p, topic(cell_dds::kCameraInfoTopic), cell_dds::writer_qos(Stream::kLatched));
     pose_ = std::make_unique<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>>(
@@ -392,6 +395,7 @@ class SimService {
                                                           joints_->guid(),  tf_->guid(),     description_->guid(),
                                                           accepted_->guid()};
     if (control_out_) writers.push_back(control_out_->guid());
+    if (white_) writers.push_back(white_->guid());
     std::vector<eprosima::fastrtps::rtps::GUID_t> readers{twist_in_->guid(), control_in_->guid(), status_in_->guid()};
     if (spots_in_) readers.push_back(spots_in_->guid());
     node_ = std::make_unique<cell_dds::NodeAnnouncement>(*participant_, "cellsim", readers, writers,
@@ -405,6 +409,7 @@ class SimService {
     r.file = o.record;
     r.images = o.record_images;
     r.image_topic = topic(cell_dds::kImageTopic);
+    r.white_image_topic = topic(cell_dds::kWhiteImageTopic);
     recorder_ = std::make_unique<cell_record::Recorder>(
         r, mcap::KeyValues{{"scenario", cell_->scenario.name},
                            {"scenario_file", o.scenario.string()},
@@ -418,6 +423,7 @@ class SimService {
     using cell_dds::Stream;
     auto* r = recorder_.get();
     cell_record::record_writes(r, *image_, Stream::kFrame);
+    if (white_) cell_record::record_writes(r, *white_, Stream::kFrame);
     cell_record::record_writes(r, *info_, Stream::kLatched);
     cell_record::record_writes(r, *pose_, Stream::kFrame);
     cell_record::record_writes(r, *sim_status_, Stream::kFrame);
@@ -548,8 +554,8 @@ class SimService {
       inbox_.kept_window_ns = static_cast<std::uint64_t>(std::llround(dt() * 1e9)) * sim::CellStateMachine::kMaxKeptStatuses;
     }
     // the scene the image shows (a frame ago or more, with an acquisition delay)
-    const cv::Mat rgb = sim::render_image(*cell_, f.scene_world_T_camera, sim::frame_seed(cell_->scenario.seed, f.index),
-                                          &scratch_, nullptr, &f.scene_world_T_links);
+    const std::uint64_t seed = sim::frame_seed(cell_->scenario.seed, f.index);
+    const cv::Mat rgb = sim::render_image(*cell_, f.scene_world_T_camera, seed, &scratch_, nullptr, &f.scene_world_T_links);
     auto st = wire::frame_status(f, *machine_, stamp, recent_refusals_);
     sim_status_->write(st);
     if (annotations_) annotations_->on_status(st);
@@ -564,6 +570,12 @@ class SimService {
     if (truth_->matched() > 0) {  // 400 visibility rays: only when someone listens
       auto truth = wire::spot_truth(*cell_, f, stamp);
       truth_->write(truth);
+    }
+    if (white_) {  // the same pose, its own noise draw (as the in-process loop renders it)
+      auto white = wire::image(sim::render_image(*cell_, f.scene_world_T_camera, sim::white_frame_seed(seed), &scratch_,
+                                                 nullptr, &f.scene_world_T_links, sim::Cast::kWhite),
+                               stamp);
+      white_->write(white);
     }
     auto img = wire::image(rgb, stamp);
     image_->write(img);
@@ -626,6 +638,7 @@ class SimService {
   // the live view's readers of this cell's own topics (--foxglove), gone before the participant
   std::unique_ptr<foxglove::Bridge> live_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>> image_;
+  std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>> white_;  // --white-frame
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>> info_;
   std::unique_ptr<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status_;

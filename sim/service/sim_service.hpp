@@ -31,6 +31,9 @@ struct ServiceOptions {
   // --record FILE.mcap: every message on the wire, as a ROS 2 bag (record/recorder.hpp)
   std::filesystem::path record;
   bool record_images = true;  // false: --record-no-images
+  // --white-frame: beside each frame the white reference frame (the projector casting white,
+  // its own noise draw), on rt/camera/white/image_raw with the frame's stamp, before its image
+  bool white_frame = false;
   // --foxglove PORT: the run live in Foxglove on ws://127.0.0.1:PORT (foxglove/bridge.hpp; 0: a
   // free port, printed); -1: off
   int foxglove_port = -1;

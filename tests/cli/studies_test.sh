@@ -38,16 +38,13 @@ one_line_error "axis value not a number" "not a number" "$cellsim" study "$fig5"
 one_line_error "three axes" "at most two" "$cellsim" study "$fig5" --axis gain=1 --axis z_hat=1 --axis focal_pct=1 -o "$tmp/x"
 one_line_error "error out of range" "is outside .0, 50" "$cellsim" experiment "$fig5" --error focal_pct=80
 one_line_error "unknown error" "unknown" "$cellsim" experiment "$fig5" --error lens_pct=1
-# the white reference frame is a decoded run's, and a recording would carry the pattern frames alone
+# the white reference frame is a decoded run's
 one_line_error "white frame, ideal features" "--white-frame needs --features decoded" \
   "$cellsim" experiment "$fig5" --white-frame --features ideal
 one_line_error "white frame, campaign of ideal features" "--white-frame needs --features decoded" \
   "$cellsim" campaign "$fig5" --white-frame --features ideal --runs 1 -o "$tmp/wc"
 one_line_error "white frame axis, ideal features" "study axis white_frame: needs --features decoded" \
   "$cellsim" study "$fig5" --axis white_frame=0,1 --features ideal -o "$tmp/ws"
-one_line_error "white frame, recorded" "--white-frame: not with --record" \
-  "$cellsim" experiment "$fig5" --white-frame --record "$tmp/w.mcap"
-[ ! -e "$tmp/w.mcap" ] && [ ! -e "$tmp/w.mcap.partial" ] || fail "a refused run left a recording"
 one_line_error "delay beyond the queue bound" "is outside .0, 50" "$cellsim" campaign "$fig5" --latency processing_frames=1000000 -o "$tmp/x"
 one_line_error "an axis twice" "given twice" "$cellsim" study "$fig5" --axis gain=1 --axis gain=2 -o "$tmp/x"
 one_line_error "a value twice" "value '1' given twice" "$cellsim" study "$fig5" --axis gain=1,2,1 -o "$tmp/x"

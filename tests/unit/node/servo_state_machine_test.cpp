@@ -73,6 +73,29 @@ TEST_F(Frames, AWhiteFrameIsCheckedAsTheImageIs) {
   EXPECT_EQ(m->rejected(), 1);
 }
 
+// A servo told to take white frames (servo run --white-frame) rejects an image that comes
+// without one, or with one of another stamp (another frame's white), and names why.
+TEST_F(Frames, AServoTakingWhiteFramesRejectsAnImageWithoutItsOwn) {
+  ServoConfig c;
+  c.law.z_hat_m = 0.9;
+  c.white_frame = true;
+  ServoStateMachine m(std::make_unique<ServoPipeline>(pattern::WindowTable(cell->projector->pattern(), {3, 3}), c),
+                      ServoTiming{});
+  ASSERT_EQ(m.on_camera_info(info()), "");
+  m.on_command(static_cast<int>(cell_dds::SimCommand::kTeach));
+  EXPECT_EQ(m.on_image(view(desired, at(0)), 0).reason,
+            "rejected image: no white reference frame with its stamp (--white-frame)");
+  const cv::Mat white = sim::render_image(*cell, cell->scenario.world_T_desired, sim::white_frame_seed(1), nullptr,
+                                          nullptr, nullptr, sim::Cast::kWhite);
+  const ImageView earlier = view(white, at(0));
+  const ServoReply r = m.on_image(view(desired, at(1)), 0, &earlier);
+  EXPECT_EQ(r.reason.rfind("white frame: rejected image: stamped 0.000000000 s, the image 0.040000000 s", 0), 0u) << r.reason;
+  EXPECT_FALSE(r.taught);
+  EXPECT_EQ(m.rejected(), 2);
+  const ImageView own = view(white, at(2));
+  EXPECT_TRUE(m.on_image(view(desired, at(2)), 0, &own).taught);
+}
+
 TEST_F(Frames, CameraInfoIsCheckedBeforeItIsUsed) {
   auto m = make();
   CameraInfoMsg bad = info();

@@ -477,4 +477,65 @@ TEST(DdsLoop, ServoRejectsBadImagesWithAReasonAndExitsCleanly) {
   EXPECT_TRUE(w.wait_for([&] { return w.twists > twists_before && w.last_status && w.last_status->state() == SS::STOPPED; }, 30s));
 }
 
+// Issue 41: a servo taking white frames (servo run --white-frame) checks each as it checks the
+// image, pairs them by stamp, and rejects an image without its own, each with a reason on its
+// status; it stays up and answers every image with a zero twist.
+TEST(DdsLoop, AServoTakingWhiteFramesRejectsBadOnesWithAReason) {
+  const int domain = unique_domain(7);
+  const std::string dir = tmp_dir("bad_white");
+  Watcher w(domain);
+  Process servo(servo_args("0.9", {"--white-frame"}), domain, dir + "/servo.log");
+  using cell_dds::Stream;
+  cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType> info(*w.participant, cell_dds::kCameraInfoTopic,
+                                                                       cell_dds::writer_qos(Stream::kLatched));
+  cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType> image(*w.participant, cell_dds::kImageTopic,
+                                                                   cell_dds::writer_qos(Stream::kFrame));
+  cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType> white(*w.participant, cell_dds::kWhiteImageTopic,
+                                                                   cell_dds::writer_qos(Stream::kFrame));
+  ASSERT_TRUE(w.wait_for([&] { return image.matched() > 0 && white.matched() > 0 && info.matched() > 0; }, 240s));
+  sensor_msgs::msg::dds_::CameraInfo_ ci;
+  ci.width(640);
+  ci.height(480);
+  ci.k({800, 0, 319.5, 0, 800, 239.5, 0, 0, 1});
+  info.write(ci);
+  const auto frame = [](std::uint32_t w_px, std::uint32_t h_px, const std::string& enc, int k) {
+    sensor_msgs::msg::dds_::Image_ img;
+    img.header().stamp(cell_dds::stamp_of(static_cast<std::uint64_t>(k), 0.04));
+    img.header().frame_id(cell_dds::kCameraFrame);
+    img.width(w_px);
+    img.height(h_px);
+    img.encoding(enc);
+    img.step(w_px * 3);
+    img.data().assign(static_cast<std::size_t>(w_px) * h_px * 3, 40);
+    return img;
+  };
+  // each pair is sent again, at the next stamp, until its reason is heard (a loaded machine may
+  // deliver the latched camera_info after the first images) with its white frame `white_offset` frames
+  // on (< 0: none)
+  int k = 0;
+  const auto rejected_with = [&](std::uint32_t w_px, std::uint32_t h_px, const std::string& enc, int white_offset,
+                                 const std::string& text) {
+    for (int attempt = 0; attempt < 10; ++attempt) {
+      ++k;
+      if (white_offset >= 0) {
+        auto wf = frame(w_px, h_px, enc, k + white_offset);
+        white.write(wf);
+      }
+      auto img = frame(640, 480, "rgb8", k);
+      image.write(img);
+      if (w.wait_for([&] { return w.last_status && w.last_status->reason().find(text) != std::string::npos; }, 2s))
+        return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(rejected_with(640, 480, "mono8", 0, "white frame: rejected image: encoding 'mono8'"));
+  EXPECT_TRUE(rejected_with(320, 240, "rgb8", 0, "white frame: rejected image: 320 x 240"));
+  // another frame's white frame is not this image's
+  EXPECT_TRUE(rejected_with(640, 480, "rgb8", 1000, "rejected image: no white reference frame with its stamp"));
+  EXPECT_TRUE(rejected_with(640, 480, "rgb8", -1, "rejected image: no white reference frame with its stamp"));
+  EXPECT_TRUE(servo.running());
+  servo.kill(SIGINT);
+  EXPECT_EQ(servo.wait_exit(10s), 0);
+}
+
 }  // namespace

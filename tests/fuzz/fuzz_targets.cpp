@@ -322,7 +322,17 @@ struct ServoTarget : Target {
         if (rng() % 3 == 0) v.height = static_cast<std::uint32_t>(rng() % 5000);
         if (rng() % 3 == 0) v.step = v.width * 3;  // wraps for huge widths
         if (rng() % 3 == 0) v.size = rng() % (v.size + 1);
-        machine.on_image(v, now);
+        if (rng() % 2) {
+          machine.on_image(v, now);
+          break;
+        }
+        // with a white reference frame (servo run --white-frame): the same bytes, its header
+        // mutated apart, at its own stamp now and then
+        servo::ImageView white = v;
+        if (rng() % 4 == 0) white.stamp.nanosec = static_cast<std::uint32_t>(rng());
+        if (rng() % 3 == 0) white.width = static_cast<std::uint32_t>(rng() % 5000);
+        if (rng() % 3 == 0) white.size = rng() % (image.total() * 3 + 1);
+        machine.on_image(v, now, &white);
       }
     }
   }
@@ -606,6 +616,7 @@ struct ReplayTarget : Target {
       const auto status = w.add_channel(sc, "/sim/status", "cdr", {});
       const auto pose = w.add_channel(sc, "/sim/camera_pose", "cdr", {});
       const auto image = w.add_channel(sc, "/camera/image_raw", "cdr", {});
+      const auto white = w.add_channel(sc, "/camera/white/image_raw", "cdr", {});
       const auto twist = w.add_channel(sc, "/servo/cmd_twist", "cdr", {});
       sensor_msgs::msg::dds_::CameraInfo_ ci;
       ci.width(64);
@@ -635,6 +646,8 @@ struct ReplayTarget : Target {
         img.data().resize(64 * 48 * 3);
         for (auto& b : img.data()) b = static_cast<std::uint8_t>(rng() % 4 == 0 ? 255 : 0);
         put<sensor_msgs::msg::dds_::Image_PubSubType>(w, image, k, img);
+        std::fill(img.data().begin(), img.data().end(), std::uint8_t{200});  // its white frame
+        put<sensor_msgs::msg::dds_::Image_PubSubType>(w, white, k, img);
         geometry_msgs::msg::dds_::TwistStamped_ t;
         t.header().stamp(stamp);
         put<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(w, twist, k, t);
@@ -659,6 +672,7 @@ struct ReplayTarget : Target {
     o.recording = file;
     o.pattern = kSrc + "/servo/pattern/data/marray_20x20_k3_w3.txt";
     o.plot = false;
+    o.config.white_frame = rng() % 2;  // the white frames paired with their images, or left aside
     try {
       servo::run_replay(o);
     } catch (const std::exception& e) {

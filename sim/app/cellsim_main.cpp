@@ -322,6 +322,7 @@ struct ConditionFlags {
   double outliers = 0;
   double losses = 0;
   bool white_frame = false;
+  double white_frame_lead = 0;
 
   void add(CLI::App* c) {
     std::string names;
@@ -348,10 +349,17 @@ struct ConditionFlags {
     c->add_flag("--white-frame", white_frame,
                 "beside each pattern frame the camera takes the white reference frame (the projector casting white), "
                 "and the servo decodes their ratio: the surface's albedo divided out (docs/decoding.md, Appearance)");
+    c->add_option("--white-frame-lead", white_frame_lead,
+                  "with --white-frame: the white frame is taken this share of a frame period before its pattern "
+                  "frame, on the way the camera came (a real camera takes the two one after the other; 0: at one "
+                  "pose)")
+        ->check(common::finite_in(0, 1))
+        ->capture_default_str();
   }
   // the white frame is a decoded run's: the ideal features take no image
   void check_white_frame(const std::string& source) const {
     if (white_frame && source != "decoded") throw std::invalid_argument("--white-frame needs --features decoded");
+    if (white_frame_lead > 0 && !white_frame) throw std::invalid_argument("--white-frame-lead needs --white-frame");
   }
   sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
     sim::CalibrationErrors e = sc.errors;
@@ -421,6 +429,7 @@ struct CampaignFlags {
     c.outlier_fraction = conditions.outliers;
     c.loss_fraction = conditions.losses;
     c.white_frame = conditions.white_frame;
+    c.white_frame_lead = conditions.white_frame_lead;
     return c;
   }
 };
@@ -440,6 +449,7 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   o.outlier_fraction = conditions.outliers;
   o.loss_fraction = conditions.losses;
   o.white_frame = conditions.white_frame;
+  o.white_frame_lead = conditions.white_frame_lead;
   o.servo = experiment::servo_config_for(*cell);
   o.servo.divergence_ratio = conditions.divergence_ratio;
   law.apply(o.servo, desired_depth(*cell));

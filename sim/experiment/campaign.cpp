@@ -453,6 +453,7 @@ ExperimentResult run_job(const sim::Cell& cell, const CampaignOptions& o, const 
   e.outlier_fraction = o.outlier_fraction;
   e.loss_fraction = o.loss_fraction;
   e.white_frame = o.white_frame;
+  e.white_frame_lead = o.white_frame_lead;
   e.render_threads = 1;  // one thread per run: the runs share the cores out among themselves
   ExperimentResult r = run_experiment(cell, e);
   r.trace.clear();  // keep memory flat: only the outcome matters here
@@ -538,7 +539,8 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
                      {"visual_features", control::to_string(law.features)},
                      {"outliers", o.outlier_fraction},
                      {"losses", o.loss_fraction},
-                     {"white_frame", o.white_frame}};
+                     {"white_frame", o.white_frame},
+                     {"white_frame_lead", o.white_frame_lead}};
   return meta;
 }
 

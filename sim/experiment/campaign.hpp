@@ -33,6 +33,7 @@ struct CampaignOptions {
   double outlier_fraction = 0;  // as ExperimentOptions
   double loss_fraction = 0;     // as ExperimentOptions
   bool white_frame = false;     // as ExperimentOptions
+  double white_frame_lead = 0;  // as ExperimentOptions
 };
 
 // A median or worst value as the summary tables show it: "-" when no run gave one (not "nan").

@@ -214,6 +214,7 @@ loop::LoopSetup loop_setup(const sim::Cell& cell, const ExperimentOptions& o, st
   setup.loss_fraction = o.loss_fraction;
   // the servo, told so, rejects a frame that comes without its white frame (as `servo run --white-frame`)
   setup.white_frame = setup.servo.white_frame = o.white_frame || o.servo.white_frame;
+  setup.white_frame_lead = o.white_frame_lead;
   setup.max_steps = o.max_iterations;
   setup.render_threads = o.render_threads;
   return setup;

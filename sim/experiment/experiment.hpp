@@ -32,6 +32,7 @@ struct ExperimentOptions {
   double outlier_fraction = 0;
   double loss_fraction = 0;  // decoded spots dropped at every frame (loop::LoopSetup::loss_fraction)
   bool white_frame = false;  // the white reference frame beside each pattern frame (loop::LoopSetup)
+  double white_frame_lead = 0;  // taken this share of a frame period before it (loop::LoopSetup)
   // everything the loop passes, as the wire would carry it (cellsim experiment --record)
   loop::LoopTap* tap = nullptr;
   // the renderer's threads: 0 OpenCV's pool (cv::setNumThreads), 1 the run's own thread only

@@ -50,15 +50,43 @@ bool switched_on(const std::string& name, double v, const char* off) {
   return v != 0;
 }
 
+void check_within(const std::string& name, double v, double lo, double hi) {
+  if (!(v >= lo && v <= hi)) {
+    char m[160];
+    std::snprintf(m, sizeof m, "study axis %s: %.6g is outside [%g, %g]", name.c_str(), v, lo, hi);
+    throw std::invalid_argument(m);
+  }
+}
+
+// The axes that switch the servo's options and the white frame's; false for another axis.
+bool apply_switch(const std::string& name, double v, CampaignOptions& c) {
+  if (name == "interior_points") {
+    // 1: the law on the interior of the matched spots (ServoConfig::interior_points), 0: on all
+    c.base.interior_points = switched_on(name, v, "all matched spots");
+  } else if (name == "taught_points") {
+    // 1: each id held to the point its spot lit at teaching (ServoConfig::taught_points)
+    c.base.taught_points = switched_on(name, v, "not held");
+  } else if (name == "white_frame") {
+    // 1: the white reference frame beside each pattern frame (ExperimentOptions::white_frame)
+    c.white_frame = switched_on(name, v, "the pattern frame alone");
+    if (c.white_frame && c.source != loop::FeatureSource::kDecoded)
+      throw std::invalid_argument("study axis white_frame: needs --features decoded");
+  } else if (name == "white_frame_lead") {
+    // the share of a frame period the white frame is taken before its pattern frame (the camera
+    // moving between them; ExperimentOptions::white_frame_lead)
+    check_within(name, v, 0, 1);
+    if (!c.white_frame) throw std::invalid_argument("study axis white_frame_lead: needs --white-frame");
+    c.white_frame_lead = v;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 // Sets one axis value; throws std::invalid_argument when it is out of range.
 void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions& c) {
-  const auto within = [&](double lo, double hi) {
-    if (!(v >= lo && v <= hi)) {
-      char m[160];
-      std::snprintf(m, sizeof m, "study axis %s: %.6g is outside [%g, %g]", name.c_str(), v, lo, hi);
-      throw std::invalid_argument(m);
-    }
-  };
+  const auto within = [&](double lo, double hi) { check_within(name, v, lo, hi); };
+  if (apply_switch(name, v, c)) return;
   if (name == "z_hat") {
     within(0.01, 100);
     c.base.law.z_hat_m = v;
@@ -76,17 +104,6 @@ void apply(const std::string& name, double v, sim::Scenario& s, CampaignOptions&
     within(0, 3);
     if (v != std::floor(v)) within(1, 0);  // not an index
     c.base.law.features = static_cast<control::VisualFeatures>(static_cast<int>(v));
-  } else if (name == "interior_points") {
-    // 1: the law on the interior of the matched spots (ServoConfig::interior_points), 0: on all
-    c.base.interior_points = switched_on(name, v, "all matched spots");
-  } else if (name == "taught_points") {
-    // 1: each id held to the point its spot lit at teaching (ServoConfig::taught_points)
-    c.base.taught_points = switched_on(name, v, "not held");
-  } else if (name == "white_frame") {
-    // 1: the white reference frame beside each pattern frame (ExperimentOptions::white_frame)
-    c.white_frame = switched_on(name, v, "the pattern frame alone");
-    if (c.white_frame && c.source != loop::FeatureSource::kDecoded)
-      throw std::invalid_argument("study axis white_frame: needs --features decoded");
   } else if (name == "losses") {
     // the fraction of the decoded spots dropped at every frame (decoding losses, issue 44)
     within(0, 0.9);
@@ -158,7 +175,7 @@ double depth_spread(const sim::Cell& cell) {
 std::vector<std::string> study_axis_names() {
   std::vector<std::string> n{"z_hat",          "gain",           "object_scale_x", "object_scale_y", "object_scale_z",
                              "object_yaw_deg", "error_scale",    "offset_scale",   "outliers", "losses", "visual_features",
-                             "interior_points", "taught_points", "white_frame"};
+                             "interior_points", "taught_points", "white_frame", "white_frame_lead"};
   for (const auto& e : sim::error_names()) n.push_back(e);
   for (const auto& l : sim::latency_names()) n.push_back(l);
   return n;
@@ -194,10 +211,12 @@ StudyAxis parse_study_axis(const std::string& spec) {
                                   std::to_string(kMaxAxisValues) + " values");
   }
   if (a.values.empty()) throw std::invalid_argument("study axis " + common::printable(a.name.substr(0, 60)) + ": no values");
-  // every value checked now, not when its campaign's turn comes
+  // every value checked now, not when its campaign's turn comes (its range here; against the
+  // study's own campaign, which may lack what a value needs, in check_study)
   for (double v : a.values) {
     sim::Scenario s;
     CampaignOptions c;
+    c.white_frame = true;
     apply(a.name, v, s, c);
   }
   return a;

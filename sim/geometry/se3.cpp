@@ -54,6 +54,10 @@ Vector6d se3_log(const Eigen::Isometry3d& T) {
   return out;
 }
 
+Eigen::Isometry3d interpolate(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double t) {
+  return a * se3_exp(t * se3_log(a.inverse() * b));
+}
+
 Eigen::Isometry3d pose_from_xyz_rxyz(double x, double y, double z, double rx, double ry, double rz) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(x, y, z);

@@ -17,6 +17,11 @@ Eigen::Isometry3d se3_exp(const Vector6d& twist);
 // Inverse of se3_exp (the twist that reaches T in unit time), for tests and error metrics.
 Vector6d se3_log(const Eigen::Isometry3d& T);
 
+// The pose a share t (0..1) of the way from a to b along the screw motion between them (a
+// constant body twist for the whole way): a at 0, b at 1. Where the camera was between two
+// frames, when it moved from one to the other with the twist in force.
+Eigen::Isometry3d interpolate(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double t);
+
 // The twist (v, w) of a body expressed in frame B, expressed in frame A instead (a_T_b):
 // w_a = R w_b, v_a = R v_b + p x (R w_b).
 Vector6d transform_twist(const Eigen::Isometry3d& a_T_b, const Vector6d& twist_b);

@@ -1,5 +1,7 @@
 #include "sim/loop/in_memory_loop.hpp"
 
+#include "sim/geometry/se3.hpp"
+
 #include <algorithm>
 #include <random>
 
@@ -49,6 +51,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       outlier_fraction_(setup.outlier_fraction),
       loss_fraction_(setup.loss_fraction),
       white_frame_(setup.white_frame || setup.servo.white_frame),
+      white_frame_lead_(setup.white_frame_lead),
       cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot), cell.goal_plane),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
@@ -65,6 +68,7 @@ void InMemoryLoop::set_tap(LoopTap* tap) {
 
 bool InMemoryLoop::command(const sim::CommandMsg& c) {
   if (tap_) tap_->on_command(c, now_s_);
+  moving_from_.reset();
   return cell_.on_command(c, now_s_);
 }
 
@@ -75,6 +79,18 @@ void InMemoryLoop::accepted(const sim::CellOutput& out) {
     if (tap_) tap_->on_accepted(c, now_s_);
     servo_.on_command(c.command);
   }
+}
+
+Eigen::Isometry3d InMemoryLoop::white_pose(const sim::FrameOrder& f) {
+  // the camera came from the frame before's pose by the twist answering it: the white frame is
+  // taken on that way, the lead's share of it back from this frame's pose
+  const bool came = moving_from_.has_value() && f.applies_twist;
+  const Eigen::Isometry3d at =
+      came && white_frame_lead_ > 0 ? sim::interpolate(f.scene_world_T_camera, *moving_from_, white_frame_lead_)
+                                    : f.scene_world_T_camera;
+  if (f.applies_twist) moving_from_ = f.scene_world_T_camera;
+  else moving_from_.reset();
+  return at;
 }
 
 LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
@@ -88,7 +104,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
     const std::uint64_t seed = sim::frame_seed(noise_seed_, f.index);
     rgb = sim::render_image(world_, f.scene_world_T_camera, seed, &scratch_, nullptr, &f.scene_world_T_links);
     if (white_frame_)
-      white = sim::render_image(world_, f.scene_world_T_camera, sim::white_frame_seed(seed), &scratch_, nullptr,
+      white = sim::render_image(world_, white_pose(f), sim::white_frame_seed(seed), &scratch_, nullptr,
                                 &f.scene_world_T_links, sim::Cast::kWhite);
   }
   if (tap_) tap_->on_frame(f, cell_, white.empty() ? nullptr : &white, rgb.empty() ? nullptr : &rgb, now_s_);

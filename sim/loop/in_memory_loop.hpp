@@ -40,6 +40,10 @@ struct LoopSetup {
   // own noise draw), and the servo decodes their ratio (servo/vision/reference.hpp); so too
   // when the servo's configuration asks for it (ServoConfig::white_frame)
   bool white_frame = false;
+  // A real camera takes the white frame apart from the pattern frame, so while it moves the two
+  // are not taken at one pose: the white frame is taken this share of a frame period before its
+  // pattern frame, on the way the camera came (0: at the same pose; 1: where the frame before was)
+  double white_frame_lead = 0;
   long max_steps = 400;  // the cell's iteration cap
   int render_threads = 0;  // sim::RenderScratch::threads: 0 OpenCV's pool, 1 this thread
 };
@@ -106,6 +110,12 @@ class InMemoryLoop {
   double outlier_fraction_;
   double loss_fraction_;
   bool white_frame_;
+  double white_frame_lead_;
+  // the scene pose of the frame before, while the camera moves from frame to frame by the
+  // twists answering them (forgotten at a command, which may move it otherwise)
+  std::optional<Eigen::Isometry3d> moving_from_;
+  // the pose the white frame of this frame is taken at
+  Eigen::Isometry3d white_pose(const sim::FrameOrder& f);
   sim::CellStateMachine cell_;
   servo::ServoStateMachine servo_;
   sim::RenderScratch scratch_;

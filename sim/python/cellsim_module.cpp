@@ -229,7 +229,7 @@ struct Servo {
 
 py::dict run_experiment_dict(const Scenario& s, const std::string& model, double z_hat, double gain, const std::string& robust,
                     int max_iterations, const std::string& features, const std::string& visual_features,
-                    bool interior_points, bool fitted_lines, bool white_frame) {
+                    bool interior_points, bool fitted_lines, bool white_frame, double white_frame_lead) {
   if (max_iterations < 1 || max_iterations > 100000) throw py::value_error("max_iterations must be in [1, 100000]");
   experiment::ExperimentOptions o;
   o.servo = servo_config(s, model, z_hat, gain, robust, visual_features);
@@ -238,7 +238,10 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
   o.source = experiment::parse_feature_source(features);
   if (white_frame && o.source != loop::FeatureSource::kDecoded)
     throw py::value_error("white_frame needs features='decoded'");
+  if (!(white_frame_lead >= 0 && white_frame_lead <= 1)) throw py::value_error("white_frame_lead must be in [0, 1]");
+  if (white_frame_lead > 0 && !white_frame) throw py::value_error("white_frame_lead needs white_frame=True");
   o.white_frame = white_frame;
+  o.white_frame_lead = white_frame_lead;
   o.max_iterations = max_iterations;
   // Ctrl-C stops the run at the next round (a signal reaches Python only when it holds the GIL)
   bool interrupted = false;
@@ -440,12 +443,14 @@ PYBIND11_MODULE(cellsim, m) {
   m.def("experiment", &run_experiment_dict, py::arg("scenario"), py::arg("model") = "desired-constant-depth",
         py::arg("z_hat") = 0.0, py::arg("gain") = 0.5, py::arg("robust") = "none", py::arg("max_iterations") = 400,
         py::arg("features") = "decoded", py::arg("visual_features") = "", py::arg("interior_points") = false,
-        py::arg("fitted_lines") = false, py::arg("white_frame") = false,
+        py::arg("fitted_lines") = false, py::arg("white_frame") = false, py::arg("white_frame_lead") = 0.0,
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns "
         "(features: where the spots come from, decoded | ideal; visual_features: what the law servoes on, points | "
         "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera; "
         "interior_points: servo on the matched spots whose four pattern neighbours are matched too, as "
-        "--interior-points; fitted_lines: decode each frame again on its fitted epipolar lines, as --fitted-lines)");
+        "--interior-points; fitted_lines: decode each frame again on its fitted epipolar lines, as --fitted-lines; "
+        "white_frame: the white reference frame beside each frame, taken white_frame_lead of a frame period before "
+        "it, as --white-frame and --white-frame-lead)");
   py::class_<Env>(m, "_ServoEnvCore",
                   "the environment's engine (ServoEnv, defined below in Python, is the public face)")
       .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&>(),

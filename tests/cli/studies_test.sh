@@ -45,6 +45,12 @@ one_line_error "white frame, campaign of ideal features" "--white-frame needs --
   "$cellsim" campaign "$fig5" --white-frame --features ideal --runs 1 -o "$tmp/wc"
 one_line_error "white frame axis, ideal features" "study axis white_frame: needs --features decoded" \
   "$cellsim" study "$fig5" --axis white_frame=0,1 --features ideal -o "$tmp/ws"
+one_line_error "white frame lead without the white frame" "--white-frame-lead needs --white-frame" \
+  "$cellsim" experiment "$fig5" --white-frame-lead 0.5
+one_line_error "white frame lead out of range" "white-frame-lead" \
+  "$cellsim" campaign "$fig5" --white-frame --white-frame-lead 2 --runs 1 -o "$tmp/wl"
+one_line_error "white frame lead axis without the white frame" "study axis white_frame_lead: needs --white-frame" \
+  "$cellsim" study "$fig5" --axis white_frame_lead=0,0.5 -o "$tmp/wl"
 one_line_error "delay beyond the queue bound" "is outside .0, 50" "$cellsim" campaign "$fig5" --latency processing_frames=1000000 -o "$tmp/x"
 one_line_error "an axis twice" "given twice" "$cellsim" study "$fig5" --axis gain=1 --axis gain=2 -o "$tmp/x"
 one_line_error "a value twice" "value '1' given twice" "$cellsim" study "$fig5" --axis gain=1,2,1 -o "$tmp/x"

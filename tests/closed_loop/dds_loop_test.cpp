@@ -33,6 +33,20 @@ namespace {
 using namespace closed_loop;
 using namespace std::chrono_literals;
 
+// An rgb8 image as a peer sends it: frame k's stamp, the header given, `bytes` of `level`
+sensor_msgs::msg::dds_::Image_ peer_image(std::uint32_t w_px, std::uint32_t h_px, const std::string& enc,
+                                          std::size_t bytes, int k, std::uint8_t level = 0) {
+  sensor_msgs::msg::dds_::Image_ img;
+  img.header().stamp(cell_dds::stamp_of(static_cast<std::uint64_t>(k), 0.04));
+  img.header().frame_id(cell_dds::kCameraFrame);
+  img.width(w_px);
+  img.height(h_px);
+  img.encoding(enc);
+  img.step(w_px * 3);
+  img.data().assign(bytes, level);
+  return img;
+}
+
 void expect_converged_pose(const std::string& scenario, Watcher& w) {
   const sim::Scenario s = sim::load_scenario(kSrc + "/sim/scenarios/" + scenario + ".yaml");
   const Eigen::Isometry3d wTc = w.pose_now();
@@ -433,14 +447,7 @@ TEST(DdsLoop, ServoRejectsBadImagesWithAReasonAndExitsCleanly) {
   info.write(ci);
   std::this_thread::sleep_for(300ms);
   const auto send = [&](uint32_t w_px, uint32_t h_px, const std::string& enc, std::size_t bytes, int k) {
-    sensor_msgs::msg::dds_::Image_ img;
-    img.header().stamp(cell_dds::stamp_of(static_cast<std::uint64_t>(k), 0.04));
-    img.header().frame_id(cell_dds::kCameraFrame);
-    img.width(w_px);
-    img.height(h_px);
-    img.encoding(enc);
-    img.step(w_px * 3);
-    img.data().assign(bytes, 0);
+    auto img = peer_image(w_px, h_px, enc, bytes, k);
     image.write(img);
   };
   // each bad image is sent again until its reason is heard (a loaded machine may deliver the
@@ -499,15 +506,7 @@ TEST(DdsLoop, AServoTakingWhiteFramesRejectsBadOnesWithAReason) {
   ci.k({800, 0, 319.5, 0, 800, 239.5, 0, 0, 1});
   info.write(ci);
   const auto frame = [](std::uint32_t w_px, std::uint32_t h_px, const std::string& enc, int k) {
-    sensor_msgs::msg::dds_::Image_ img;
-    img.header().stamp(cell_dds::stamp_of(static_cast<std::uint64_t>(k), 0.04));
-    img.header().frame_id(cell_dds::kCameraFrame);
-    img.width(w_px);
-    img.height(h_px);
-    img.encoding(enc);
-    img.step(w_px * 3);
-    img.data().assign(static_cast<std::size_t>(w_px) * h_px * 3, 40);
-    return img;
+    return peer_image(w_px, h_px, enc, static_cast<std::size_t>(w_px) * h_px * 3, k, 40);
   };
   // each pair is sent again, at the next stamp, until its reason is heard (a loaded machine may
   // deliver the latched camera_info after the first images) with its white frame `white_offset` frames

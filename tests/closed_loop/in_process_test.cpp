@@ -278,6 +278,15 @@ TEST(InProcessLoop, TheWhiteFrameBringsThePrintedBoxHome) {
   EXPECT_TRUE(white.converged) << white.stop_reason;
   EXPECT_LT(white.final_translation_error_m, 1e-3);
   EXPECT_GE(white.decoded_initial, alone.decoded_initial * 5 / 4);
+  // a real camera takes the white frame apart from the pattern frame: taken a whole frame period
+  // before it, where the camera was at the frame before, the run differs and still comes home
+  o.white_frame_lead = 1;
+  const auto lead = experiment::run_experiment(*cell, o);
+  std::printf("printed box, the white frame a frame period early: %s, %.3f mm\n", lead.stop_reason.c_str(),
+              1e3 * lead.final_translation_error_m);
+  EXPECT_TRUE(lead.converged) << lead.stop_reason;
+  EXPECT_LT(lead.final_translation_error_m, 1e-3);
+  EXPECT_NE(lead.final_translation_error_m, white.final_translation_error_m);
 }
 
 TEST(InProcessLoop, CylinderConvergesUnder1mmAnd0_1Deg) {

@@ -74,6 +74,10 @@ def test_the_white_frame_names_more_of_the_printed_box():
         box.decoder().decode(image, white=white[:100])
     with pytest.raises(ValueError, match="white_frame needs features='decoded'"):
         cellsim.experiment(box, features="ideal", white_frame=True, max_iterations=1)
+    with pytest.raises(ValueError, match="white_frame_lead needs white_frame=True"):
+        cellsim.experiment(box, white_frame_lead=0.5, max_iterations=1)
+    with pytest.raises(ValueError, match=r"white_frame_lead must be in \[0, 1\]"):
+        cellsim.experiment(box, white_frame=True, white_frame_lead=float("nan"), max_iterations=1)
 
 
 def test_one_servo_iteration_from_python(plane):

@@ -442,7 +442,7 @@ TEST(Render, APrintedSurfaceReturnsItsTexelTimesTheLight) {
       // ray and the z-buffer may each see the other surface
       const auto near_border = [](double x) { return x < 0.012 || x > 0.988; };
       bool edge = near_border(uv->x()) || near_border(uv->y());
-      for (const Eigen::Vector2d d : {Eigen::Vector2d(0.012, 0), Eigen::Vector2d(-0.012, 0), Eigen::Vector2d(0, 0.012),
+      for (const Eigen::Vector2d& d : {Eigen::Vector2d(0.012, 0), Eigen::Vector2d(-0.012, 0), Eigen::Vector2d(0, 0.012),
                                       Eigen::Vector2d(0, -0.012)}) {
         texel_at(*box.texture, uv->x() + d.x(), uv->y() + d.y(), around);
         for (int c = 0; c < 3; ++c) edge = edge || around[c] != texel[c];

@@ -49,6 +49,22 @@ TEST(Se3Log, InvertsExp) {
   EXPECT_TRUE(se3_log(se3_exp(v)).isApprox(v, 1e-10));
 }
 
+// the pose part of the way along a screw motion is the screw's pose at that share of its angle
+// and its advance, measured from either end's frame
+TEST(Se3Interpolate, FollowsTheScrewBetweenTwoPoses) {
+  const Eigen::Vector3d axis = Eigen::Vector3d(-0.4, 1, 0.3).normalized();
+  const Eigen::Vector3d q(0.1, 0.5, -0.2);
+  const Eigen::Isometry3d a = pose_from_xyz_rxyz(0.6, -0.1, 0.4, 0.2, -0.3, 1.1);
+  const Eigen::Isometry3d b = a * screw(axis, q, 0.5, 0.02);
+  EXPECT_LT((interpolate(a, b, 0).matrix() - a.matrix()).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((interpolate(a, b, 1).matrix() - b.matrix()).cwiseAbs().maxCoeff(), 1e-12);
+  for (double t : {0.25, 0.5, 0.9}) {
+    const Eigen::Isometry3d expected = a * screw(axis, q, 0.5 * t, 0.02 * t);
+    EXPECT_LT((interpolate(a, b, t).matrix() - expected.matrix()).cwiseAbs().maxCoeff(), 1e-12) << "t = " << t;
+    EXPECT_LT((interpolate(b, a, 1 - t).matrix() - expected.matrix()).cwiseAbs().maxCoeff(), 1e-12) << "t = " << t;
+  }
+}
+
 TEST(FreeFlyingCamera, IntegratesOverManyStepsExactly) {
   FreeFlyingCamera cam(Eigen::Isometry3d::Identity(), 10, 10);
   Vector6d v;

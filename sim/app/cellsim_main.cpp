@@ -836,6 +836,11 @@ struct ServeCommand {
                 "beside each frame publish the white reference frame (the projector casting white, the same pose, "
                 "its own noise) on rt/camera/white/image_raw, with the frame's stamp and before it, for `servo run "
                 "--white-frame` (docs/decoding.md, Appearance)");
+    c->add_option("--white-frame-lead", svc.white_frame_lead,
+                  "with --white-frame: the white frame is taken this share of a frame period before its frame, on the "
+                  "way the camera came (a real camera takes the two one after the other; 0: at one pose)")
+        ->check(common::finite_in(0, 1))
+        ->capture_default_str();
     c->add_option("--foxglove", svc.foxglove_port,
                   "serve the run live in Foxglove on ws://127.0.0.1:PORT (its WebSocket protocol; 0: a free port, printed)");
     c->add_option("--foxglove-address", svc.foxglove_address,
@@ -860,6 +865,8 @@ struct ServeCommand {
     svc.trace_dir = trace;
     svc.record_images = !no_images;
     if (no_images && svc.record.empty()) throw std::invalid_argument("--record-no-images needs --record FILE.mcap");
+    if (svc.white_frame_lead > 0 && !svc.white_frame)
+      throw std::invalid_argument("--white-frame-lead needs --white-frame");
     return sim::run_sim_service(svc);
   }
 };

@@ -1,7 +1,5 @@
 #include "sim/loop/in_memory_loop.hpp"
 
-#include "sim/geometry/se3.hpp"
-
 #include <algorithm>
 #include <random>
 
@@ -51,7 +49,7 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       outlier_fraction_(setup.outlier_fraction),
       loss_fraction_(setup.loss_fraction),
       white_frame_(setup.white_frame || setup.servo.white_frame),
-      white_frame_lead_(setup.white_frame_lead),
+      white_pose_(setup.white_frame_lead),
       cell_(cell.scenario, lockstep_params(setup.max_steps, setup.latency), std::move(setup.robot), cell.goal_plane),
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
@@ -68,7 +66,6 @@ void InMemoryLoop::set_tap(LoopTap* tap) {
 
 bool InMemoryLoop::command(const sim::CommandMsg& c) {
   if (tap_) tap_->on_command(c, now_s_);
-  moving_from_.reset();
   return cell_.on_command(c, now_s_);
 }
 
@@ -77,20 +74,9 @@ bool InMemoryLoop::command(const sim::CommandMsg& c) {
 void InMemoryLoop::accepted(const sim::CellOutput& out) {
   for (const sim::CommandMsg& c : out.accepted) {
     if (tap_) tap_->on_accepted(c, now_s_);
+    white_pose_.forget();
     servo_.on_command(c.command);
   }
-}
-
-Eigen::Isometry3d InMemoryLoop::white_pose(const sim::FrameOrder& f) {
-  // the camera came from the frame before's pose by the twist answering it: the white frame is
-  // taken on that way, the lead's share of it back from this frame's pose
-  const bool came = moving_from_.has_value() && f.applies_twist;
-  const Eigen::Isometry3d at =
-      came && white_frame_lead_ > 0 ? sim::interpolate(f.scene_world_T_camera, *moving_from_, white_frame_lead_)
-                                    : f.scene_world_T_camera;
-  if (f.applies_twist) moving_from_ = f.scene_world_T_camera;
-  else moving_from_.reset();
-  return at;
 }
 
 LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
@@ -104,7 +90,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
     const std::uint64_t seed = sim::frame_seed(noise_seed_, f.index);
     rgb = sim::render_image(world_, f.scene_world_T_camera, seed, &scratch_, nullptr, &f.scene_world_T_links);
     if (white_frame_)
-      white = sim::render_image(world_, white_pose(f), sim::white_frame_seed(seed), &scratch_, nullptr,
+      white = sim::render_image(world_, white_pose_.at(f), sim::white_frame_seed(seed), &scratch_, nullptr,
                                 &f.scene_world_T_links, sim::Cast::kWhite);
   }
   if (tap_) tap_->on_frame(f, cell_, white.empty() ? nullptr : &white, rgb.empty() ? nullptr : &rgb, now_s_);

@@ -18,6 +18,7 @@
 
 #include "servo/node/servo_state_machine.hpp"
 #include "sim/session/cell_state_machine.hpp"
+#include "sim/session/white_frame_pose.hpp"
 #include "sim/render/renderer.hpp"
 
 namespace loop {
@@ -110,12 +111,7 @@ class InMemoryLoop {
   double outlier_fraction_;
   double loss_fraction_;
   bool white_frame_;
-  double white_frame_lead_;
-  // the scene pose of the frame before, while the camera moves from frame to frame by the
-  // twists answering them (forgotten at a command, which may move it otherwise)
-  std::optional<Eigen::Isometry3d> moving_from_;
-  // the pose the white frame of this frame is taken at
-  Eigen::Isometry3d white_pose(const sim::FrameOrder& f);
+  sim::WhiteFramePose white_pose_;
   sim::CellStateMachine cell_;
   servo::ServoStateMachine servo_;
   sim::RenderScratch scratch_;

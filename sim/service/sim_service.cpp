@@ -1,5 +1,6 @@
 #include "sim/cell/build_cell.hpp"
 #include "sim/service/sim_service.hpp"
+#include "sim/session/white_frame_pose.hpp"
 
 #include "common/exit_codes.hpp"
 #include "common/strict_yaml.hpp"
@@ -464,6 +465,7 @@ class SimService {
     for (const auto& c : out.accepted) {
       SimControl_ m = wire::control(c);
       accepted_->write(m);
+      white_pose_.forget();
     }
     if (out.load) start_load(*out.load);
     for (const auto& f : out.frames) publish_frame(f);
@@ -571,8 +573,8 @@ class SimService {
       auto truth = wire::spot_truth(*cell_, f, stamp);
       truth_->write(truth);
     }
-    if (white_) {  // the same pose, its own noise draw (as the in-process loop renders it)
-      auto white = wire::image(sim::render_image(*cell_, f.scene_world_T_camera, sim::white_frame_seed(seed), &scratch_,
+    if (white_) {  // where the camera took it (sim::WhiteFramePose), its own noise draw, as in-process
+      auto white = wire::image(sim::render_image(*cell_, white_pose_.at(f), sim::white_frame_seed(seed), &scratch_,
                                                  nullptr, &f.scene_world_T_links, sim::Cast::kWhite),
                                stamp);
       white_->write(white);
@@ -639,6 +641,7 @@ class SimService {
   std::unique_ptr<foxglove::Bridge> live_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>> image_;
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::Image_PubSubType>> white_;  // --white-frame
+  sim::WhiteFramePose white_pose_{o_.white_frame_lead};  // declared after o_, which it is made from
   std::unique_ptr<cell_dds::Writer<sensor_msgs::msg::dds_::CameraInfo_PubSubType>> info_;
   std::unique_ptr<cell_dds::Writer<geometry_msgs::msg::dds_::PoseStamped_PubSubType>> pose_;
   std::unique_ptr<cell_dds::Writer<cell_msgs::msg::dds_::SimStatus_PubSubType>> sim_status_;

@@ -34,6 +34,7 @@ struct ServiceOptions {
   // --white-frame: beside each frame the white reference frame (the projector casting white,
   // its own noise draw), on rt/camera/white/image_raw with the frame's stamp, before its image
   bool white_frame = false;
+  double white_frame_lead = 0;  // taken this share of a frame period before it (sim::WhiteFramePose)
   // --foxglove PORT: the run live in Foxglove on ws://127.0.0.1:PORT (foxglove/bridge.hpp; 0: a
   // free port, printed); -1: off
   int foxglove_port = -1;

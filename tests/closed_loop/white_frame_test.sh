@@ -22,6 +22,13 @@ CELL_OUT="$tmp" SETUP_NO_BUILD=1 BUILD_DIR="$build" timeout 280 "$src/bin/demo" 
 grep -q "session ended: converged" "$tmp/demo.log" || fail "the printed box did not converge: $(grep 'session ended' "$tmp/demo.log")"
 converged_at_goal "$tmp/demo.log" || fail "the printed box ended away from the goal: $final"
 echo "DDS, white frame: $(grep -o 'pose error .*' "$tmp/demo.log")"
+# the service renders the white frames the in-process loop renders: the same run, to the printed digit
+dds=$(grep -o 'final error [0-9.]* mm, [0-9.]* deg' "$tmp/demo.log")
+inproc=$("$bin/cellsim" experiment "$src/sim/scenarios/printed_box.yaml" --z-hat 0.6 --white-frame --no-plot \
+         -o "$tmp/inproc" 2>/dev/null | sed -n 's/^  final error: /final error /p')
+[ -n "$dds" ] && [ "$dds" = "$inproc" ] || fail "over DDS '$dds', in-process '$inproc'"
+one_line_error "serve: a lead without the white frame" "--white-frame-lead needs --white-frame" \
+  "$bin/cellsim" serve "$src/sim/scenarios/printed_box.yaml" --white-frame-lead 0.5
 
 # one white frame per image, on its own topic
 counts=$(sed -n 's/^cellsim: recorded messages: //p' "$tmp/demo.log")

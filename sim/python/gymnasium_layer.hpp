@@ -65,7 +65,7 @@ class ServoEnv(_Env):
     """The cell as an environment for a controller of yours, with Gymnasium's contract.
 
     ServoEnv(scenario, observation="features", max_steps=300, model="desired-constant-depth",
-             z_hat=0.0, gain=0.5, robust="none", render_mode=None)
+             z_hat=0.0, gain=0.5, robust="none", render_mode=None, white_frame=False)
 
     reset(seed=None, options=None) -> (obs, info): teaches at the desired pose, sends the robot
         to an initial pose and starts. A seed draws that pose as a campaign of that seed draws
@@ -78,15 +78,17 @@ class ServoEnv(_Env):
         (x, y, x*, y*, seen) in normalised image coordinates, zeros and seen = 0 where the id is
         not matched this frame; "image": the H x W x 3 uint8 frame.
     render(): the last frame (H x W x 3 uint8) with render_mode="rgb_array", else None.
+    white_frame=True: beside each frame the white reference frame, and the features decoded from
+        their ratio (the surface's albedo divided out; the observation image stays the frame).
     info: see docs/python.md (error_norm, detected, decoded, ids, limited, the truth)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": None}
 
     def __init__(self, scenario, observation="features", max_steps=300, model="desired-constant-depth",
-                 z_hat=0.0, gain=0.5, robust="none", render_mode=None):
+                 z_hat=0.0, gain=0.5, robust="none", render_mode=None, white_frame=False):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self._core = _ServoEnvCore(scenario, observation, max_steps, model, z_hat, gain, robust)
+        self._core = _ServoEnvCore(scenario, observation, max_steps, model, z_hat, gain, robust, bool(white_frame))
         self.render_mode = render_mode
         self.metadata = dict(ServoEnv.metadata, render_fps=1.0 / scenario.dt)
         space = _gym.spaces.Box if _gym is not None else Box

@@ -80,6 +80,17 @@ def test_the_white_frame_names_more_of_the_printed_box():
         cellsim.experiment(box, white_frame=True, white_frame_lead=float("nan"), max_iterations=1)
 
 
+def test_the_env_decodes_with_the_white_frame_when_asked():
+    box = cellsim.Scenario(os.path.join(SRC, "sim", "scenarios", "printed_box.yaml"))
+    decoded = {}
+    for white in (False, True):
+        env = cellsim.ServoEnv(box, max_steps=3, white_frame=white)
+        _, info = env.reset(options={"initial_pose": "initial"})
+        decoded[white] = info["decoded"]
+        env.close()
+    assert decoded[True] > decoded[False] + 20, decoded
+
+
 def test_one_servo_iteration_from_python(plane):
     servo = cellsim.Servo(plane, z_hat=0.9)
     assert servo.teach(plane.render("desired")[0]) > 100

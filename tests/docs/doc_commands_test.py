@@ -165,7 +165,8 @@ FIG5_RUNS = [("desired-constant-depth", 4, [r"\b536 iterations"]),
 
 # Not run here, each with why.
 NOT_RUN = {
-    "bin/demo": "the main job: closed_loop.record_replay runs it (bin/demo plane --record)",
+    "bin/demo": "the main job: closed_loop.record_replay runs it (bin/demo plane --record), closed_loop.white_frame "
+                "bin/demo printed_box --white-frame --record",
     "bin/test": "this suite",
     "build/bin/cellsim decode-sweep sim/scenarios/ham.yaml --poses 1000": "1000 poses: minutes (cli.decode_* run 100)",
     "build/bin/cellsim study sim/scenarios/plane.yaml --axis offset_scale=0.5,1,1.5,2": "160 runs: minutes",

@@ -55,6 +55,12 @@ one_line_error "replay --white-frame of a recording without" "no white reference
   "$bin/servo" replay "$tmp/short.mcap" --pattern "$pattern" --z-hat 0.6 --white-frame -o "$tmp/refused"
 [ ! -e "$tmp/refused" ] || fail "a refused replay wrote its folder"
 
+# --record-no-images leaves the white frames out with the images
+out=$("$bin/cellsim" experiment "$src/sim/scenarios/printed_box.yaml" --z-hat 0.6 --white-frame --max-iterations 3 \
+      --no-plot -o "$tmp/noimg" --record "$tmp/noimg.mcap" --record-no-images 2>&1)
+grep -q "recorded messages: .*/sim/status" <<<"$out" && ! grep -q "image_raw" <<<"$out" ||
+  fail "--record-no-images with --white-frame: $(grep 'recorded messages' <<<"$out")"
+
 # a servo asking for white frames, a simulator sending none: said in one line, images rejected
 "$bin/servo" run --pattern "$pattern" --z-hat 0.6 --white-frame > "$tmp/servo.log" 2>&1 &
 servo=$!

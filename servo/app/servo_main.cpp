@@ -253,9 +253,10 @@ struct DecodeFiles {
 
 // The image decoded alone, or with its white reference frame (`white` not empty).
 vision::DecodeResult decode_one(const vision::SpotDecoder& decoder, const cv::Mat& rgb, const cv::Mat& white,
-                                const vision::EpipolarGeometry* g, const EpipolarInputs& epipolar) {
-  return !g && epipolar.camera_given ? decoder.decode_uncalibrated(rgb, white, epipolar.camera)
-                                     : decoder.decode(rgb, white, g);
+                                const vision::EpipolarGeometry* g, const EpipolarInputs& epipolar,
+                                vision::DecodeScratch& scratch) {
+  return !g && epipolar.camera_given ? decoder.decode_uncalibrated(rgb, white, epipolar.camera, &scratch)
+                                     : decoder.decode(rgb, white, g, &scratch);
 }
 
 // The white reference frame (none: empty) refused in one line naming both files when its size
@@ -281,6 +282,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
   std::vector<double> times;
   std::set<std::string> written;
   bool warm = false;
+  vision::DecodeScratch scratch;  // the decoder's room, reused from image to image
   int failed = 0;
   for (std::size_t i = 0; i < images.size(); ++i) {
     const std::string image = images[i].string();
@@ -309,11 +311,11 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
     }
     const vision::EpipolarGeometry* g = geometry ? &*geometry : nullptr;
     if (!warm) {
-      decode_one(decoder, rgb, white, g, epipolar);  // the first decode allocates; every time below is a warm one
+      decode_one(decoder, rgb, white, g, epipolar, scratch);  // the first decode allocates; every time below is a warm one
       warm = true;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const vision::DecodeResult r = decode_one(decoder, rgb, white, g, epipolar);
+    const vision::DecodeResult r = decode_one(decoder, rgb, white, g, epipolar, scratch);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     times.push_back(ms);
     std::string json_file = json_out;

@@ -208,7 +208,7 @@ ServoReply ServoStateMachine::on_image(const ImageView& img, double now_s, const
   std::vector<ImageSpot> spots;
   const std::optional<Eigen::Isometry3d> pose = pose_for(img.stamp);
   try {
-    spots = pipeline_->locate(rgb, pose, &detected, white ? &reference : nullptr);
+    spots = pipeline_->locate(rgb, pose, &detected, white ? &reference : nullptr, &decode_scratch_);
   } catch (const std::exception& e) {
     ++rejected_;
     return reply(img.stamp, "rejected image: " + common::printable(e.what(), 200));

@@ -171,6 +171,7 @@ class ServoStateMachine {
   control::SafeStopWatch safe_stop_;      // the same
   double error_norm_ = 0;
   std::uint32_t decoded_ = 0, matched_ = 0;
+  vision::DecodeScratch decode_scratch_;  // the decoder's room, from image to image
 };
 
 }  // namespace servo

@@ -40,7 +40,8 @@ std::optional<Eigen::Isometry3d> geometry_pose(const std::optional<calibration::
 }  // namespace
 
 std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& wTc,
-                                             int* detected, const cv::Mat* white) const {
+                                             int* detected, const cv::Mat* white,
+                                             vision::DecodeScratch* scratch) const {
   std::optional<vision::EpipolarGeometry> geometry;
   const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
   if (at && config_.projector && config_.decoder.epipolar.enabled)
@@ -48,8 +49,8 @@ std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::opti
   // without the calibration the frame's own lines, fitted to its spots, tell the spills
   const cv::Mat none;
   const cv::Mat& reference = white ? *white : none;
-  const vision::DecodeResult r = geometry ? decoder_.decode(rgb, reference, &*geometry)
-                                          : decoder_.decode_uncalibrated(rgb, reference, config_.camera);
+  const vision::DecodeResult r = geometry ? decoder_.decode(rgb, reference, &*geometry, scratch)
+                                          : decoder_.decode_uncalibrated(rgb, reference, config_.camera, scratch);
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());

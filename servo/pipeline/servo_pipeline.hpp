@@ -85,8 +85,10 @@ class ServoPipeline {
   // `white` (optional): the white reference frame taken at the same pose, the pattern frame
   // decoded as its ratio to it (vision/reference.hpp). Throws std::invalid_argument for a bad
   // image, or a white frame that is not the image's size.
+  // `scratch` (optional): the decoder's room, reused from the caller's last frame.
   std::vector<ImageSpot> locate(const cv::Mat& rgb, const std::optional<Eigen::Isometry3d>& world_T_camera,
-                                int* detected = nullptr, const cv::Mat* white = nullptr) const;
+                                int* detected = nullptr, const cv::Mat* white = nullptr,
+                                vision::DecodeScratch* scratch = nullptr) const;
 
   // Features of located spots: normalised coordinates and, when a camera pose and the
   // projector's calibration are known, triangulated depths. None of a spot off its line.

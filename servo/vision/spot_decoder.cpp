@@ -179,13 +179,14 @@ DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGe
   return r;
 }
 
-DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const {
-  return decode_uncalibrated(rgb, cv::Mat(), camera);
+DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera,
+                                              DecodeScratch* scratch) const {
+  return decode_uncalibrated(rgb, cv::Mat(), camera, scratch);
 }
 
 DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const cv::Mat& white,
-                                              const calibration::CameraIntrinsics& camera) const {
-  Segmentation seg = segment(rgb, white, false);
+                                              const calibration::CameraIntrinsics& camera, DecodeScratch* scratch) const {
+  Segmentation seg = segment(rgb, white, false, scratch);
   const EpipolarOptions& e = options_.epipolar;
   DecodeResult r = decode_spots(e.fitted_lines ? seg.spots : std::move(seg.spots), nullptr);
   r.rejected_blobs = seg.rejected;
@@ -203,7 +204,8 @@ DecodeResult SpotDecoder::decode_uncalibrated(const cv::Mat& rgb, const cv::Mat&
   return r;
 }
 
-Segmentation SpotDecoder::segment(const cv::Mat& rgb, const cv::Mat& white, bool calibrated) const {
+Segmentation SpotDecoder::segment(const cv::Mat& rgb, const cv::Mat& white, bool calibrated,
+                                  DecodeScratch* scratch) const {
   // The chroma levels follow the camera's crosstalk with the calibration only: without it the
   // peak level is all that keeps the wash of a far surface's spots from the windows, and at a
   // crosstalk of 0.2 the scaled levels let an egg's windows name a table spot past its top
@@ -212,19 +214,22 @@ Segmentation SpotDecoder::segment(const cv::Mat& rgb, const cv::Mat& white, bool
   // docs/decoding.md, Decisions.
   SegmentationOptions levels = options_.segmentation;
   if (!calibrated) levels.crosstalk = kLevelsCrosstalk;
-  if (white.empty()) return segment_spots(rgb, levels, &scratch_);
-  normalise_by_white(rgb, white, ratio_, options_.reference, &white_mean_);
-  Segmentation seg = segment_spots(ratio_, levels, &scratch_);
+  DecodeScratch own;
+  DecodeScratch& s = scratch ? *scratch : own;
+  if (white.empty()) return segment_spots(rgb, levels, &s.segmentation);
+  normalise_by_white(rgb, white, s.ratio, options_.reference, &s.white_mean);
+  Segmentation seg = segment_spots(s.ratio, levels, &s.segmentation);
   strengths_as_shown(seg.spots, white, options_.reference);
   return seg;
 }
 
-DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry) const {
-  return decode(rgb, cv::Mat(), geometry);
+DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const EpipolarGeometry* geometry, DecodeScratch* scratch) const {
+  return decode(rgb, cv::Mat(), geometry, scratch);
 }
 
-DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const cv::Mat& white, const EpipolarGeometry* geometry) const {
-  Segmentation seg = segment(rgb, white, geometry != nullptr);
+DecodeResult SpotDecoder::decode(const cv::Mat& rgb, const cv::Mat& white, const EpipolarGeometry* geometry,
+                                 DecodeScratch* scratch) const {
+  Segmentation seg = segment(rgb, white, geometry != nullptr, scratch);
   DecodeResult r = decode_spots(std::move(seg.spots), geometry);
   r.rejected_blobs = seg.rejected;
   return r;

@@ -477,19 +477,31 @@ struct DecodeResult {
   int rejected_blobs = 0;
 };
 
-// Not for concurrent use: decode() reuses per-frame buffers (one decoder per thread).
+// The buffers decoding reuses from frame to frame (room only: no result carries over from one
+// frame to the next). A caller that decodes many frames keeps one per thread and passes it;
+// without one, each decoding makes its own.
+struct DecodeScratch {
+  SegmentationScratch segmentation;
+  cv::Mat ratio, white_mean;  // the pattern frame over the white one, and the white one's 3 x 3 mean
+};
+
+// Decoding holds no state of its own: one decoder serves any number of threads, each with its
+// own DecodeScratch.
 class SpotDecoder {
  public:
   SpotDecoder(pattern::WindowTable table, DecoderOptions options = {});
   // Throws std::invalid_argument for an empty or non-RGB8 image (see segment_spots).
   // `geometry` (optional): the frame's camera-projector geometry, for the epipolar steps; with
   // it the segmentation's chroma levels follow the camera's crosstalk (SegmentationOptions).
-  DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr) const;
+  // `scratch` (optional): room reused from the caller's last frame.
+  DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr,
+                      DecodeScratch* scratch = nullptr) const;
   // With the white reference frame taken at the same pose (reference.hpp): the blobs are
   // segmented on the pattern frame's ratio to it, the surface's albedo divided out, and keep the
   // strength the pattern frame shows (strengths_as_shown). Throws std::invalid_argument when the
   // two frames' sizes differ or either is not RGB8.
-  DecodeResult decode(const cv::Mat& rgb, const cv::Mat& white, const EpipolarGeometry* geometry = nullptr) const;
+  DecodeResult decode(const cv::Mat& rgb, const cv::Mat& white, const EpipolarGeometry* geometry = nullptr,
+                      DecodeScratch* scratch = nullptr) const;
   DecodeResult decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry = nullptr) const;
   // Without the projector's calibration, knowing the camera's intrinsics: decode() without a
   // geometry, then either the spots off the frame's own fitted lines marked (mark_off_fitted_lines)
@@ -497,10 +509,11 @@ class SpotDecoder {
   // with rank 2 (EpipolarGeometry from FittedEpipolarLines): steps 3b, 5b, 6 and 7 as with a
   // calibration, each spot off its line marked. Where no lines can be fitted (under 9 spots
   // named), the first decoding, marked.
-  DecodeResult decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera) const;
+  DecodeResult decode_uncalibrated(const cv::Mat& rgb, const calibration::CameraIntrinsics& camera,
+                                   DecodeScratch* scratch = nullptr) const;
   // the same with a white reference frame (decode's above); an empty `white`: none
-  DecodeResult decode_uncalibrated(const cv::Mat& rgb, const cv::Mat& white,
-                                   const calibration::CameraIntrinsics& camera) const;
+  DecodeResult decode_uncalibrated(const cv::Mat& rgb, const cv::Mat& white, const calibration::CameraIntrinsics& camera,
+                                   DecodeScratch* scratch = nullptr) const;
   const DecoderOptions& options() const { return options_; }
   const pattern::WindowTable& table() const { return table_; }
   // the pattern's minimum window distance, read at construction
@@ -509,12 +522,10 @@ class SpotDecoder {
  private:
   // the frame's blobs, the chroma levels following the camera's crosstalk when `calibrated`;
   // with a white frame (not empty), segmented on the ratio
-  Segmentation segment(const cv::Mat& rgb, const cv::Mat& white, bool calibrated) const;
+  Segmentation segment(const cv::Mat& rgb, const cv::Mat& white, bool calibrated, DecodeScratch* scratch) const;
   pattern::WindowTable table_;
   DecoderOptions options_;
   int distance_ = 1;
-  mutable SegmentationScratch scratch_;
-  mutable cv::Mat ratio_, white_mean_;  // the pattern frame over the white one (reused from frame to frame)
 };
 
 }  // namespace vision

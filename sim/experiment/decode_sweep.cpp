@@ -405,10 +405,11 @@ Shot take(const sim::Cell& cell, const Eigen::Isometry3d& world_T_camera, std::u
 // with the calibration's lines at the camera's pose, or without them (the lines fitted to the
 // frame's own spots mark the ids off them).
 vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const Shot& shot, const SweepOptions& o,
-                                  const calibration::CameraIntrinsics& camera, const Eigen::Isometry3d& world_T_camera) {
-  if (!o.projector) return decoder.decode_uncalibrated(shot.pattern, shot.white, camera);
+                                  const calibration::CameraIntrinsics& camera, const Eigen::Isometry3d& world_T_camera,
+                                  vision::DecodeScratch* scratch = nullptr) {
+  if (!o.projector) return decoder.decode_uncalibrated(shot.pattern, shot.white, camera, scratch);
   const vision::EpipolarGeometry geometry(camera, *o.projector, world_T_camera, o.decoder.epipolar.tolerance_px);
-  return decoder.decode(shot.pattern, shot.white, &geometry);
+  return decoder.decode(shot.pattern, shot.white, &geometry, scratch);
 }
 
 // A frame's ids as the servo locates them (ServoPipeline::locate's output).
@@ -479,8 +480,10 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const auto work = [&] {
     sim::RenderScratch scratch;
     scratch.threads = 1;  // the sweep's own threads share the cores
-    // a decoder per thread (decoding is const and thread-safe, but cheap to own)
+    // a decoder per thread (decoding holds no state, but the table is cheap to own), and the
+    // decoder's room, reused from pose to pose as the servo reuses it from frame to frame
     const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), decoder_options);
+    vision::DecodeScratch decode_scratch;
     std::vector<WrongId> wrong;
     for (int k; (k = next++) < o.poses;) {
       SweepRow& row = rows[k];
@@ -493,7 +496,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
                              o.white_frame);
       const auto spots = sim::compute_truth(cell, wTc);
       const auto t0 = std::chrono::steady_clock::now();
-      const vision::DecodeResult r = decode_frame(decoder, shot, o, camera, wTc);
+      const vision::DecodeResult r = decode_frame(decoder, shot, o, camera, wTc, &decode_scratch);
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
       const FrameTruth truth{spots, pattern.rows, pattern.cols};

@@ -110,7 +110,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
       // steps on them
       int detected = 0;
       std::vector<servo::ImageSpot> spots =
-          servo_.pipeline().locate(rgb, reported, &detected, white.empty() ? nullptr : &white);
+          servo_.pipeline().locate(rgb, reported, &detected, white.empty() ? nullptr : &white, &decode_scratch_);
       if (loss_fraction_ > 0) drop_spots(spots, loss_fraction_, sim::frame_seed(noise_seed_ ^ 0x6c6f7373ull, f.index + 1));
       if (outlier_fraction_ > 0)
         x.swapped = inject_outliers(spots, outlier_fraction_,

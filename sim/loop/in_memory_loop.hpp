@@ -112,6 +112,7 @@ class InMemoryLoop {
   double loss_fraction_;
   bool white_frame_;
   sim::WhiteFramePose white_pose_;
+  vision::DecodeScratch decode_scratch_;  // the decoder's room where the loop locates the spots itself
   sim::CellStateMachine cell_;
   servo::ServoStateMachine servo_;
   sim::RenderScratch scratch_;

@@ -47,9 +47,10 @@ const Frame& frame(const std::string& scenario, int pattern_size = 20, double im
 
 void decode(benchmark::State& state, const Frame& f, const vision::DecoderOptions& options = {}) {
   const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), options);
+  vision::DecodeScratch scratch;  // reused from frame to frame, as the servo reuses it
   std::size_t decoded = 0;
   for (auto _ : state) {
-    const auto r = decoder.decode(f.rgb);
+    const auto r = decoder.decode(f.rgb, nullptr, &scratch);
     decoded = r.decoded.size();
     benchmark::DoNotOptimize(r.decoded.data());
   }
@@ -62,10 +63,11 @@ void BM_Decode(benchmark::State& state, const char* scenario) { decode(state, fr
 // camera moves), then the epipolar check and the grown lattice (what `servo run --projector` does).
 void decode_calibrated(benchmark::State& state, const Frame& f, const vision::DecoderOptions& options = {}) {
   const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), options);
+  vision::DecodeScratch scratch;
   std::size_t decoded = 0;
   for (auto _ : state) {
     const vision::EpipolarGeometry g(f.camera, f.projector, f.world_T_camera, 3.0);
-    const auto r = decoder.decode(f.rgb, &g);
+    const auto r = decoder.decode(f.rgb, &g, &scratch);
     decoded = r.decoded.size();
     benchmark::DoNotOptimize(r.decoded.data());
   }
@@ -94,9 +96,10 @@ void BM_DecodeCalibratedSegments(benchmark::State& state, const char* scenario, 
 void BM_DecodeFittedLines(benchmark::State& state, const char* scenario) {
   const Frame& f = frame(scenario);
   const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}));
+  vision::DecodeScratch scratch;
   std::size_t off = 0;
   for (auto _ : state) {
-    const auto r = decoder.decode_uncalibrated(f.rgb, f.camera);
+    const auto r = decoder.decode_uncalibrated(f.rgb, f.camera, &scratch);
     off = static_cast<std::size_t>(std::count_if(r.decoded.begin(), r.decoded.end(), [](const auto& d) { return d.off_line; }));
     benchmark::DoNotOptimize(r.decoded.data());
   }
@@ -109,9 +112,10 @@ void BM_DecodeAgainOnFittedLines(benchmark::State& state, const char* scenario) 
   vision::DecoderOptions options;
   options.epipolar.fitted_lines = true;
   const vision::SpotDecoder decoder(pattern::WindowTable(f.pattern, {3, 3}), options);
+  vision::DecodeScratch scratch;
   std::size_t named = 0;
   for (auto _ : state) {
-    const auto r = decoder.decode_uncalibrated(f.rgb, f.camera);
+    const auto r = decoder.decode_uncalibrated(f.rgb, f.camera, &scratch);
     named = r.decoded.size();
     benchmark::DoNotOptimize(r.decoded.data());
   }
@@ -233,12 +237,13 @@ void BM_DecodeInterleaved(benchmark::State& state, const char* scenario) {
   const vision::SpotDecoder baseline(pattern::WindowTable(today.pattern, {3, 3}), before);
   const vision::SpotDecoder corrected(pattern::WindowTable(d3.pattern, {3, 3}), after);
   std::vector<double> t_before, t_after, ratio;
+  vision::DecodeScratch room_a, room_b;  // each decoder's own, reused as the servo reuses it
   for (auto _ : state) {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
-    const auto a = baseline.decode(today.rgb);
+    const auto a = baseline.decode(today.rgb, nullptr, &room_a);
     const auto t1 = clock::now();
-    const auto b = corrected.decode(d3.rgb);
+    const auto b = corrected.decode(d3.rgb, nullptr, &room_b);
     const auto t2 = clock::now();
     benchmark::DoNotOptimize(a.decoded.data());
     benchmark::DoNotOptimize(b.decoded.data());

@@ -47,8 +47,10 @@ pattern::MArray load_decodable_pattern(const std::filesystem::path& file);
 
 // Reads a servo configuration (YAML: model, z_hat_m, gain, gain_adaptive [l0, linf, slope],
 // max_linear_mps, max_angular_dps, min_points, converge_mm, converge_deg, min_votes,
-// min_island, tolerant, and with --projector epipolar_px, segment_length, propagate_sources)
-// over `config`. Throws std::runtime_error naming file and key.
+// min_island, tolerant, crosstalk, points, interior_points, divergence_ratio, robust,
+// visual_features, fitted_lines, white_frame, and with --projector epipolar_px, segment_length,
+// propagate_sources, taught_points; servo/service/servo.yaml shows them) over `config`. Throws
+// std::runtime_error naming file and key.
 void load_servo_config(const std::filesystem::path& file, ServoConfig& config);
 
 

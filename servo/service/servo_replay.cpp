@@ -101,7 +101,6 @@ class Replay {
       const Key k = key(to_stamp(white.header().stamp()));
       whites_.emplace_back(k, std::move(white));
       if (whites_.size() > kMaxWhites) whites_.pop_front();
-      whites_in_file_ = true;
       if (pending_ && complete(pending_->key)) flush();
     } else if (is_topic(c.topic, cell_dds::kCameraInfoTopic)) {
       const std::string why = machine_->on_camera_info(to_info(decode<sensor_msgs::msg::dds_::CameraInfo_PubSubType>(c, m, file)));
@@ -229,7 +228,7 @@ class Replay {
   bool complete(const Key& k) const {
     return std::find(statuses_.begin(), statuses_.end(), k) != statuses_.end() &&
            (!poses_in_file_ || std::find(poses_.begin(), poses_.end(), k) != poses_.end()) &&
-           (!whites_in_file_ || white_of(k) != whites_.end());
+           (!(o_.config.white_frame && white_recorded_) || white_of(k) != whites_.end());
   }
   std::deque<std::pair<Key, sensor_msgs::msg::dds_::Image_>>::const_iterator white_of(const Key& k) const {
     return std::find_if(whites_.begin(), whites_.end(), [&](const auto& w) { return w.first == k; });
@@ -268,7 +267,7 @@ class Replay {
   // the latest white reference frames by stamp (the servo's --white-frame), bounded as live
   static constexpr std::size_t kMaxWhites = 4;
   std::deque<std::pair<Key, sensor_msgs::msg::dds_::Image_>> whites_;
-  bool whites_in_file_ = false, white_recorded_ = false;
+  bool white_recorded_ = false;  // the recording holds white frames (kept only when the servo takes them)
 };
 
 }  // namespace

@@ -240,38 +240,58 @@ inline bool only_fitting_id(const std::vector<Spot>& spots, int j, const pattern
   return true;
 }
 
+// The pattern's ids of each colour, row-major (row * cols + col): a search for the lines of a
+// spot's colour visits a third of the pattern.
+inline std::vector<std::vector<int>> ids_by_colour(const pattern::MArray& pattern) {
+  std::vector<std::vector<int>> out(static_cast<std::size_t>(std::max(0, pattern.colours)));
+  for (int r = 0; r < pattern.rows; ++r)
+    for (int c = 0; c < pattern.cols; ++c)
+      if (const int k = pattern.at(r, c); k >= 0 && k < pattern.colours) out[k].push_back(r * pattern.cols + c);
+  return out;
+}
+
 // Spot j, about to take id X from the lattice, lies nearer X's epipolar line than any other free
-// id's of its colour, anywhere in the pattern (`taken(row, col)` false). The lattice's
+// id's of its colour, anywhere in the pattern (`taken(row, col)` false; `of_colour`: the
+// pattern's ids of j's colour, ids_by_colour). The lattice's
 // prediction and a spot of another surface can coincide: at a depth edge the surface behind
 // shows a spot where the front lattice goes on, of the right colour, within the grown limit of
 // X's line, and only its own id's line runs nearer. Over 1000 dark-ham poses (the tuning set)
 // it kept 5 of the 9 wrong ids from step 6 for 0.8 % of the right ids (a rival line nearer by
 // chance); the 4 it lets through lie nearer X's line than their own (a centroid pulled by an edge).
 template <typename Taken>
-bool nearest_free_line(const std::vector<Spot>& spots, int j, const pattern::SpotId& x, const EpipolarCheck& check,
-                       const pattern::MArray& pattern, Taken&& taken) {
+bool nearest_free_line(int j, const pattern::SpotId& x, const EpipolarCheck& check, const pattern::MArray& pattern,
+                       const std::vector<int>& of_colour, Taken&& taken) {
   const Eigen::Vector2d& xy = check.xy[static_cast<std::size_t>(j)];
   const double own = check.geometry.residual_px(xy, x);
   // a line fitted to the frame's spots (no calibration) is extrapolated beyond them, by pixels:
   // there a rival is heard within the tolerance (EpipolarGeometry::trusted)
   const double untrusted = check.geometry.tolerance_px();
-  for (int r = 0; r < pattern.rows; ++r)
-    for (int c = 0; c < pattern.cols; ++c)
-      if (pattern.at(r, c) == spots[j].colour && (r != x.row || c != x.col) && !taken(r, c) &&
-          check.geometry.residual_px(xy, {r, c}) <= (check.geometry.trusted({r, c}) ? own : untrusted))
-        return false;
+  const double farthest = std::max(own, untrusted);
+  for (const int k : of_colour) {
+    // (the line's distance first: the ids beyond either bound, nearly all, cost a dot product)
+    if (!(check.geometry.line_distance_px(xy, static_cast<std::size_t>(k)) <= farthest)) continue;
+    const int r = k / pattern.cols, c = k % pattern.cols;
+    if ((r != x.row || c != x.col) && !taken(r, c) &&
+        check.geometry.residual_px(xy, {r, c}) <= (check.geometry.trusted({r, c}) ? own : untrusted))
+      return false;
+  }
   return true;
 }
 
 // The spots on a grid whose cells are a lattice step wide (the median length of the graph's
 // links); none without a link.
 inline std::optional<SpatialGrid> lattice_grid(const std::vector<Spot>& spots, const AdjacencyGraph& graph) {
-  std::vector<double> lengths;
+  // the squared lengths: their median's root is the lengths' median (median() takes an element)
+  std::vector<double> squared;
+  squared.reserve(2 * spots.size());
   for (std::size_t s = 0; s < spots.size(); ++s)
     for (const int k : {kEast, kSouth})
-      if (const int j = graph.next[s][k]; j >= 0) lengths.push_back(std::hypot(spots[j].u - spots[s].u, spots[j].v - spots[s].v));
-  if (lengths.empty()) return std::nullopt;
-  return SpatialGrid(spots, std::max(2.0, median(lengths)));
+      if (const int j = graph.next[s][k]; j >= 0) {
+        const double du = spots[j].u - spots[s].u, dv = spots[j].v - spots[s].v;
+        squared.push_back(du * du + dv * dv);
+      }
+  if (squared.empty()) return std::nullopt;
+  return SpatialGrid(spots, std::max(2.0, std::sqrt(median(std::move(squared)))));
 }
 
 // Links two identified spots whose ids are neighbours, where both ends had none that way.

@@ -23,7 +23,7 @@ EpipolarGeometry::EpipolarGeometry(const calibration::CameraIntrinsics& camera, 
       const double n = std::hypot(line.x(), line.y());
       // a ray through the camera's centre has no line: nothing can be checked, nothing passes
       line = n > 1e-12 ? Eigen::Vector3d(line * pixels / n) : Eigen::Vector3d(0, 0, 1e18);
-      rays_.push_back({line, b});
+      rays_.push_back({line, b, b.dot(b), b.dot(origin_)});
     }
 }
 
@@ -47,22 +47,6 @@ EpipolarGeometry::EpipolarGeometry(const calibration::CameraIntrinsics& camera, 
 }
 
 Eigen::Vector2d EpipolarGeometry::normalise(double u, double v) const { return calibration::normalise(camera_, {u, v}); }
-
-double EpipolarGeometry::residual_px(const Eigen::Vector2d& xy, const pattern::SpotId& id) const {
-  constexpr double kNever = std::numeric_limits<double>::infinity();
-  if (id.row < 0 || id.col < 0 || id.row >= rows_ || id.col >= cols_) return kNever;
-  const Ray& ray = rays_[static_cast<std::size_t>(id.row) * cols_ + id.col];
-  const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
-  const double residual = std::abs(ray.line.dot(a));
-  if (!(residual <= tolerance_px_) || !front_check_) return residual;  // NaN-safe: only a passing point is triangulated
-  // the two rays s a and o + t b must meet (nearly) in front of both devices
-  const Eigen::Vector3d& b = ray.direction;
-  const double aa = a.dot(a), ab = a.dot(b), bb = b.dot(b), ao = a.dot(origin_), bo = b.dot(origin_);
-  const double det = aa * bb - ab * ab;
-  if (det < 1e-12 * aa * bb) return kNever;
-  const double s = (ao * bb - ab * bo) / det, t = (ab * ao - aa * bo) / det;
-  return s > 0 && t > 0 ? residual : kNever;
-}
 
 namespace {
 

@@ -10,6 +10,9 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cmath>
+#include <cstddef>
+#include <limits>
 #include <vector>
 
 #include "servo/calibration/camera_intrinsics.hpp"
@@ -42,7 +45,24 @@ class EpipolarGeometry {
   Eigen::Vector2d normalise(double u, double v) const;
   // Distance in camera pixels from the normalised point xy to the image of the projector ray
   // of `id`; +infinity when the id is outside the pattern or the rays meet behind a device.
-  double residual_px(const Eigen::Vector2d& xy, const pattern::SpotId& id) const;
+  // (inline: the decoder asks it of every window's spots and every candidate id)
+  double residual_px(const Eigen::Vector2d& xy, const pattern::SpotId& id) const {
+    constexpr double kNever = std::numeric_limits<double>::infinity();
+    if (id.row < 0 || id.col < 0 || id.row >= rows_ || id.col >= cols_) return kNever;
+    const std::size_t index = static_cast<std::size_t>(id.row) * cols_ + id.col;
+    const double residual = line_distance_px(xy, index);
+    // NaN-safe: only a passing point is triangulated
+    if (!(residual <= tolerance_px_) || !front_check_) return residual;
+    return meets_in_front(xy, index) ? residual : kNever;
+  }
+  // The distance alone, for the ids in row-major order (row * cols + col): no front check, no
+  // bounds check. residual_px computes the same number first, so a point this puts beyond a
+  // bound residual_px puts beyond it too: a search over many ids asks this, and residual_px
+  // only of those within it.
+  double line_distance_px(const Eigen::Vector2d& xy, std::size_t index) const {
+    const Eigen::Vector3d& line = rays_[index].line;
+    return std::abs(line.dot(Eigen::Vector3d(xy.x(), xy.y(), 1.0)));
+  }
   bool consistent(const Eigen::Vector2d& xy, const pattern::SpotId& id) const {
     return residual_px(xy, id) <= tolerance_px_;
   }
@@ -54,7 +74,20 @@ class EpipolarGeometry {
   struct Ray {
     Eigen::Vector3d line;       // o x b, scaled so that |line . (x, y, 1)| is camera pixels
     Eigen::Vector3d direction;  // b: the projector ray's direction, camera frame
+    double bb = 0, bo = 0;      // b.b and b.o (o: origin_), the front check's per ray
   };
+  // The camera's ray s a (a = (x, y, 1)) and the projector's ray `index`, o + t b, meet (nearly)
+  // in front of both devices: s, t > 0 at their closest points, each a numerator over
+  // det = |a|^2 |b|^2 - (a.b)^2, positive where the rays are not parallel, so the numerators'
+  // signs say it without the two divisions.
+  bool meets_in_front(const Eigen::Vector2d& xy, std::size_t index) const {
+    const Ray& ray = rays_[index];
+    const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
+    const double aa = a.dot(a), ab = a.dot(ray.direction), ao = a.dot(origin_);
+    const double det = aa * ray.bb - ab * ab;
+    if (det < 1e-12 * aa * ray.bb) return false;
+    return ao * ray.bb - ab * ray.bo > 0 && ab * ao - aa * ray.bo > 0;
+  }
   calibration::CameraIntrinsics camera_;
   Eigen::Vector3d origin_;  // the projector's centre, camera frame
   std::vector<Ray> rays_;   // row-major over the pattern

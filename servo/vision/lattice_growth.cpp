@@ -49,7 +49,8 @@ class Lattice {
  public:
   Lattice(const std::vector<Spot>& spots, const EpipolarCheck& check, const pattern::MArray& pattern, const IdMap& ids,
           const SpatialGrid& near, const GrowthOptions& options, std::vector<GrowthOutcome>* outcomes)
-      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), o_(options), outcomes_(outcomes) {}
+      : spots_(spots), check_(check), pattern_(pattern), ids_(ids), near_(near), o_(options), outcomes_(outcomes),
+        by_colour_(ids_by_colour(pattern)) {}
 
   // The lattice step (dr, dc) at the identified spot (r, c), from identified spots only: ahead
   // of it, behind it, or beside it (the next row or column), the nearest first.
@@ -124,7 +125,7 @@ class Lattice {
     // asked only when one did)
     if (pinned ? !check_.confirms_grown(b, p.id) : !only_fitting_id(spots_, b, p.id, check_, pattern_, taken))
       return check_.confirms_grown(b, p.id) ? G::kNeighbourFits : G::kResidual;
-    if (!nearest_free_line(spots_, b, p.id, check_, pattern_, taken)) return G::kNearerLine;
+    if (!nearest_free_line(b, p.id, check_, pattern_, of_colour(spots_[j].colour), taken)) return G::kNearerLine;
     return G::kNamed;
   }
 
@@ -171,6 +172,11 @@ class Lattice {
   const SpatialGrid& near_;
   const GrowthOptions& o_;
   std::vector<GrowthOutcome>* const outcomes_;  // where a refused claim is noted (optional)
+  const std::vector<std::vector<int>> by_colour_;  // the pattern's ids of each colour
+  const std::vector<int> none_;
+  const std::vector<int>& of_colour(int colour) const {
+    return colour >= 0 && colour < static_cast<int>(by_colour_.size()) ? by_colour_[colour] : none_;
+  }
 };
 
 // A source's claim into the proposals on its blob.

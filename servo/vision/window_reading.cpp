@@ -240,7 +240,11 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
     auto& out = candidates[i];
     if (out.empty() && spots[i].colour >= 0 && spots[i].colour < pattern.colours)
       for (const pattern::SpotId& id : by_colour[spots[i].colour])
-        if (check.confirms(i, id)) out.push_back(id);
+        // (the line's distance first: nearly every id's line passes far from the spot)
+        if (check.geometry.line_distance_px(check.xy[i], static_cast<std::size_t>(id.row) * pattern.cols + id.col) <=
+                check.geometry.tolerance_px() &&
+            check.confirms(i, id))
+          out.push_back(id);
     return out;
   };
   std::vector<pattern::SpotId> named(spots.size(), pattern::SpotId{-1, -1});

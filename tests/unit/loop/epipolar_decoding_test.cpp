@@ -97,6 +97,44 @@ TEST(EpipolarGeometry, APointOnTheLineButBehindTheProjectorIsRejected) {
   EXPECT_FALSE(g.consistent(xy_back, {7, 12}));
 }
 
+// The front check's two signs apart: with the projector 1 m ahead of the camera, a point on its
+// ray's backward extension lies in front of the camera (s > 0) and behind the projector (t < 0);
+// a point on its forward ray lies in front of both.
+TEST(EpipolarGeometry, APointInFrontOfTheCameraButBehindTheProjectorIsRejected) {
+  SideBySide rig;
+  rig.o = {0.3, 0, 1.0};
+  rig.p.world_T_projector.translation() = rig.o;
+  const vision::EpipolarGeometry g = rig.geometry();
+  const Eigen::Vector3d b = rig.p.spot_ray(7, 12);
+  const auto image_of = [](const Eigen::Vector3d& x) { return Eigen::Vector2d(x.x() / x.z(), x.y() / x.z()); };
+  const Eigen::Vector3d ahead = rig.o + 0.5 * b, behind = rig.o - 0.5 * b;
+  ASSERT_GT(behind.z(), 0);
+  EXPECT_LT(g.residual_px(image_of(ahead), {7, 12}), 1e-6);
+  EXPECT_LT(g.line_distance_px(image_of(behind), 7 * 20 + 12), 1e-6);  // on the line...
+  EXPECT_FALSE(g.consistent(image_of(behind), {7, 12}));               // ...but not lit by the spot
+}
+
+// line_distance_px is residual_px's first number: equal where residual_px is finite, so that a
+// search may skip every id it puts beyond a bound.
+TEST(EpipolarGeometry, TheLinesDistanceIsTheResidualWhereTheRaysMeet) {
+  const SideBySide rig;
+  const vision::EpipolarGeometry g = rig.geometry();
+  int finite = 0;
+  for (double x = -0.4; x <= 0.4; x += 0.05)
+    for (double y = -0.3; y <= 0.3; y += 0.05)
+      for (int r = 0; r < 20; r += 3)
+        for (int c = 0; c < 20; c += 3) {
+          const double residual = g.residual_px({x, y}, {r, c});
+          const double distance = g.line_distance_px({x, y}, static_cast<std::size_t>(r) * 20 + c);
+          if (std::isfinite(residual)) {
+            EXPECT_EQ(residual, distance);
+            ++finite;
+          }
+          EXPECT_LE(distance, residual);
+        }
+  EXPECT_GT(finite, 1000);
+}
+
 // Issue 41: beyond the windows, a spot must lie on its id's line as closely as the frame's
 // window-read spots lie on theirs: the limit is 4 times their median residual, at least 1 px,
 // at most the tolerance; with fewer than 9 of them, the tolerance.

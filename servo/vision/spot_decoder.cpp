@@ -3,6 +3,8 @@
 #include <cmath>
 #include <iterator>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <tuple>
 
 #include "servo/vision/decoder_support.hpp"
@@ -111,6 +113,12 @@ void mark_off_fitted_lines(std::vector<DecodedSpot>& decoded, const calibration:
 }
 
 DecodeResult SpotDecoder::decode_spots(std::vector<Spot> spots, const EpipolarGeometry* geometry) const {
+  // the steps index the geometry's lines by the pattern's ids (EpipolarGeometry::line_distance_px)
+  if (const pattern::MArray& pattern = table_.array();
+      geometry && (geometry->rows() != pattern.rows || geometry->cols() != pattern.cols))
+    throw std::invalid_argument("decode: the epipolar geometry has " + std::to_string(geometry->rows()) + " x " +
+                                std::to_string(geometry->cols()) + " spots, the pattern " + std::to_string(pattern.rows) +
+                                " x " + std::to_string(pattern.cols));
   DecodeResult r;
   r.detected = std::move(spots);
   // the slivers wait for step 7: the steps before see the spots only

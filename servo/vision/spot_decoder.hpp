@@ -493,6 +493,7 @@ class SpotDecoder {
   // Throws std::invalid_argument for an empty or non-RGB8 image (see segment_spots).
   // `geometry` (optional): the frame's camera-projector geometry, for the epipolar steps; with
   // it the segmentation's chroma levels follow the camera's crosstalk (SegmentationOptions).
+  // Throws std::invalid_argument when its grid of spots is not the pattern's.
   // `scratch` (optional): room reused from the caller's last frame.
   DecodeResult decode(const cv::Mat& rgb, const EpipolarGeometry* geometry = nullptr,
                       DecodeScratch* scratch = nullptr) const;

@@ -135,6 +135,23 @@ TEST(EpipolarGeometry, TheLinesDistanceIsTheResidualWhereTheRaysMeet) {
   EXPECT_GT(finite, 1000);
 }
 
+// The decoder's steps read a geometry's lines by the pattern's ids: a geometry of another grid
+// of spots (a calibration of another projector) is refused, not read beyond its lines.
+TEST(EpipolarDecoding, AGeometryOfAnotherGridOfSpotsIsRefused) {
+  const Frame f = render("plane", false);
+  const pattern::MArray& pat = f.cell->projector->pattern();
+  SideBySide rig;
+  rig.p.rows = pat.rows / 2;
+  const vision::EpipolarGeometry smaller = rig.geometry();
+  const vision::SpotDecoder decoder(pattern::WindowTable(pat, {3, 3}));
+  try {
+    (void)decoder.decode(f.rgb, &smaller);
+    FAIL() << "decoded with a " << smaller.rows() << " x " << smaller.cols() << " geometry";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("10 x 20 spots, the pattern 20 x 20"), std::string::npos) << e.what();
+  }
+}
+
 // Issue 41: beyond the windows, a spot must lie on its id's line as closely as the frame's
 // window-read spots lie on theirs: the limit is 4 times their median residual, at least 1 px,
 // at most the tolerance; with fewer than 9 of them, the tolerance.

@@ -232,19 +232,18 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
   // a run of 1 or 2 has no inner spot to vote for
   if (length < 3) return;
   // the ids each spot may carry: its colour, on its epipolar line (a handful of the 400)
-  std::vector<std::vector<pattern::SpotId>> by_colour(static_cast<std::size_t>(pattern.colours));
-  for (int r = 0; r < pattern.rows; ++r)
-    for (int c = 0; c < pattern.cols; ++c) by_colour[pattern.at(r, c)].push_back({r, c});
+  const std::vector<std::vector<int>> by_colour = ids_by_colour(pattern);
   std::vector<std::vector<pattern::SpotId>> candidates(spots.size());
   const auto candidates_of = [&](int i) -> const std::vector<pattern::SpotId>& {
     auto& out = candidates[i];
-    if (out.empty() && spots[i].colour >= 0 && spots[i].colour < pattern.colours)
-      for (const pattern::SpotId& id : by_colour[spots[i].colour])
+    if (out.empty() && spots[i].colour >= 0 && spots[i].colour < static_cast<int>(by_colour.size()))
+      for (const int k : by_colour[spots[i].colour]) {
         // (the line's distance first: nearly every id's line passes far from the spot)
-        if (check.geometry.line_distance_px(check.xy[i], static_cast<std::size_t>(id.row) * pattern.cols + id.col) <=
-                check.geometry.tolerance_px() &&
-            check.confirms(i, id))
-          out.push_back(id);
+        if (check.geometry.line_distance_px(check.xy[i], static_cast<std::size_t>(k)) > check.geometry.tolerance_px())
+          continue;
+        const pattern::SpotId id{k / pattern.cols, k % pattern.cols};
+        if (check.confirms(i, id)) out.push_back(id);
+      }
     return out;
   };
   std::vector<pattern::SpotId> named(spots.size(), pattern::SpotId{-1, -1});

@@ -37,7 +37,9 @@ struct SegmentationOptions {
   // pixels first: a spot covers tens of pixels and the sensor's noise is independent from pixel
   // to pixel, so the average keeps the spots and divides the noise's spread by 3, and the floor
   // falls with it. Not a quiet one: the average also closes the 1-2 px gaps between the spots
-  // seen edge-on at a silhouette (issue 41)
+  // seen edge-on at a silhouette (issue 41). The image's own spots, at its own floor, that touch
+  // none of the average's are kept too: the average dims a spot seen edge-on, 1-2 px wide, under
+  // the level its brighter neighbours set
   bool smoothing = true;
   int local_window_px = 11;    // neighbourhood whose peak sets the local level (~ a spot's size)
   double peak_ratio = 0.4;     // local level = this fraction of the local peak
@@ -77,6 +79,9 @@ struct Segmentation {
 // first-touching ~4 MB of images per frame costs as much as half the segmentation).
 struct SegmentationScratch {
   cv::Mat smooth, lo, chroma, peak, mask;  // peak: the brightest chroma around each pixel
+  // a noisy image's: the pixels of the average's spots, and its own chroma and smallest channel
+  // while the average's are read
+  cv::Mat covered, own_chroma, own_lo;
   struct RowRun {
     int v, xl, xr;
   };

@@ -6,7 +6,9 @@
 # median ratio. The same images for both builds (decode_bench renders its scenes with its own
 # build's simulator, whose frames change as the simulator does). Also printed: the spots each
 # build names a frame, on average (a decoder that names other spots does other work).
-#   tests/bench/compare_decode.sh OLD_BIN_DIR NEW_BIN_DIR SOURCE_DIR [ROUNDS] [SCENARIO] [FRAMES]
+# NOISE, when given, is the camera's noise sigma the frames are rendered with instead of the
+# scenario's (a noisy frame's segmentation takes two passes: docs/decoding.md, Segmentation).
+#   tests/bench/compare_decode.sh OLD_BIN_DIR NEW_BIN_DIR SOURCE_DIR [ROUNDS] [SCENARIO] [FRAMES] [NOISE]
 # e.g. git worktree add /tmp/pre41 cc53ed1 && cmake -S /tmp/pre41 -B /tmp/pre41/build -G Ninja \
 #        -DCMAKE_BUILD_TYPE=Release && ninja -C /tmp/pre41/build servo
 #      tests/bench/compare_decode.sh /tmp/pre41/build/bin build/bin . 6 sim/scenarios/ham.yaml
@@ -15,6 +17,21 @@ old="$1"; new="$2"; src="$3"; rounds="${4:-6}"; scenario="${5:-$src/sim/scenario
 export OPENCV_FOR_THREADS_NUM=1
 core="$(cut -d, -f1 <<<"$(taskset -pc $$ | sed 's/.*: //')" | cut -d- -f1)"
 work="$(mktemp -d)"; trap 'rm -rf "$work"' EXIT
+if [[ -n "${7:-}" ]]; then  # a copy of the scenario in the work folder, its paths made absolute
+  [[ "$7" =~ ^[0-9]{1,3}([.][0-9]+)?$ ]] || { echo "compare_decode.sh: NOISE must be a sigma in 8-bit levels, got '$7'" >&2; exit 2; }
+  /usr/bin/python3 - "$scenario" "$work/scenario.yaml" "$7" <<'EOF'
+import os, re, sys
+source, copy, sigma = sys.argv[1], sys.argv[2], float(sys.argv[3])
+here = os.path.dirname(os.path.abspath(source))
+text = open(source, encoding="utf-8").read()
+text = re.sub(r"((?:\.\./)+[\w./-]+)", lambda m: os.path.normpath(os.path.join(here, m.group(1))), text)
+text, n = re.subn(r"(\n\s+noise_sigma:\s*)[0-9.]+", lambda m: m.group(1) + repr(sigma), text, count=1)
+if n != 1:
+    sys.exit(f"compare_decode.sh: {source}: its camera has no noise_sigma to change")
+open(copy, "w", encoding="utf-8").write(text)
+EOF
+  scenario="$work/scenario.yaml"
+fi
 for ((f = 0; f < frames; ++f)); do
   "$new/cellsim" render "$scenario" --pose desired --frame "$f" -o "$work/frame_$f.png" --truth "$work/truth_$f.json" >/dev/null
 done

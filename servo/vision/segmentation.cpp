@@ -477,7 +477,9 @@ Segmentation segment_spots(const cv::Mat& rgb, const SegmentationOptions& given,
   chroma_and_min(sc.smooth, sc.lo, sc.chroma);
   const ChromaLevels smoothed = chroma_levels(sc.chroma, p);
   out.threshold = smoothed.threshold;
-  paint_kept(segment_pass(sc.smooth, true, smoothed, p, nullptr, sc, out), sc);
+  const std::vector<char> kept = segment_pass(sc.smooth, true, smoothed, p, nullptr, sc, out);
+  if (!p.own_spots) return out;
+  paint_kept(kept, sc);
   // The mean dims a spot 1-2 px wide (the last column before a silhouette, seen edge-on) to a
   // half or less, under the local level its brighter neighbours set; the image itself, at its
   // own noise floor, keeps it. The image's spots that touch none of the mean's join them (issue

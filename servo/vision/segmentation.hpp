@@ -41,6 +41,11 @@ struct SegmentationOptions {
   // none of the average's are kept too: the average dims a spot seen edge-on, 1-2 px wide, under
   // the level its brighter neighbours set
   bool smoothing = true;
+  // Not an image divided by its white reference frame (SpotDecoder::segment): the division
+  // multiplies each pixel's noise by the inverse of its albedo, so the image's own floor, one
+  // for the whole image, does not hold the noise of its dark parts (a printed label's ink),
+  // where only the average does
+  bool own_spots = true;
   int local_window_px = 11;    // neighbourhood whose peak sets the local level (~ a spot's size)
   double peak_ratio = 0.4;     // local level = this fraction of the local peak
   int min_area_px = 4;

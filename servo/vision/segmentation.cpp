@@ -247,7 +247,7 @@ struct Blob {
   int peak = 0;  // its largest chroma
   double sw = 0, su = 0, sv = 0;
   std::array<double, 3> col{0, 0, 0};
-  bool covered = false;  // a pixel in the other pass's foreground
+  bool covered = false;  // a pixel of the other pass's spots (SegmentationScratch::covered)
 };
 
 // 8-connected components of the mask as runs: each row's runs of foreground carry their sums,

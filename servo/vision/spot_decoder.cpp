@@ -226,7 +226,7 @@ Segmentation SpotDecoder::segment(const cv::Mat& rgb, const cv::Mat& white, bool
   DecodeScratch& s = scratch ? *scratch : own;
   if (white.empty()) return segment_spots(rgb, levels, &s.segmentation);
   normalise_by_white(rgb, white, s.ratio, options_.reference, &s.white_mean);
-  levels.own_spots = false;
+  levels.own_spots = false;  // the ratio's noise is no camera's (SegmentationOptions::own_spots)
   Segmentation seg = segment_spots(s.ratio, levels, &s.segmentation);
   strengths_as_shown(seg.spots, white, options_.reference);
   return seg;

@@ -250,6 +250,20 @@ struct Blob {
   bool covered = false;  // a pixel of the other pass's spots (SegmentationScratch::covered)
 };
 
+// Which roots of the runs' union-find have a run with a pixel in `covered`.
+template <class Find>
+std::vector<char> roots_touching(const cv::Mat& covered, const std::vector<SegmentationScratch::RowRun>& row_runs,
+                                 Find& find) {
+  std::vector<char> touches(row_runs.size(), 0);
+  for (std::size_t i = 0; i < row_runs.size(); ++i) {
+    const int root = find(static_cast<int>(i));
+    const auto [v, xl, xr] = row_runs[i];
+    const std::uint8_t* other = covered.ptr<std::uint8_t>(v);
+    for (int u = xl; u <= xr && !touches[root]; ++u) touches[root] = other[u] != 0;
+  }
+  return touches;
+}
+
 // 8-connected components of the mask as runs: each row's runs of foreground carry their sums,
 // and a run joins every run of the row above that it touches, diagonals included (union-find).
 // Every foreground pixel is read once, in a loop without branches on the pixel; a flood fill
@@ -287,16 +301,7 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, const cv::Mat* covered, Se
   const std::uint8_t* chroma_px = sc.chroma.ptr<std::uint8_t>(0);
   // a blob touching the other pass's spots is only marked: most of them do, and their sums
   // would be read for nothing
-  std::vector<char> touches;
-  if (covered) {
-    touches.assign(static_cast<std::size_t>(n_runs), 0);
-    for (int i = 0; i < n_runs; ++i) {
-      const int root = find(i);
-      const auto [v, xl, xr] = row_runs[i];
-      const std::uint8_t* other = covered->ptr<std::uint8_t>(v);
-      for (int u = xl; u <= xr && !touches[root]; ++u) touches[root] = other[u] != 0;
-    }
-  }
+  const std::vector<char> touches = covered ? roots_touching(*covered, row_runs, find) : std::vector<char>();
   for (int i = 0; i < n_runs; ++i) {
     const int root = find(i);
     if (blob_of[root] < 0) {

@@ -303,7 +303,7 @@ std::vector<Blob> connected_blobs(const cv::Mat& rgb, const cv::Mat* covered, Se
   // would be read for nothing
   const std::vector<char> touches = covered ? roots_touching(*covered, row_runs, find) : std::vector<char>();
   for (int i = 0; i < n_runs; ++i) {
-    const int root = find(i);
+    const int root = parent[i] = find(i);  // each run straight to its root (paint_kept reads it)
     if (blob_of[root] < 0) {
       blob_of[root] = static_cast<int>(blobs.size());
       blobs.emplace_back();
@@ -409,14 +409,13 @@ std::vector<char> spots_of(const std::vector<Blob>& blobs, const SegmentationOpt
   return kept;
 }
 
-// The pixels of the kept blobs (the runs of the last pass), 1 in `covered`, 0 elsewhere.
+// The pixels of the kept blobs (the runs of the last pass, each run's parent its root), 1 in
+// `covered`, 0 elsewhere.
 void paint_kept(const std::vector<char>& kept, SegmentationScratch& sc) {
   sc.covered.create(sc.mask.size(), CV_8U);
   sc.covered.setTo(0);
   for (std::size_t i = 0; i < sc.row_runs.size(); ++i) {
-    int root = static_cast<int>(i);
-    while (sc.parent[root] != root) root = sc.parent[root];
-    if (!kept[static_cast<std::size_t>(sc.blob_of[root])]) continue;
+    if (!kept[static_cast<std::size_t>(sc.blob_of[static_cast<std::size_t>(sc.parent[i])])]) continue;
     const auto [v, xl, xr] = sc.row_runs[i];
     std::fill_n(sc.covered.ptr<std::uint8_t>(v) + xl, xr - xl + 1, std::uint8_t{1});
   }

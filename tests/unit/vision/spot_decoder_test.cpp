@@ -810,8 +810,9 @@ TEST(Segmentation, UnderNoiseASpotSeenEdgeOnBesideBrightOnesIsKeptAndNoSpotIsFou
     EXPECT_LE(near(62, 30), 1) << "draw " << draw;
     kept += near(62, 30) == 1 && seg.spots.size() == 5;
   }
-  // the mean alone keeps it in none of these draws
-  EXPECT_GE(kept, 18) << "the spot seen edge-on, of 20 noise draws";
+  // the mean alone keeps it in none of these draws, both passes in 19 here: a margin for another
+  // machine's rounding of the painted light
+  EXPECT_GE(kept, 15) << "the spot seen edge-on, of 20 noise draws";
 }
 
 // Issue 41: the 3 x 3 mean spreads a blob a pixel each way, but not past the image border, so
@@ -845,7 +846,8 @@ TEST(Segmentation, UnderNoiseASpotNearTheBorderIsCutOnlyWhenItIs) {
       if (std::hypot(s.u - 0.8, s.v - 30.0) < 2.0) through_cut += s.truncated;
     }
   }
-  EXPECT_EQ(near_cut, 0) << "of 40 draws, the spot 2 px from the border taken for cut (10 without the pixel given back)";
+  // none here, 10 without the pixel given back: a margin for another machine's rounding
+  EXPECT_LE(near_cut, 2) << "of 40 draws, the spot 2 px from the border taken for cut";
   EXPECT_EQ(through_cut, 40) << "of 40 draws, the spot 0.8 px from the border";
 }
 

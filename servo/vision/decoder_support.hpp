@@ -278,6 +278,32 @@ bool nearest_free_line(int j, const pattern::SpotId& x, const EpipolarCheck& che
   return true;
 }
 
+// Spot j, given id X by the lattice, is the only blob that could be X's spot on X's epipolar line
+// (`rival(i)`: blob i could carry X), within the frame's grown limit: the converse of
+// nearest_free_line, from the id's side. At a depth edge the front lattice goes on onto a spot of
+// the surface behind whose own id's line coincides with X's there (the ham's lattice and the
+// wall's (9, 19) on (6, 12)'s line, 0.05 px off it), so no line test tells them apart; X's own
+// spot, past the silhouette, lies on that line elsewhere in the frame. A light ray lights one
+// surface point: two blobs on X's line cannot both be X, and the lattice's prediction alone does
+// not say which. Nor is it a margin: within the limit, noise decides which of the two lies
+// nearer (the wall's real (6, 12) 0.09 px off, the blob the lattice named 0.05 px).
+// (`of_colour`: the blobs of X's colour without an id: most of a frame's blobs are named, and a
+// line crosses the whole image)
+template <typename Rival>
+bool nearest_free_blob(int j, const pattern::SpotId& x, const EpipolarCheck& check, const pattern::MArray& pattern,
+                       const std::vector<int>& of_colour, Rival&& rival) {
+  // a line fitted to the frame (no calibration) is extrapolated where it is not trusted
+  if (!check.geometry.trusted(x)) return true;
+  const double limit = std::min(check.grown_limit_px, check.geometry.tolerance_px());
+  const auto line = static_cast<std::size_t>(x.row) * static_cast<std::size_t>(pattern.cols) + x.col;
+  for (const int i : of_colour) {
+    // (the line's distance first: nearly every blob lies far from it)
+    if (i == j || !(check.geometry.line_distance_px(check.xy[static_cast<std::size_t>(i)], line) <= limit)) continue;
+    if (check.confirms_grown(i, x) && rival(i)) return false;
+  }
+  return true;
+}
+
 // The spots on a grid whose cells are a lattice step wide (the median length of the graph's
 // links); none without a link.
 inline std::optional<SpatialGrid> lattice_grid(const std::vector<Spot>& spots, const AdjacencyGraph& graph) {

@@ -305,7 +305,9 @@ struct GrowthOptions {
   // (defocused, oblique), is not a spot of the source's surface. And a grown blob's area at
   // most its inverse (2.5) of the source's: a wider blob is the colour wash of a surface far out
   // of focus behind a silhouette (without the ceiling, the dark egg gave a wrong id in 1000
-  // poses, seed 7, with either pattern): one number bounds both ways, as `unlike` does
+  // poses, seed 7, with either pattern): one number bounds both ways, as `unlike` does. A free
+  // blob at least this fraction of a grown spot's strength on the line of the id it was given
+  // could be that id's spot instead (nearest_free_blob): as bright as a grown spot may be.
   double alike = 0.4;
 };
 
@@ -347,6 +349,8 @@ enum class GrowthOutcome : std::uint8_t {
   kResidual,        // off the claimed id's line by more than the frame's grown limit
   kNeighbourFits,   // an id around the claimed one fits it too (and the lattice does not pin it)
   kNearerLine,      // another free id's line runs nearer it
+  kNearerBlob,      // named, then withdrawn when growth ended: another free blob that could be
+                    // the id's spot lies on its line too
 };
 
 // Step 6, beyond the paper. The lattice grown from the identified region where the graph has
@@ -354,7 +358,10 @@ enum class GrowthOutcome : std::uint8_t {
 // where each of the 8 ids around it lies; the spot found there (within 0.45 of a step) takes
 // the id when `min_sources` identified spots predict it there (one of them a row or column
 // neighbour), none predicts another id, and colour, epipolar line and uniqueness pass (no other
-// spot has the id, no other id around fits the spot as well). The links the grown lattice found are added to `graph` where both ends had none.
+// spot has the id, no other id around fits the spot as well, no free id's line runs nearer it);
+// once it has grown, a grown spot is withdrawn where another free blob that could be its id's
+// spot lies on the id's line. The links the grown lattice found are added to `graph` where both
+// ends had none.
 // `outcomes` (optional): each spot's GrowthOutcome.
 std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyGraph& graph,
                                       const EpipolarCheck& check, const pattern::MArray& pattern,

@@ -171,8 +171,8 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
   return right;
 }
 
-static_assert(kLostNearerLine - kLostUnlikeClaim ==
-                  static_cast<int>(vision::GrowthOutcome::kNearerLine) - static_cast<int>(vision::GrowthOutcome::kUnlikeClaim),
+static_assert(kLostNearerBlob - kLostUnlikeClaim ==
+                  static_cast<int>(vision::GrowthOutcome::kNearerBlob) - static_cast<int>(vision::GrowthOutcome::kUnlikeClaim),
               "LossCause lists step 6's refusals in GrowthOutcome's order");
 
 // Why each readable spot segmented as blob `blob_of[i]` has no right id (LossCause).
@@ -203,7 +203,7 @@ void count_losses(SweepRow& row, const vision::DecodeResult& r, const FrameTruth
     else if (r.detected[b].truncated) cause = kLostBorder;
     else if (r.growth.size() != r.detected.size()) cause = kLostNoGrowth;
     else if (const GrowthOutcome g = r.growth[b]; g == GrowthOutcome::kNamed) cause = kLostDropped;
-    else if (g >= GrowthOutcome::kUnlikeClaim && g <= GrowthOutcome::kNearerLine)  // the refusals, in order
+    else if (g >= GrowthOutcome::kUnlikeClaim && g <= GrowthOutcome::kNearerBlob)  // the refusals, in order
       cause = static_cast<LossCause>(kLostUnlikeClaim + (static_cast<int>(g) - static_cast<int>(GrowthOutcome::kUnlikeClaim)));
     else if (alone(static_cast<int>(i))) cause = kLostAlone;
     ++row.lost[cause];

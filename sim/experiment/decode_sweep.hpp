@@ -48,15 +48,15 @@ struct SweepOptions {
 // among its 8 pattern neighbours; none of their predictions landed on it.
 enum LossCause {
   kLostOtherId, kLostBorder, kLostNoGrowth, kLostDropped, kLostUnlikeClaim, kLostDissent, kLostNoDirectSource,
-  kLostFewSources, kLostUnlikeSources, kLostTaken, kLostResidual, kLostNeighbourFits, kLostNearerLine, kLostAlone,
-  kLostUnclaimed, kLossCauses
+  kLostFewSources, kLostUnlikeSources, kLostTaken, kLostResidual, kLostNeighbourFits, kLostNearerLine, kLostNearerBlob,
+  kLostAlone, kLostUnclaimed, kLossCauses
 };
 // the CSV column of each cause
 inline constexpr std::array<const char*, kLossCauses> kLossCauseNames{
     "lost_other_id",     "lost_border",      "lost_no_growth",     "lost_dropped",
     "lost_unlike_claim", "lost_dissent",     "lost_no_direct",     "lost_few_sources",
     "lost_unlike_sources", "lost_taken",     "lost_residual",      "lost_neighbour_fits",
-    "lost_nearer_line",  "lost_alone",       "lost_unclaimed"};
+    "lost_nearer_line",  "lost_nearer_blob", "lost_alone",       "lost_unclaimed"};
 
 struct SweepRow {
   int pose = 0;

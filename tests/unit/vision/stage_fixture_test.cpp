@@ -211,6 +211,44 @@ TEST(Stages, AGrownSpotTakesNoIdWhoseLineAnotherFreeIdBeats) {
   EXPECT_EQ(r.growth[wall], GrowthOutcome::kNearerLine);
 }
 
+// step 6 with the calibration, on two frames where the ham's lattice goes on onto a blob that
+// lies on the predicted id's line as closely as on its own (nearest_free_line passes it), while
+// the id's own spot, a free blob as bright, lies on that line elsewhere: once the lattice has
+// grown, a grown spot must be the only free blob that could be the id's spot there
+// (decoder_support.hpp, nearest_free_blob). Both named the id wrongly before that test.
+TEST(Stages, AGrownSpotIsWithdrawnWhereItsIdsOwnSpotMayLieElsewhereOnItsLine) {
+  struct Case {
+    const char* fixture;
+    pattern::SpotId id;  // the id the lattice predicts on the blob at (u, v)
+    double u, v;
+    std::size_t named;  // what the decoder names when the test was written: no fewer
+  };
+  int refused = 0;
+  for (const Case& c : {Case{"ham_dark_rival_456", {13, 0}, 200.60, 242.19, 211},
+                        Case{"ham_dark_rival_824", {6, 12}, 364.89, 251.67, 143}}) {
+    const Frame f = load(c.fixture, 0);
+    const EpipolarGeometry geometry = geometry_of(read_fixture(c.fixture));
+    const DecodeResult r = SpotDecoder(table()).decode_spots(f.spots, &geometry);
+    int grown = 0;
+    for (const DecodedSpot& d : r.decoded) grown += d.by == NamedBy::kLattice;
+    std::printf("%s: %zu of %zu blobs named, %d by the grown lattice, %d wrong\n", c.fixture, r.decoded.size(),
+                f.spots.size(), grown, wrong_ids(f, r.decoded));
+    EXPECT_EQ(wrong_ids(f, r.decoded), 0) << c.fixture;
+    EXPECT_GT(grown, 3) << c.fixture;  // the lattice still grows
+    EXPECT_GE(r.decoded.size(), c.named) << c.fixture;
+    std::size_t blob = r.detected.size();
+    for (std::size_t i = 0; i < r.detected.size(); ++i)
+      if (std::hypot(r.detected[i].u - c.u, r.detected[i].v - c.v) < 1) blob = i;
+    ASSERT_LT(blob, r.detected.size()) << c.fixture;
+    ASSERT_LT(blob, r.growth.size()) << c.fixture;
+    for (const DecodedSpot& d : r.decoded)
+      EXPECT_FALSE(d.spot == static_cast<int>(blob) && d.row == c.id.row && d.col == c.id.col) << c.fixture;
+    // step 6's word on the blob: named, then withdrawn (or refused on other grounds)
+    refused += r.growth[blob] == GrowthOutcome::kNearerBlob;
+  }
+  EXPECT_GE(refused, 1);
+}
+
 // Step 3b on a frame where a strip of the table past the wedge's steep face shows three rows,
 // linked along themselves and sheared across: no window reads them, the segments do.
 TEST(Stages, SegmentsReadTheRowsNoWindowReadsAndNameNoBlobWrongly) {

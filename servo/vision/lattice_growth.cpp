@@ -135,7 +135,7 @@ class Lattice {
   // growth has ended, not while it grows: while the lattice is still to reach a region, the free
   // ids of a projector's epipolar line show their spots on x's camera line, each where its own id
   // lies, and asked of every claim the test stopped the plane's lattice growing from an island
-  // (36 of its 300 spots). Strength, not area: the spot behind a silhouette whose id the lattice
+  // (36 spots, where it grows to over 300 without it). Strength, not area: the spot behind a silhouette whose id the lattice
   // gave is small (0.09-0.39 of the blob's area on the dark ham's wall) but not faint (0.48-0.69
   // of its strength); a wash that is no spot is faint (0.1-0.25).
   bool has_rival(std::size_t j, const pattern::SpotId& x, const std::vector<std::vector<int>>& free) const {
@@ -303,10 +303,13 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
           if (const int x = ids.spot_at(id.row + dr, id.col + dc); x >= 0 && ids.index_of(x) < static_cast<int>(active.size()))
             active[ids.index_of(x)] = 1;
   }
+  const std::size_t grown = decoded.size();
   decoded = withdraw_rivalled(std::move(decoded), first_grown, lattice, ids, spots, pattern.colours, outcomes);
-  // the links the lattice found, where both ends had none in that direction
-  const IdMap final_ids(pattern, n, decoded);
-  link_identified_neighbours(decoded, [&](int r, int c) { return final_ids.spot_at(r, c); }, graph);
+  // the links the lattice found, where both ends had none in that direction (the ids' owners
+  // looked up again only where a grown spot was withdrawn: most frames withdraw none)
+  const std::optional<IdMap> after = decoded.size() == grown ? std::nullopt : std::optional<IdMap>(IdMap(pattern, n, decoded));
+  const IdMap& owners = after ? *after : ids;
+  link_identified_neighbours(decoded, [&](int r, int c) { return owners.spot_at(r, c); }, graph);
   return decoded;
 }
 

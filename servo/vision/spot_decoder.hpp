@@ -205,11 +205,7 @@ bool votes_for(const WindowReading& r, int cell);
 // line neighbour, GrowthOptions::unlike); no spot named otherwise by a window, nor linked to a
 // window-named spot whose id is not a step away. It votes for its spots but its two ends: a run
 // that goes on past a silhouette onto the surface behind finds a spot there on the line of the
-// id it predicts, with its colour one time in three. An end gets a vote too where the run read
-// from the spot beyond it reads the same line on in the same place: in the longer line it is an
-// inner spot. So a line of k linked spots read in one place gives each of its k - 2 inner spots
-// two votes (step 4 names a spot on two exact votes), never its ends. Any length from 3 (under
-// 3: nothing read).
+// id it predicts, with its colour one time in three. Any length from 3 (under 3: nothing read).
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
                    const pattern::MArray& pattern, int length, const std::vector<DecodedSpot>& by_windows,
                    std::vector<IdVote>& votes, const CellShape& shape, double alike);
@@ -402,17 +398,15 @@ struct EpipolarOptions {
   // calibrated tuning sweeps of 1000 poses (seed 7, seed 11 wide, both patterns)
   int min_island = 3;
   // Step 3b's runs: the spots a run reads (under 3: off, a run of 1 or 2 has no inner spot).
-  // 4: a run votes for its 2 inner spots, and for an end inside a longer line read in one place;
-  // a spot no window voted for needs two runs' votes (two exact votes, step 4): a line of k
-  // linked spots names its k - 2 inner spots. On the calibrated tuning sweeps (400 poses, seed
-  // 1, the distance-3 pattern), against no runs: 4 +2.35 % of the ids and the one wrong id of
-  // those sweeps without runs (the dark egg's) not named; 5 +1.93 %; 3 +2.56 %, but in the
-  // egg's 3000 wide poses (seed 21, +-6 cm +-10 deg) 2 wrong ids more than 4 (the coloured and
-  // the printed egg: a run of 3 fits more places by chance). Before an end inside a line had
-  // its vote (a line named its k - 4): 3 +1.34 %, 4 +2.05 %, 5 +1.83, 6 +1.64, 7 +1.46, 9 +0.91.
-  // Read without its checks (each spot within the tolerance only, every spot voted for) runs of
-  // 7 named 479 wrong ids, the ham's lower silhouette most (docs/decoding.md, "Runs read along
-  // the epipolar lines", and "A line's ends and its inner spots").
+  // 4: a run votes for its 2 inner spots, and a spot no window voted for needs two runs' votes
+  // (two exact votes, step 4): a line of k linked spots names its middle k - 4. On the
+  // calibrated tuning sweeps (400 poses, seed 1, both patterns), against no runs: 3 +1.34 % of
+  // the ids and the dark egg's wrong id back (a run of 3 fits two places often, and is dropped),
+  // 4 +2.05 %, 5 +1.83, 6 +1.64, 7 +1.46, 9 +0.91 (and the dark egg's wrong id back); 4 on seed
+  // 7, seed 11 +-6 cm +-10 deg, the occluded cylinder and the egg's 3000 wide poses: the same
+  // wrong ids as 7, sweep for sweep. Read without its checks (each spot within the tolerance
+  // only, every spot voted for) runs of 7 named 479 wrong ids, the ham's lower silhouette most
+  // (docs/decoding.md, "Runs read along the epipolar lines").
   int segment_length = 4;
   // Without a calibration, decode a second time on the lines fitted to the first decoding's spots
   // (SpotDecoder::decode_uncalibrated). Off by default: the closed loop's figures in

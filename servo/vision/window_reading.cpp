@@ -226,43 +226,6 @@ bool run_meets_dissent(const RunContext& at, const std::vector<int>& run, const 
 }
 }  // namespace
 
-namespace {
-// The place a run of spots (`run`, linked along the axis (dr, dc)) reads (its first spot's
-// id), or nothing: the run is smooth and alike, exactly one place in the pattern has its colours
-// along the axis with every spot within the tolerance of its id's line, every spot is within the
-// grown limit of its line, and no window dissents.
-// (`candidates_of(spot)`: the ids a spot may carry, asked only of a run that is smooth and alike)
-template <typename Candidates>
-std::optional<pattern::SpotId> read_run(const RunContext& at, const pattern::MArray& pattern, int dr, int dc,
-                                        Candidates&& candidates_of, std::vector<int>& run,
-                                        std::vector<pattern::SpotId>& ids, const CellShape& shape) {
-  const std::size_t n = run.size();
-  // a run along one surface is smooth: each step close to the one before. At an object's
-  // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
-  for (std::size_t m = 1; m + 1 < n; ++m)
-    if (!bends_little(at.spots[run[m - 1]], at.spots[run[m]], at.spots[run[m + 1]], shape.bend)) return std::nullopt;
-  if (!run_is_alike(at, run)) return std::nullopt;
-  // exactly one place in the pattern has the run's colours along the axis, each spot within
-  // the tolerance of its id's line: a run that fits two places is dropped
-  int matches = 0;
-  pattern::SpotId found{};
-  for (const pattern::SpotId& a : candidates_of(run[0])) {
-    bool fits = true;
-    for (std::size_t m = 1; m < n && fits; ++m) {
-      const pattern::SpotId id{a.row + static_cast<int>(m) * dr, a.col + static_cast<int>(m) * dc};
-      fits = id.row < pattern.rows && id.col < pattern.cols && pattern.at(id.row, id.col) == at.spots[run[m]].colour &&
-             at.check.confirms(run[m], id);
-    }
-    if (fits && ++matches == 1) found = a;
-    if (matches > 1) return std::nullopt;
-  }
-  if (matches != 1) return std::nullopt;
-  for (std::size_t m = 0; m < n; ++m) ids[m] = {found.row + static_cast<int>(m) * dr, found.col + static_cast<int>(m) * dc};
-  if (!run_is_tight(at, run, ids) || run_meets_dissent(at, run, ids)) return std::nullopt;
-  return found;
-}
-}  // namespace
-
 void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, const EpipolarCheck& check,
                    const pattern::MArray& pattern, int length, const std::vector<DecodedSpot>& by_windows,
                    std::vector<IdVote>& votes, const CellShape& shape, double alike_fraction) {
@@ -289,53 +252,44 @@ void read_segments(const std::vector<Spot>& spots, const AdjacencyGraph& graph, 
   const int n = length;
   std::vector<int> run(static_cast<std::size_t>(n));
   std::vector<pattern::SpotId> ids(run.size());
-  constexpr pattern::SpotId kUnread{-1, -1};
-  std::vector<pattern::SpotId> read(spots.size());
-  std::vector<int> back(spots.size()), ends, starts;
   for (const auto& [forward, dr, dc] : {std::tuple{kEast, 0, 1}, std::tuple{kSouth, 1, 0}}) {
-    // the place each spot's run forward reads (kUnread: none), then the votes: a run votes for
-    // its spots but its two ends, and for an end too where the run read from the spot before it
-    // (or after it) goes on past that end in the same place: in a longer line that end is inner
-    read.assign(spots.size(), kUnread);
-    back.assign(spots.size(), -1);  // the spot linked backward along the axis
-    ends.clear(), starts.clear();
-    for (std::size_t s = 0; s < spots.size(); ++s)
-      if (const int j = graph.next[s][forward]; j >= 0) back[j] = static_cast<int>(s);
-    const auto whole_run = [&](int s) {  // the run from s, n - 1 links forward
-      run[0] = s;
+    for (std::size_t s = 0; s < spots.size(); ++s) {
+      // the run from s, n - 1 links forward
+      run[0] = static_cast<int>(s);
       bool whole = true;
       for (int m = 1; m < n && whole; ++m) whole = (run[m] = graph.next[run[m - 1]][forward]) >= 0;
-      return whole;
-    };
-    const auto free_at = [&](int m) { return named[run[m]].row < 0; };
-    const auto read_from = [&](int s) {
-      if (const auto place = read_run(at, pattern, dr, dc, candidates_of, run, ids, shape))
-        read[s] = *place, starts.push_back(s);
-    };
-    // first the runs with an inner spot no window named; a run whose spots the windows all named
-    // adds nothing (a vote against them would be a dissent): most of a frame's runs, read at no
-    // cost. Then those whose only free spots are ends, where the run beside, read, could make
-    // such an end inner: only those ends' votes are new.
-    for (int s = 0; s < static_cast<int>(spots.size()); ++s) {
-      if (!whole_run(s)) continue;
-      bool inner = false;
-      for (int m = 1; m + 1 < n && !inner; ++m) inner = free_at(m);
-      if (inner) read_from(s);
-      else if (free_at(0) || free_at(n - 1)) ends.push_back(s);
-    }
-    for (const int s : ends) {
-      whole_run(s);
-      const bool first = free_at(0) && back[s] >= 0 && !(read[back[s]] == kUnread);
-      if (first || (free_at(n - 1) && !(read[run[1]] == kUnread))) read_from(s);
-    }
-    for (const int s : starts) {
-      whole_run(s);
-      const pattern::SpotId& a = read[s];
-      const bool first_inner = back[s] >= 0 && read[back[s]] == pattern::SpotId{a.row - dr, a.col - dc};
-      const bool last_inner = read[run[1]] == pattern::SpotId{a.row + dr, a.col + dc};
-      for (int m = 0; m < n; ++m)
-        if ((m > 0 && m + 1 < n) || (m == 0 && first_inner) || (m + 1 == n && last_inner))
-          votes.push_back({run[m], {a.row + m * dr, a.col + m * dc}});
+      if (!whole) continue;
+      // a run whose inner spots the windows all named adds nothing (a vote against them would
+      // be a dissent): most of a frame's runs, read at no cost
+      bool adds = false;
+      for (int m = 1; m + 1 < n && !adds; ++m) adds = named[run[m]].row < 0;
+      if (!adds) continue;
+      // a run along one surface is smooth: each step close to the one before. At an object's
+      // edge the run jumps to the surface behind, whose spot can sit on the same epipolar line
+      bool smooth = true;
+      for (int m = 1; m + 1 < n && smooth; ++m)
+        smooth = bends_little(spots[run[m - 1]], spots[run[m]], spots[run[m + 1]], shape.bend);
+      if (!smooth || !run_is_alike(at, run)) continue;
+      // exactly one place in the pattern has the run's colours along the axis, each spot within
+      // the tolerance of its id's line: a run that fits two places is dropped
+      int matches = 0;
+      pattern::SpotId found{};
+      for (const pattern::SpotId& a : candidates_of(static_cast<int>(s))) {
+        bool fits = true;
+        for (int m = 1; m < n && fits; ++m) {
+          const pattern::SpotId id{a.row + m * dr, a.col + m * dc};
+          fits = id.row < pattern.rows && id.col < pattern.cols && pattern.at(id.row, id.col) == spots[run[m]].colour &&
+                 check.confirms(run[m], id);
+        }
+        if (fits && ++matches == 1) found = a;
+        if (matches > 1) break;
+      }
+      if (matches != 1) continue;
+      for (int m = 0; m < n; ++m) ids[m] = {found.row + m * dr, found.col + m * dc};
+      if (!run_is_tight(at, run, ids) || run_meets_dissent(at, run, ids)) continue;
+      // the run votes for its spots but its two ends: where a run crosses an edge, its last spot
+      // is the surface behind's, and a spot inside it has runs that go on past it
+      for (int m = 1; m + 1 < n; ++m) votes.push_back({run[m], ids[m]});
     }
   }
 }

@@ -603,7 +603,7 @@ struct DecodeSweepCommand {
     c->add_option("--decoder-option", decoder_options,
                   "NAME=VALUE: one of the decoder's numbers for this sweep (repeatable; docs/decoding.md says what "
                   "each does): " + names);
-    c->add_option("-o,--output", dir, "folder for sweep.csv and overlays of poses with wrong ids");
+    c->add_option("-o,--output", dir, "folder for sweep.csv, wrong_ids.csv, spills.csv and overlays of poses with wrong ids");
     return c;
   }
   int run() {

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <thread>
+#include <tuple>
 
 #include "servo/pipeline/servo_pipeline.hpp"
 #include "servo/vision/overlay.hpp"
@@ -31,6 +32,24 @@ struct WrongId {
   bool named_visible;
   double named_px;  // from the decoded position to where the named spot's centre projects
   int step;         // the decoder step that named it (vision::NamedBy)
+};
+
+// An id given to a spill: the named spot's light, its centre hidden or elsewhere (a spot split by
+// a depth edge, its light past a silhouette, a spot cut by the image border), and whether it
+// reaches the law.
+struct SpillId {
+  int pose, row, col;
+  double u, v;
+  double centre_u, centre_v;  // where the named spot's centre projects
+  bool centre_visible;
+  int step;  // the decoder step that named it (vision::NamedBy)
+  bool off_line, to_law, off_taught;
+};
+
+// What score_ids lists of a frame's ids for the sweep's files.
+struct Listed {
+  std::vector<WrongId> wrong;
+  std::vector<SpillId> spills;
 };
 
 // All poses drawn up front from one seeded stream: the sweep does not depend on threading.
@@ -112,9 +131,9 @@ struct Taught {
 // Each decoded id against the truth: right, right but mislocated, a partial blob, or wrong;
 // and whether it reaches the law (on its line, its id taught, not held out by its taught point:
 // `off_taught` per decoded id, or empty).
-// Returns which spots were named right; the wrong ones are appended to `wrong`.
+// Returns which spots were named right; the wrong ones and the spills are appended to `listed`.
 std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const FrameTruth& truth, double tolerance_px,
-                            const Taught& taught, const std::vector<char>& off_taught, std::vector<WrongId>& wrong) {
+                            const Taught& taught, const std::vector<char>& off_taught, Listed& listed) {
   std::vector<char> right(truth.spots.size(), 0), named(truth.spots.size(), 0);
   const auto at = [&](int id_row, int id_col) { return static_cast<std::size_t>(id_row) * truth.cols + id_col; };
   for (const auto& d : r.decoded) named[at(d.row, d.col)] = 1;
@@ -147,12 +166,14 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
       row.off_line_partial += d.off_line;
       row.to_law_partial += to_law;
       row.off_taught_partial += held;
+      listed.spills.push_back({row.pose, d.row, d.col, d.u, d.v, named_spot.uv.x(), named_spot.uv.y(),
+                               named_spot.visible, static_cast<int>(d.by), d.off_line, to_law, held});
     } else if (!nearest_is_named) {
       ++row.wrong;
       row.off_line_wrong += d.off_line;
       row.to_law_wrong += to_law;
       row.off_taught_wrong += held;
-      wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
+      listed.wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
                        nearest ? best : -1, named_spot.visible, std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v),
                        static_cast<int>(d.by)});
     } else if (best > tolerance_px) {
@@ -334,12 +355,26 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
 
 // every wrong id, to look at: what was named, what is there
 void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
-  std::sort(wrong.begin(), wrong.end(), [](const WrongId& a, const WrongId& b) { return a.pose < b.pose; });
+  std::sort(wrong.begin(), wrong.end(), [](const WrongId& a, const WrongId& b) {
+    return std::tie(a.pose, a.row, a.col) < std::tie(b.pose, b.row, b.col);  // whichever thread found them
+  });
   std::ofstream w(file);
   w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step\n";
   for (const WrongId& x : wrong)
     w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
       << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << ',' << x.step << '\n';
+}
+
+// every id given to a spill, to look at: where it was named, where its spot's centre is
+void write_spill_ids(std::vector<SpillId> spills, const std::filesystem::path& file) {
+  std::sort(spills.begin(), spills.end(), [](const SpillId& a, const SpillId& b) {
+    return std::tie(a.pose, a.row, a.col) < std::tie(b.pose, b.row, b.col);
+  });
+  std::ofstream w(file);
+  w << "pose,row,col,u,v,centre_u,centre_v,centre_visible,step,off_line,to_law,off_taught\n";
+  for (const SpillId& x : spills)
+    w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.centre_u << ',' << x.centre_v << ','
+      << x.centre_visible << ',' << x.step << ',' << x.off_line << ',' << x.to_law << ',' << x.off_taught << '\n';
 }
 
 void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {
@@ -463,6 +498,33 @@ std::vector<char> held_by_taught_points(const vision::DecodeResult& r, const Tau
 
 }  // namespace
 
+// Which spots a frame could show decoded: decodable, covered by a fully visible 3 x 3 window;
+// readable, by a fully resolved one (one_object: all on one object); apart in the image.
+struct Coverage {
+  std::vector<char> decodable, readable, one_object, apart;
+};
+Coverage coverage_of(const FrameTruth& truth) {
+  return {truth.in_full_window([](const sim::SpotTruth& t) { return t.visible; }),
+          truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; }),
+          truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; }, true), apart_in_image(truth.spots)};
+}
+
+// The frame's visible, resolved, decodable and readable spots, and those of them named right.
+void count_rates(SweepRow& row, const FrameTruth& truth, const Coverage& c, const std::vector<char>& right) {
+  for (std::size_t i = 0; i < truth.spots.size(); ++i) {
+    row.visible += truth.spots[i].visible;
+    row.resolved += truth.spots[i].resolved;
+    row.decodable += c.decodable[i];
+    row.correct_decodable += c.decodable[i] && right[i];
+    row.readable += c.readable[i];
+    row.correct_readable += c.readable[i] && right[i];
+    row.readable_one_object += c.one_object[i];
+    row.correct_readable_one_object += c.one_object[i] && right[i];
+    row.readable_apart += c.readable[i] && c.apart[i];
+    row.correct_readable_apart += c.readable[i] && c.apart[i] && right[i];
+  }
+}
+
 SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const sim::Scenario& sc = cell.scenario;
   std::vector<SweepRow> rows = draw_rows(sc, o);
@@ -476,6 +538,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   std::mutex io;
   common::Progress progress("decode-sweep " + sc.name, static_cast<std::size_t>(o.poses), "poses");
   std::vector<WrongId> wrong_ids;
+  std::vector<SpillId> spill_ids;
   int failure_images = 0;
   const auto work = [&] {
     sim::RenderScratch scratch;
@@ -484,7 +547,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     // decoder's room, reused from pose to pose as the servo reuses it from frame to frame
     const vision::SpotDecoder decoder(pattern::WindowTable(pattern, {3, 3}), decoder_options);
     vision::DecodeScratch decode_scratch;
-    std::vector<WrongId> wrong;
+    Listed listed;
     for (int k; (k = next++) < o.poses;) {
       SweepRow& row = rows[k];
       const Eigen::Isometry3d wTc = sim::offset_pose(sc.world_T_desired, {row.offset[0], row.offset[1], row.offset[2]},
@@ -500,33 +563,20 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       row.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
       const FrameTruth truth{spots, pattern.rows, pattern.cols};
-      for (const auto& t : spots) row.visible += t.visible;
-      for (const auto& t : spots) row.resolved += t.resolved;
-      // decodable: covered by a fully visible 3 x 3 window; readable: by a fully resolved one
-      const std::vector<char> decodable = truth.in_full_window([](const sim::SpotTruth& t) { return t.visible; });
-      const std::vector<char> readable = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; });
-      const std::vector<char> one_object = truth.in_full_window([](const sim::SpotTruth& t) { return t.resolved; }, true);
-      const std::vector<char> apart = apart_in_image(spots);
+      const Coverage covered = coverage_of(truth);
       row.detected = static_cast<int>(r.detected.size());
       row.decoded = static_cast<int>(r.decoded.size());
-      wrong.clear();
+      listed.wrong.clear(), listed.spills.clear();
       const std::vector<char> held = held_by_taught_points(r, taught, wTc);
-      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, taught, held, wrong);
-      loss_funnel(row, r, truth, pattern, readable, right, o.match_tolerance_px);
-      for (std::size_t i = 0; i < spots.size(); ++i) {
-        row.decodable += decodable[i];
-        row.correct_decodable += decodable[i] && right[i];
-        row.readable += readable[i];
-        row.correct_readable += readable[i] && right[i];
-        row.readable_one_object += one_object[i];
-        row.correct_readable_one_object += one_object[i] && right[i];
-        row.readable_apart += readable[i] && apart[i];
-        row.correct_readable_apart += readable[i] && apart[i] && right[i];
-      }
+      const std::vector<char> right = score_ids(row, r, truth, o.match_tolerance_px, taught, held, listed);
+      loss_funnel(row, r, truth, pattern, covered.readable, right, o.match_tolerance_px);
+      count_rates(row, truth, covered, right);
       progress.at(static_cast<std::size_t>(++done));
-      if (row.wrong == 0) continue;
+      if (row.wrong == 0 && listed.spills.empty()) continue;
       std::lock_guard<std::mutex> lock(io);
-      wrong_ids.insert(wrong_ids.end(), wrong.begin(), wrong.end());
+      spill_ids.insert(spill_ids.end(), listed.spills.begin(), listed.spills.end());
+      if (row.wrong == 0) continue;
+      wrong_ids.insert(wrong_ids.end(), listed.wrong.begin(), listed.wrong.end());
       if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(shot.pattern, shot.white, r, k, o.out_dir);
     }
   };
@@ -539,6 +589,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   s.taught = static_cast<int>(std::count(taught.ids.begin(), taught.ids.end(), 1));
   if (!o.out_dir.empty()) {
     write_wrong_ids(wrong_ids, o.out_dir / "wrong_ids.csv");
+    write_spill_ids(spill_ids, o.out_dir / "spills.csv");
     write_sweep_csv(rows, o.out_dir / "sweep.csv");
   }
   return s;

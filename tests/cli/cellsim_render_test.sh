@@ -44,6 +44,13 @@ grep -q "against the readable spots" <<<"$out" || fail "no readable rate: $out"
 grep -q "against the readable spots apart in the image (.*): [0-9]* of [0-9]* identified" <<<"$out" ||
   fail "no rate against the readable spots apart in the image: $out"
 [ -f "$tmp/sweep/wrong_ids.csv" ] || fail "no wrong_ids.csv"
+# spills.csv: a row per id given to a spill, as many as the log counts (the ham's silhouette has some)
+out=$("$cellsim" decode-sweep "$src/sim/scenarios/ham.yaml" --poses 20 -o "$tmp/ham_sweep") || fail "ham sweep: $out"
+partial=$(grep -o 'partial [0-9]*' <<<"$out" | head -1 | cut -d' ' -f2)
+[ "$(head -1 "$tmp/ham_sweep/spills.csv")" = "pose,row,col,u,v,centre_u,centre_v,centre_visible,step,off_line,to_law,off_taught" ] ||
+  fail "spills.csv's header: $(head -1 "$tmp/ham_sweep/spills.csv")"
+[ "${partial:-0}" -gt 0 ] && [ "$(($(wc -l <"$tmp/ham_sweep/spills.csv") - 1))" -eq "$partial" ] ||
+  fail "spills.csv has $(($(wc -l <"$tmp/ham_sweep/spills.csv") - 1)) rows, the log $partial spills"
 # with the projector's calibration: more spots identified, none wrong (the exit code says so)
 "$cellsim" calibration "$src/sim/scenarios/cylinder.yaml" -o "$tmp/cyl.yaml" >/dev/null || fail "calibration"
 count() { grep -o 'decoded [0-9]* of' <<<"$1" | cut -d' ' -f2; }

@@ -173,9 +173,9 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
       row.off_line_wrong += d.off_line;
       row.to_law_wrong += to_law;
       row.off_taught_wrong += held;
-      listed.wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1, nearest ? nearest->col : -1,
-                       nearest ? best : -1, named_spot.visible, std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v),
-                       static_cast<int>(d.by)});
+      listed.wrong.push_back({row.pose, d.row, d.col, d.u, d.v, nearest ? nearest->row : -1,
+                              nearest ? nearest->col : -1, nearest ? best : -1, named_spot.visible,
+                              std::hypot(named_spot.uv.x() - d.u, named_spot.uv.y() - d.v), static_cast<int>(d.by)});
     } else if (best > tolerance_px) {
       ++row.mislocated;
       row.off_line_mislocated += d.off_line;
@@ -353,11 +353,16 @@ SweepSummary summarize(const std::vector<SweepRow>& rows) {
   return s;
 }
 
+// A file's rows in pose and id order, whichever thread found them.
+template <typename Row>
+void by_pose_and_id(std::vector<Row>& rows) {
+  std::sort(rows.begin(), rows.end(),
+            [](const Row& a, const Row& b) { return std::tie(a.pose, a.row, a.col) < std::tie(b.pose, b.row, b.col); });
+}
+
 // every wrong id, to look at: what was named, what is there
 void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
-  std::sort(wrong.begin(), wrong.end(), [](const WrongId& a, const WrongId& b) {
-    return std::tie(a.pose, a.row, a.col) < std::tie(b.pose, b.row, b.col);  // whichever thread found them
-  });
+  by_pose_and_id(wrong);
   std::ofstream w(file);
   w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step\n";
   for (const WrongId& x : wrong)
@@ -367,9 +372,7 @@ void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& fi
 
 // every id given to a spill, to look at: where it was named, where its spot's centre is
 void write_spill_ids(std::vector<SpillId> spills, const std::filesystem::path& file) {
-  std::sort(spills.begin(), spills.end(), [](const SpillId& a, const SpillId& b) {
-    return std::tie(a.pose, a.row, a.col) < std::tie(b.pose, b.row, b.col);
-  });
+  by_pose_and_id(spills);
   std::ofstream w(file);
   w << "pose,row,col,u,v,centre_u,centre_v,centre_visible,step,off_line,to_law,off_taught\n";
   for (const SpillId& x : spills)
@@ -496,8 +499,6 @@ std::vector<char> held_by_taught_points(const vision::DecodeResult& r, const Tau
   return off;
 }
 
-}  // namespace
-
 // Which spots a frame could show decoded: decodable, covered by a fully visible 3 x 3 window;
 // readable, by a fully resolved one (one_object: all on one object); apart in the image.
 struct Coverage {
@@ -524,6 +525,8 @@ void count_rates(SweepRow& row, const FrameTruth& truth, const Coverage& c, cons
     row.correct_readable_apart += c.readable[i] && c.apart[i] && right[i];
   }
 }
+
+}  // namespace
 
 SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const sim::Scenario& sc = cell.scenario;

@@ -1,11 +1,14 @@
 """What the plot scripts share (imported by them, not run): matplotlib without a display, the
 DIR [--title TITLE] arguments, and saving a figure. Debian's python3-matplotlib (bin/setup)."""
 import argparse
+import os
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402,F401  (the scripts take plt from here)
+
+from cell_output import open_output  # noqa: E402
 
 
 def dir_and_title():
@@ -19,7 +22,8 @@ def dir_and_title():
 def save(fig, path, dpi=110, top=1.0, bottom=0.0):
     """Lays the figure out (leaving `top` of its height to the panels: a suptitle above them
     is not cut; and the panels above `bottom`: a figure legend below them is not covered) and
-    writes it."""
+    writes it (under cell_output's rule: never over a file the project did not write)."""
     fig.tight_layout(rect=(0, bottom, 1, top))
-    fig.savefig(path, dpi=dpi)
+    with open_output(path, "wb") as f:
+        fig.savefig(f, dpi=dpi, format=os.path.splitext(path)[1].lstrip(".") or "png")
     plt.close(fig)

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/cli_help.hpp"
+#include "common/output_image.hpp"
 #include "common/cli_numbers.hpp"
 #include "servo/pattern/marray.hpp"
 #include "servo/pattern/palette.hpp"
@@ -72,8 +73,10 @@ int run_render(const std::string& file, const std::string& out, int pitch) {
       cv::circle(img, {c * pitch + pitch / 2, r * pitch + pitch / 2}, pitch * 3 / 10, cv::Scalar(rgb.b, rgb.g, rgb.r),
                  cv::FILLED, cv::LINE_AA);
     }
-  if (!cv::imwrite(out, img)) {
-    std::cerr << "pattern render: cannot write " << out << "\n";
+  try {
+    common::write_output_image(out, img);
+  } catch (const common::FileError& e) {
+    std::cerr << "pattern render: " << e.what() << "\n";
     return 1;
   }
   std::printf("wrote %s (%d x %d px)\n", out.c_str(), img.cols, img.rows);

@@ -11,7 +11,6 @@
 #include <set>
 #include <sstream>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
@@ -19,6 +18,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/cli_help.hpp"
+#include "common/output_image.hpp"
 #include "dds/cli_flags.hpp"
 #include "common/cli_numbers.hpp"
 #include "common/plot_script.hpp"
@@ -237,9 +237,7 @@ void write_decode_json(const std::string& json_file, const std::string& image, c
   }
   j["decoded"] = r.decoded.size();
   j["time_ms"] = ms;
-  std::ofstream f(json_file);
-  if (!f) throw std::runtime_error(json_file + ": cannot write");
-  f << j.dump(1) << "\n";
+  common::write_output_file(json_file, j.dump(1) + "\n", "decode result");
 }
 
 // Decodes every image with one warm decoder: each image's time_ms is a warm decode (the
@@ -278,7 +276,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
   if (images.size() > 1 && (!json_out.empty() || !overlay_out.empty() || !files.white.empty()))
     throw std::runtime_error("--json, --overlay and --white take one image; for several, --json-dir DIR");
   const cv::Mat white = files.white.empty() ? cv::Mat() : read_rgb(files.white);
-  if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
+  if (!json_dir.empty()) common::make_output_folder(json_dir);
   std::vector<double> times;
   std::set<std::string> written;
   bool warm = false;
@@ -329,7 +327,7 @@ int run_decode(const std::vector<std::string>& args, const std::string& pattern_
     if (!overlay_out.empty()) {
       cv::Mat bgr;
       cv::cvtColor(vision::draw_overlay(rgb, r), bgr, cv::COLOR_RGB2BGR);
-      if (!cv::imwrite(overlay_out, bgr)) throw std::runtime_error(overlay_out + ": cannot write overlay");
+      common::write_output_image(overlay_out, bgr);
     }
     std::printf("%s: %zu spots detected, %zu decoded in %.2f ms\n", image.c_str(), r.detected.size(), r.decoded.size(),
                 ms);

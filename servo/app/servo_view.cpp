@@ -18,6 +18,7 @@
 #include "dds/cli_flags.hpp"
 #include "dds/topics.hpp"
 #include "sensor_msgsPubSubTypes.h"
+#include "common/output_image.hpp"
 #include "servo/node/servo_state_machine.hpp"
 
 namespace servo {
@@ -67,7 +68,7 @@ int run_viewer(const ViewOptions& o) {
   for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_signal);
   const bool window = o.output.empty() && std::getenv("DISPLAY") != nullptr;
   if (!window && o.output.empty()) throw std::runtime_error("no display: give --output DIR for a PNG sequence");
-  if (!o.output.empty()) std::filesystem::create_directories(o.output);
+  if (!o.output.empty()) common::make_output_folder(o.output);
 
   std::mutex m;
   std::condition_variable cv;
@@ -130,7 +131,7 @@ int run_viewer(const ViewOptions& o) {
       } else {
         char name[64];
         std::snprintf(name, sizeof name, "frame_%06ld.png", shown);
-        cv::imwrite((o.output / name).string(), bgr);
+        common::write_output_image(o.output / name, bgr);
       }
       ++shown;
     }

@@ -2,11 +2,12 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iomanip>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
+#include "common/output_file.hpp"
 #include "common/strict_yaml.hpp"
 #include "servo/pattern/pattern_file.hpp"
 
@@ -57,15 +58,14 @@ void write_projector_calibration(const calibration::ProjectorModel& m, const std
   const Eigen::Isometry3d& pose = m.on_camera ? *m.on_camera : m.world_T_projector;
   const Eigen::Quaterniond q(pose.rotation());
   const Eigen::Vector3d t = pose.translation();
-  std::ofstream f(file);
-  if (!f) throw std::runtime_error(file.string() + ": cannot write");
+  std::ostringstream f;
   f << std::setprecision(12) << "# " << comment << "\n"
     << "fx: " << m.fx << "\nfy: " << m.fy << "\ncx: " << m.cx << "\ncy: " << m.cy
     << "\nspot_pitch_px: " << m.spot_pitch_px << "\nrows: " << m.rows << "\ncols: " << m.cols
     << (m.on_camera ? "\nmount: camera  # the pose below is the camera's frame's" : "") << "\nposition_m: ["
     << t.x() << ", " << t.y() << ", " << t.z() << "]\norientation_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z()
     << ", " << q.w() << "]\n";
-  if (!f.flush()) throw std::runtime_error(file.string() + ": cannot write");
+  common::write_output_file(file, f.str(), "projector calibration");
 }
 
 void check_projector_against_pattern(const calibration::ProjectorModel& m, const pattern::MArray& marray,

@@ -1,9 +1,9 @@
 #include "servo/pattern/pattern_file.hpp"
 
+#include "common/output_file.hpp"
 #include "common/regular_file.hpp"
 
 #include <cstdio>
-#include <fstream>
 #include <sstream>
 
 namespace pattern {
@@ -107,10 +107,11 @@ std::string format_marray(const MArray& a) {
 }
 
 void write_marray(const std::filesystem::path& path, const MArray& a) {
-  std::ofstream f(path, std::ios::binary);
-  if (!f) throw PatternFileError(path.string() + ": cannot write pattern file");
-  f << format_marray(a);
-  if (!f) throw PatternFileError(path.string() + ": write failed");
+  try {
+    common::write_output_file(path, format_marray(a), "pattern");
+  } catch (const common::FileError& e) {
+    throw PatternFileError(e.what());
+  }
 }
 
 }  // namespace pattern

@@ -5,13 +5,13 @@
 #include <cstdio>
 #include <cstring>
 #include <deque>
-#include <fstream>
 #include <iomanip>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "cell_msgsPubSubTypes.h"
+#include "common/output_file.hpp"
 #include "common/strict_yaml.hpp"
 #include "dds/topics.hpp"
 #include "geometry_msgsPubSubTypes.h"
@@ -159,11 +159,10 @@ class Replay {
       return r.stamp.sec == ready_.stamp.sec && r.stamp.nanosec == ready_.stamp.nanosec;
     });
     if (recorded_at_ready > static_cast<long>(at_ready.size())) at_ready.push_front(ready_);
-    std::ofstream csv;
+    common::OutputStream csv;
     if (!o_.output.empty()) {
-      std::filesystem::create_directories(o_.output);
-      csv.open(o_.output / "replay.csv");
-      if (!csv) throw std::runtime_error((o_.output / "replay.csv").string() + ": cannot write");
+      common::make_output_folder(o_.output);
+      csv.open(o_.output / "replay.csv", "table");
       csv << "# servo replay of " << o_.recording.string() << ": each recorded twist and the one the replayed servo "
           << "sends for the same stamp\n"
           << "t,rec_vx,rec_vy,rec_vz,rec_wx,rec_wy,rec_wz,vx,vy,vz,wx,wy,wz,state,error_norm,decoded,max_abs_diff,"

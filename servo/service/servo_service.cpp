@@ -1,5 +1,6 @@
 #include "servo/service/servo_service.hpp"
 
+#include "common/output_file.hpp"
 #include "common/regular_file.hpp"
 
 #include <algorithm>
@@ -10,7 +11,6 @@
 #include <csignal>
 #include <cstdio>
 #include <deque>
-#include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -47,7 +47,7 @@ void save_reference(const std::filesystem::path& file, const std::vector<control
     e["z"] = f.z ? nlohmann::json(*f.z) : nlohmann::json(nullptr);
     j.push_back(e);
   }
-  std::ofstream(file) << j.dump(1) << "\n";
+  common::write_output_file(file, j.dump(1) + "\n", "reference");
 }
 
 }  // namespace
@@ -108,6 +108,8 @@ class ServoService {
     auto pipeline = make_pipeline(o.pattern, o.config, std::filesystem::exists(o.reference, ec) ? o.reference : "");
     if (pipeline->taught())
       std::printf("servo: reference loaded from %s (%zu features)\n", o.reference.c_str(), pipeline->reference().size());
+    else if (!o.reference.empty())
+      common::check_output_file(o.reference, "reference");  // a link in its place is said now, not after teaching
     machine_ = std::make_unique<ServoStateMachine>(std::move(pipeline), ServoTiming{o.lost_ms / 1e3, o.autostart});
     participant_ = cell_dds::make_participant(cell_dds::participant_options(o, "servo", "servo"));
     auto& p = *participant_;
@@ -200,7 +202,15 @@ class ServoService {
       const ImageView white_view = white ? image_view(*white) : ImageView{};
       const ServoReply r = machine_->on_image(image_view(img), now(), white ? &white_view : nullptr);
       if (!r.notice.empty()) std::fprintf(stderr, "servo: %s\n", r.notice.c_str());
-      if (r.taught && !o_.reference.empty()) save_reference(o_.reference, machine_->pipeline().reference());
+      if (r.taught && !o_.reference.empty()) {
+        // a refused file (a user's, a link) is said, and the servo runs on: the reference it
+        // taught is in memory, and a stop here would leave the robot without its last twist
+        try {
+          save_reference(o_.reference, machine_->pipeline().reference());
+        } catch (const common::FileError& e) {
+          std::fprintf(stderr, "servo: --reference %s; the taught reference is kept in memory only\n", e.what());
+        }
+      }
       if (r.answer) publish(r, true);
       lock.lock();
     }

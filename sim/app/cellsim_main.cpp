@@ -7,7 +7,6 @@
 #include <tuple>
 #include <filesystem>
 #include <iomanip>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
@@ -15,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/cli_help.hpp"
+#include "common/output_image.hpp"
 #include "sim/app/experiment_recording.hpp"
 #include "sim/app/live_bridge.hpp"
 #include "dds/cli_flags.hpp"
@@ -61,7 +61,7 @@ nlohmann::json pose_json(const Eigen::Isometry3d& T) {
 void write_png_rgb(const std::string& path, const cv::Mat& rgb) {
   cv::Mat bgr;
   cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  if (!cv::imwrite(path, bgr)) throw std::runtime_error(path + ": cannot write image");
+  common::write_output_image(path, bgr);
 }
 
 // The scenario a command runs: its file, and the override of its spec the command line gives,
@@ -165,9 +165,7 @@ int run_render(const ScenarioArg& scenario_arg, const std::string& pose_spec, co
       }
       j["spots"].push_back(s);
     }
-    std::ofstream f(truth_file);
-    if (!f) throw std::runtime_error(truth_file + ": cannot write truth");
-    f << j.dump(1) << "\n";
+    common::write_output_file(truth_file, j.dump(1) + "\n", "truth");
   }
   std::printf("%s: %s pose, %d of %zu spots visible -> %s\n", scenario.name.c_str(), pose_spec.c_str(), visible,
               truth.size(), out_png.c_str());
@@ -178,7 +176,7 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
   const auto cell = sim::build_cell(scenario.load());
   if (o.projector)
     calibration::check_projector_against_pattern(*o.projector, cell->projector->pattern(), cell->scenario.projector.pattern);
-  if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
+  if (!o.out_dir.empty()) common::make_output_folder(o.out_dir);
   const auto t0 = std::chrono::steady_clock::now();
   const experiment::SweepSummary s = experiment::run_decode_sweep(*cell, o);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

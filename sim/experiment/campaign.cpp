@@ -3,6 +3,7 @@
 
 #include "sim/arm/robot_model.hpp"
 
+#include "common/output_file.hpp"
 #include "common/progress.hpp"
 #include "common/regular_file.hpp"
 #include "common/strict_yaml.hpp"
@@ -14,7 +15,6 @@
 #include <cstdlib>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -312,11 +312,10 @@ std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& 
 
 void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, const std::vector<CampaignRow>& rows,
                     const std::string& md) {
-  std::filesystem::create_directories(dir);
-  std::ofstream csv(dir / "campaign.csv");
-  if (!csv) throw std::runtime_error((dir / "campaign.csv").string() + ": cannot write");
-  csv << kCsvHeader << "\n";
-  for (const auto& r : rows) csv << r.line << "\n";
+  common::make_output_folder(dir);
+  std::string csv = std::string(kCsvHeader) + "\n";
+  for (const auto& r : rows) csv += r.line + "\n";
+  common::write_output_file(dir / "campaign.csv", csv, "table");
   nlohmann::json j;
   j["scenario"] = m.scenario;
   j["features"] = m.source;
@@ -331,8 +330,8 @@ void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, con
   j["shard"] = {m.shard_index, m.shard_count};
   j["parameters"] = m.parameters;
   j["scenario_sha"] = m.scenario_hash;
-  std::ofstream(dir / "campaign.json") << j.dump(1) << "\n";
-  std::ofstream(dir / "summary.md") << md;
+  common::write_output_file(dir / "campaign.json", j.dump(1) + "\n", "summary");
+  common::write_output_file(dir / "summary.md", md, "summary");
 }
 
 }  // namespace

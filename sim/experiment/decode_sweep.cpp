@@ -1,3 +1,4 @@
+#include "common/output_image.hpp"
 #include "common/progress.hpp"
 #include "sim/experiment/decode_sweep.hpp"
 
@@ -5,7 +6,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
@@ -363,7 +363,8 @@ void by_pose_and_id(std::vector<Row>& rows) {
 // every wrong id, to look at: what was named, what is there
 void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
   by_pose_and_id(wrong);
-  std::ofstream w(file);
+  common::OutputStream w;
+  w.open(file, "table");
   w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step\n";
   for (const WrongId& x : wrong)
     w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
@@ -373,7 +374,8 @@ void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& fi
 // every id given to a spill, to look at: where it was named, where its spot's centre is
 void write_spill_ids(std::vector<SpillId> spills, const std::filesystem::path& file) {
   by_pose_and_id(spills);
-  std::ofstream w(file);
+  common::OutputStream w;
+  w.open(file, "table");
   w << "pose,row,col,u,v,centre_u,centre_v,centre_visible,step,off_line,to_law,off_taught\n";
   for (const SpillId& x : spills)
     w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.centre_u << ',' << x.centre_v << ','
@@ -381,7 +383,8 @@ void write_spill_ids(std::vector<SpillId> spills, const std::filesystem::path& f
 }
 
 void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {
-  std::ofstream csv(file);
+  common::OutputStream csv;
+  csv.open(file, "table");
   csv << "pose,noise_sigma,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,visible,detected,decoded,correct,wrong,mislocated,"
          "partial,partial_interior,"
          "decode_ms,decodable,correct_decodable,resolved,readable,correct_readable,readable_segmented,readable_linked,"
@@ -415,12 +418,12 @@ void write_failure_images(const cv::Mat& img, const cv::Mat& white, const vision
   const std::string stem = (dir / ("wrong_pose_" + std::to_string(pose))).string();
   cv::Mat bgr;
   cv::cvtColor(vision::draw_overlay(img, r), bgr, cv::COLOR_RGB2BGR);
-  cv::imwrite(stem + ".png", bgr);
+  common::write_output_image(stem + ".png", bgr);
   cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);
-  cv::imwrite(stem + "_frame.png", bgr);
+  common::write_output_image(stem + "_frame.png", bgr);
   if (white.empty()) return;
   cv::cvtColor(white, bgr, cv::COLOR_RGB2BGR);
-  cv::imwrite(stem + "_white.png", bgr);
+  common::write_output_image(stem + "_white.png", bgr);
 }
 
 // What the camera takes at a pose: the pattern frame and, with SweepOptions::white_frame, the
@@ -530,6 +533,10 @@ void count_rates(SweepRow& row, const FrameTruth& truth, const Coverage& c, cons
 
 SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   const sim::Scenario& sc = cell.scenario;
+  if (!o.out_dir.empty()) {
+    common::make_output_folder(o.out_dir);
+    for (const char* table : {"wrong_ids.csv", "spills.csv", "sweep.csv"}) common::check_output_file(o.out_dir / table, "table");
+  }
   std::vector<SweepRow> rows = draw_rows(sc, o);
   const calibration::CameraIntrinsics camera = camera_intrinsics_of(cell);
   // the decoder is told the camera's colour crosstalk as it is told its intrinsics
@@ -543,6 +550,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
   std::vector<WrongId> wrong_ids;
   std::vector<SpillId> spill_ids;
   int failure_images = 0;
+  std::exception_ptr image_error;  // a failure image refused: said once the tables are written
   const auto work = [&] {
     sim::RenderScratch scratch;
     scratch.threads = 1;  // the sweep's own threads share the cores
@@ -580,7 +588,12 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       spill_ids.insert(spill_ids.end(), listed.spills.begin(), listed.spills.end());
       if (row.wrong == 0) continue;
       wrong_ids.insert(wrong_ids.end(), listed.wrong.begin(), listed.wrong.end());
-      if (!o.out_dir.empty() && failure_images++ < 20) write_failure_images(shot.pattern, shot.white, r, k, o.out_dir);
+      if (o.out_dir.empty() || image_error || failure_images++ >= 20) continue;
+      try {
+        write_failure_images(shot.pattern, shot.white, r, k, o.out_dir);
+      } catch (...) {
+        image_error = std::current_exception();  // not thrown across the thread
+      }
     }
   };
   std::vector<std::thread> threads;
@@ -595,6 +608,7 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
     write_spill_ids(spill_ids, o.out_dir / "spills.csv");
     write_sweep_csv(rows, o.out_dir / "sweep.csv");
   }
+  if (image_error) std::rethrow_exception(image_error);
   return s;
 }
 

@@ -1,3 +1,4 @@
+#include "common/output_file.hpp"
 #include "common/progress.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/divergence_search.hpp"
@@ -6,7 +7,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iomanip>
 #include <mutex>
 #include <random>
@@ -85,9 +85,9 @@ void judge(DivergenceCandidate& c) {
 }
 
 void write_outputs(const sim::Scenario& sc, const DivergenceSearchOptions& o, const DivergenceSearchResult& res) {
-  std::filesystem::create_directories(o.out_dir);
-  std::ofstream csv(o.out_dir / "candidates.csv");
-  if (!csv) throw std::runtime_error((o.out_dir / "candidates.csv").string() + ": cannot write");
+  common::make_output_folder(o.out_dir);
+  common::OutputStream csv;
+  csv.open(o.out_dir / "candidates.csv", "table");
   csv << "try,spots,tx_cm,ty_cm,tz_cm,rx_deg,ry_deg,rz_deg,kept,displacement,constant_depth,constant_depth_iterations,"
          "desired,desired_iterations,current,current_iterations,why_not\n"
       << std::setprecision(10);
@@ -105,7 +105,8 @@ void write_outputs(const sim::Scenario& sc, const DivergenceSearchOptions& o, co
   }
   if (res.best < 0) return;
   const auto& b = res.candidates[static_cast<std::size_t>(res.best)];
-  std::ofstream y(o.out_dir / "best.yaml");
+  common::OutputStream y;
+  y.open(o.out_dir / "best.yaml", "scenario excerpt");
   y << std::setprecision(6) << "# cellsim fig5-search " << sc.file.filename().string() << " --tries " << o.tries
     << " --seed " << o.seed << ": try " << b.index << "\n# put these into the scenario's projector: and initial_offset:\n"
     << "only_spots: [";

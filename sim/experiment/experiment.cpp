@@ -4,6 +4,7 @@
 
 #include <optional>
 
+#include "common/output_image.hpp"
 #include "common/plot_script.hpp"
 
 #include <spawn.h>
@@ -15,7 +16,6 @@
 #include <cstdlib>
 #include <deque>
 #include <tuple>
-#include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -71,9 +71,7 @@ void write_scene(const sim::Cell& cell, const Eigen::Isometry3d& desired, const 
     const auto& o = cell.scenario.objects[i];
     j["objects"].push_back({{"name", o.name}, {"pose", matrix_json(o.world_T_object)}});
   }
-  std::ofstream out(file);
-  if (!out) throw std::runtime_error(file.string() + ": cannot write");
-  out << j.dump(1) << "\n";
+  common::write_output_file(file, j.dump(1) + "\n", "scene");
 }
 
 }  // namespace
@@ -286,9 +284,8 @@ class Experiment {
 
   void open_trace() {
     if (o_.out_dir.empty()) return;
-    std::filesystem::create_directories(o_.out_dir);
-    trace_.open(o_.out_dir / "trace.csv");
-    if (!trace_) throw std::runtime_error((o_.out_dir / "trace.csv").string() + ": cannot write");
+    common::make_output_folder(o_.out_dir);
+    trace_.open(o_.out_dir / "trace.csv", "trace");
     trace_ << "# scenario " << scenario().name << ", model " << control::to_string(o_.servo.law.model) << ", features "
            << to_string(o_.source) << (o_.source == loop::FeatureSource::kIdeal ? " (simulator truth, not decoded)" : "")
            << ", visual features " << control::to_string(o_.servo.law.features) << "\n"
@@ -335,9 +332,9 @@ class Experiment {
     write_overlay(x, "desired.png");
     write_scene(cell_, scenario().world_T_desired, initial_, o_.out_dir / "scene.json");
     if (o_.write_features) {
-      features_.open(o_.out_dir / "features.jsonl");
+      features_.open(o_.out_dir / "features.jsonl", "features log");
       if (!x.frame.world_T_links.empty()) {
-        occlusion_.open(o_.out_dir / "occlusion.csv");
+        occlusion_.open(o_.out_dir / "occlusion.csv", "occlusion table");
         occlusion_ << "t,visible,hidden_by_arm,on_arm\n";
       }
     }
@@ -353,8 +350,7 @@ class Experiment {
     for (const servo::ImageSpot& s : *x.reply.spots) r.decoded.push_back({s.row, s.col, s.u, s.v, 0});
     cv::Mat bgr;
     cv::cvtColor(vision::draw_overlay(x.image, r), bgr, cv::COLOR_RGB2BGR);
-    const std::filesystem::path file = o_.out_dir / name;
-    if (!cv::imwrite(file.string(), bgr)) throw std::runtime_error(file.string() + ": cannot write");
+    common::write_output_image(o_.out_dir / name, bgr);
   }
 
   // An applied frame: what the law did, for the trace, features.jsonl and occlusion.csv.
@@ -439,7 +435,7 @@ class Experiment {
   Eigen::Isometry3d initial_;
   loop::InMemoryLoop loop_;
   ExperimentResult res_;
-  std::ofstream trace_, features_, occlusion_;
+  common::OutputStream trace_, features_, occlusion_;
   struct StepExtras {
     double feature_rms;
     int swapped;

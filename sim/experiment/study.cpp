@@ -7,13 +7,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iomanip>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 
+#include "common/output_file.hpp"
 #include "common/strict_yaml.hpp"
 #include "sim/render/cell.hpp"
 
@@ -239,7 +239,7 @@ void check_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
 
 std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
   check_study(scenario, o);
-  std::filesystem::create_directories(o.out_dir);
+  common::make_output_folder(o.out_dir);
   std::vector<std::vector<double>> grid;
   for (double a : o.axes[0].values) {
     if (o.axes.size() == 1) {
@@ -251,8 +251,8 @@ std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions&
   const bool reshapes = std::any_of(o.axes.begin(), o.axes.end(), [](const StudyAxis& a) { return reshapes_world(a.name); });
   const std::unique_ptr<sim::Cell> shared = reshapes ? nullptr : sim::build_cell(scenario);
 
-  std::ofstream csv(o.out_dir / "study.csv");
-  if (!csv) throw std::runtime_error((o.out_dir / "study.csv").string() + ": cannot write");
+  common::OutputStream csv;
+  csv.open(o.out_dir / "study.csv", "table");
   for (const auto& a : o.axes) csv << a.name << ',';
   csv << "depth_spread_m,model,runs,converged,diverged,capped,safe_stops,robot_stops,rose,converged_pct,median_iterations,"
          "median_translation_mm,median_rotation_deg,median_error_rise,folder\n"
@@ -306,14 +306,14 @@ std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions&
   }
   md << "\n" << scenario.name << ", " << o.campaign.runs << " initial poses per point (seed " << o.campaign.seed
      << "), " << to_string(o.campaign.source) << " features; one campaign folder per point\n";
-  std::ofstream(o.out_dir / "summary.md") << md.str();
+  common::write_output_file(o.out_dir / "summary.md", md.str(), "summary");
   nlohmann::json j;
   j["scenario"] = scenario.name;
   j["runs"] = o.campaign.runs;
   j["seed"] = o.campaign.seed;
   j["features"] = to_string(o.campaign.source);
   for (const auto& a : o.axes) j["axes"].push_back({{"name", a.name}, {"values", a.values}});
-  std::ofstream(o.out_dir / "study.json") << j.dump(1) << "\n";
+  common::write_output_file(o.out_dir / "study.json", j.dump(1) + "\n", "summary");
   return md.str();
 }
 

@@ -3,6 +3,7 @@
 #include "sim/session/white_frame_pose.hpp"
 
 #include "common/exit_codes.hpp"
+#include "common/output_file.hpp"
 #include "common/strict_yaml.hpp"
 
 
@@ -14,7 +15,6 @@
 #include <csignal>
 #include <cstdio>
 #include <deque>
-#include <fstream>
 #include <future>
 #include <iomanip>
 #include <mutex>
@@ -438,9 +438,8 @@ class SimService {
 
   void open_trace(const ServiceOptions& o) {
     if (!o.trace_dir.empty()) {
-      std::filesystem::create_directories(o.trace_dir);
-      trace_.open(o.trace_dir / "trace.csv");
-      if (!trace_) throw std::runtime_error((o.trace_dir / "trace.csv").string() + ": cannot write");
+      common::make_output_folder(o.trace_dir);
+      trace_.open(o.trace_dir / "trace.csv", "trace");
       trace_ << "# scenario " << cell_->scenario.name << ", cellsim serve ("
              << (o.mode == TimingMode::kLockstep ? "lockstep" : "realtime")
              << "), one row per applied step, twists and status from the servo\n";
@@ -631,7 +630,7 @@ class SimService {
   std::unique_ptr<sim::CellStateMachine> machine_;
   sim::RenderScratch scratch_;
   Inbox inbox_;
-  std::ofstream trace_;
+  common::OutputStream trace_;
   // before the participant: destroyed after every endpoint that records into it
   std::unique_ptr<cell_record::Recorder> recorder_;
   // the annotations recorded beside the spots (with --record), fed by the spots' reader

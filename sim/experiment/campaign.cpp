@@ -310,6 +310,12 @@ std::string summarize(const CampaignMeta& meta, const std::vector<CampaignRow>& 
   return md.str();
 }
 
+// the files a campaign writes at its end, checked before it runs: a refusal costs no run
+void check_campaign_outputs(const std::filesystem::path& dir) {
+  if (dir.empty()) return;
+  for (const char* file : {"campaign.csv", "campaign.json", "summary.md"}) common::check_output_file(dir / file, "table");
+}
+
 void write_campaign(const std::filesystem::path& dir, const CampaignMeta& m, const std::vector<CampaignRow>& rows,
                     const std::string& md) {
   common::make_output_folder(dir);
@@ -546,6 +552,7 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
 }  // namespace
 
 std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
+  check_campaign_outputs(o.out_dir);
   const InitialPoses poses = draw_initial_poses(cell, o);
   std::vector<CampaignJob> jobs;
   // a shard runs every N-th initial pose: the draws above are the same for every shard
@@ -561,6 +568,7 @@ std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
 }
 
 std::string merge_campaigns(const std::vector<std::filesystem::path>& dirs, const std::filesystem::path& out_dir) {
+  check_campaign_outputs(out_dir);
   if (dirs.empty()) throw std::invalid_argument("campaign merge: no shard folders given");
   std::optional<CampaignMeta> first;
   std::set<int> shards;

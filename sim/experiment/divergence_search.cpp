@@ -122,6 +122,8 @@ DivergenceSearchResult search_divergence(const sim::Scenario& scenario, const Di
   const auto seen = seen_at_desired(scenario);
   if (o.vary_spots && seen.size() < 5)
     throw std::invalid_argument(scenario.file.string() + ": fewer than 5 spots seen at the desired pose");
+  if (!o.out_dir.empty())  // its files, checked before the tries run
+    for (const char* file : {"candidates.csv", "best.yaml"}) common::check_output_file(o.out_dir / file, "table");
 
   // every draw first, from one generator: the result does not depend on the threads
   DivergenceSearchResult res;

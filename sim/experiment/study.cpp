@@ -240,6 +240,7 @@ void check_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
 std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
   check_study(scenario, o);
   common::make_output_folder(o.out_dir);
+  for (const char* file : {"summary.md", "study.json"}) common::check_output_file(o.out_dir / file, "summary");
   std::vector<std::vector<double>> grid;
   for (double a : o.axes[0].values) {
     if (o.axes.size() == 1) {

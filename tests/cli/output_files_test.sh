@@ -67,6 +67,11 @@ rm "$tmp/exp/trace.csv"; ln -s "$tmp/victim" "$tmp/exp/velocities.png"
 err=$("$cellsim" experiment "$plane" --max-iterations 5 -o "$tmp/exp" 2>&1 >/dev/null)
 grep -q "velocities.png: is a symbolic link" <<<"$err" || fail "the plot script wrote through a link: $err"
 intact "plot_trace.py"
+# a campaign checks the files it writes at its end before it runs
+mkdir "$tmp/camp"; mine "$tmp/camp/summary.md"
+one_line_error "campaign over the user's summary" "summary.md: exists and was not written here" "$cellsim" campaign "$plane" --runs 1 --max-iterations 5 -o "$tmp/camp"
+kept "$tmp/camp/summary.md"
+[ ! -e "$tmp/camp/campaign.csv" ] || fail "the campaign ran before it was refused"
 # the list of what was written is not a way in either
 mkdir "$tmp/list"; ln -s "$tmp/victim" "$tmp/list/.cell-written"
 one_line_error "the list a link" ".cell-written" "$cellsim" render "$plane" --pose desired -o "$tmp/list/x.png"

@@ -12,7 +12,8 @@ MAX_LIST_BYTES = 8 << 20  # as the C++ side: bounds what a list planted in a fol
 
 
 def _refuse(path, why):
-    sys.exit(f"{os.path.basename(sys.argv[0])}: {path}: {why}")
+    shown = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in str(path))  # one line, whatever the name
+    sys.exit(f"{os.path.basename(sys.argv[0])}: {shown}: {why}")
 
 
 def _kind(mode):
@@ -62,8 +63,10 @@ def open_output(path, mode="w", **kwargs):
         _refuse(path, "not a name an output may have")
     folder = os.path.dirname(path) or "."
     flags = os.O_WRONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NOCTTY | os.O_NONBLOCK
+    created = False
     try:
         fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o644)
+        created = True
     except FileExistsError:
         st = os.lstat(path)
         if not stat.S_ISREG(st.st_mode):
@@ -75,6 +78,12 @@ def open_output(path, mode="w", **kwargs):
         os.ftruncate(fd, 0)
     except OSError as e:
         _refuse(path, f"cannot create it: {e.strerror}")
-    _record(folder, name)
+    try:
+        _record(folder, name)
+    except SystemExit:
+        os.close(fd)
+        if created:
+            os.unlink(path)  # ours, made above with O_EXCL and still empty
+        raise
     os.set_blocking(fd, True)
     return os.fdopen(fd, mode, **kwargs)

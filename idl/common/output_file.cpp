@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <ext/stdio_filebuf.h>
 #include <map>
@@ -19,8 +20,25 @@ namespace {
 // bounds what a list planted in a folder can make a writer read
 constexpr std::uintmax_t kMaxListBytes = 8u << 20;
 
+// a name from a folder's listing (servo decode --json-dir) may hold a line break: the message
+// stays one line, its control characters as \xNN
+std::string one_line(const std::string& name) {
+  std::string out;
+  for (const char ch : name) {
+    const auto b = static_cast<unsigned char>(ch);
+    if (b >= 0x20 && b != 0x7f) {
+      out.push_back(ch);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", b);
+      out += hex;
+    }
+  }
+  return out;
+}
+
 [[noreturn]] void fail(const std::filesystem::path& file, const std::string& what) {
-  throw FileError(file.string() + ": " + what);
+  throw FileError(one_line(file.string()) + ": " + what);
 }
 
 std::filesystem::path folder_of(const std::filesystem::path& file) {
@@ -95,8 +113,9 @@ WrittenLists& written_lists() {
 }
 
 void check_name(const std::filesystem::path& file, const std::string& what) {
+  if (file.empty()) throw FileError("the " + what + " file's name is empty");
   const std::string name = file.filename().string();
-  if (name.empty() || name == "." || name == "..") fail(file, "names a folder, not a " + what + " file");
+  if (name.empty() || name == "." || name == "..") fail(file, "names a folder; give the " + what + " a file name");
   if (name == kWrittenList) fail(file, "is the list of the files written here; not written as a " + what);
   if (name.find('\n') != std::string::npos) fail(file, "a file name with a line break is not written");
 }
@@ -116,6 +135,7 @@ int claim(const std::filesystem::path& file, const std::string& what) {
   const std::filesystem::path dir = folder_of(file);
   constexpr int kFlags = O_WRONLY | O_NOFOLLOW | O_CLOEXEC | O_NOCTTY | O_NONBLOCK;
   int fd = ::open(file.c_str(), kFlags | O_CREAT | O_EXCL, 0644);
+  const bool created = fd >= 0;
   if (fd < 0 && errno != EEXIST) {
     const int e = errno;
     if (e == ENOENT || e == ENOTDIR) fail(file, "cannot create the " + what + ": its folder does not exist");
@@ -137,6 +157,7 @@ int claim(const std::filesystem::path& file, const std::string& what) {
     written_lists().record(dir, name);
   } catch (...) {
     ::close(fd);
+    if (created) ::unlink(file.c_str());  // ours, made above with O_EXCL and still empty
     throw;
   }
   const int flags = ::fcntl(fd, F_GETFL);

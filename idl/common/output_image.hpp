@@ -15,6 +15,7 @@ namespace common {
 
 // Writes `bgr` (OpenCV's channel order) as `file`. Throws FileError, one line naming the file.
 inline void write_output_image(const std::filesystem::path& file, const cv::Mat& bgr) {
+  check_output_file(file, "image");  // the name first: "/" is no image's name, whatever its extension
   std::vector<unsigned char> bytes;
   bool encoded = false;
   try {

@@ -96,6 +96,12 @@ TEST_F(OutputFileTest, AFifoAFolderAndTheListItselfAreRefused) {
             std::string::npos);
   refusal(dir_ / common::kWrittenList, [&] { common::write_output_file(dir_ / common::kWrittenList, "x"); });
   refusal(dir_ / "missing" / "a.csv", [&] { common::write_output_file(dir_ / "missing" / "a.csv", "x"); });
+  try {  // a name with a line break (an image's in a folder, servo decode --json-dir) is said on one line
+    common::write_output_file(dir_ / "a\nb.json", "x");
+    ADD_FAILURE() << "a name with a line break was written";
+  } catch (const common::FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("a\\x0ab.json"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(OutputFileTest, AListThatIsALinkIsNeitherReadNorWritten) {
@@ -103,6 +109,7 @@ TEST_F(OutputFileTest, AListThatIsALinkIsNeitherReadNorWritten) {
   fs::create_symlink(dir_ / "elsewhere", dir_ / common::kWrittenList);
   refusal(dir_ / common::kWrittenList, [&] { common::write_output_file(dir_ / "new.csv", "x"); });
   EXPECT_EQ(slurp(dir_ / "elsewhere"), "");
+  EXPECT_FALSE(fs::exists(dir_ / "new.csv"));  // the file it had made is taken back
 }
 
 TEST_F(OutputFileTest, AStreamWritesAsItGoesAndAFolderIsMadeForIt) {

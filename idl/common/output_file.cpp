@@ -1,11 +1,12 @@
 #include "common/output_file.hpp"
 
+#include "common/strict_yaml.hpp"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <ext/stdio_filebuf.h>
 #include <map>
@@ -21,24 +22,9 @@ namespace {
 constexpr std::uintmax_t kMaxListBytes = 8u << 20;
 
 // a name from a folder's listing (servo decode --json-dir) may hold a line break: the message
-// stays one line, its control characters as \xNN
-std::string one_line(const std::string& name) {
-  std::string out;
-  for (const char ch : name) {
-    const auto b = static_cast<unsigned char>(ch);
-    if (b >= 0x20 && b != 0x7f) {
-      out.push_back(ch);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02x", b);
-      out += hex;
-    }
-  }
-  return out;
-}
-
+// stays one line (printable: its bytes past ASCII as \xNN too)
 [[noreturn]] void fail(const std::filesystem::path& file, const std::string& what) {
-  throw FileError(one_line(file.string()) + ": " + what);
+  throw FileError(printable(file.string(), 1024) + ": " + what);
 }
 
 std::filesystem::path folder_of(const std::filesystem::path& file) {

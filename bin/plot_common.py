@@ -2,6 +2,7 @@
 DIR [--title TITLE] arguments, and saving a figure. Debian's python3-matplotlib (bin/setup)."""
 import argparse
 import os
+import sys
 
 import matplotlib
 
@@ -24,6 +25,9 @@ def save(fig, path, dpi=110, top=1.0, bottom=0.0):
     is not cut; and the panels above `bottom`: a figure legend below them is not covered) and
     writes it (under cell_output's rule: never over a file the project did not write)."""
     fig.tight_layout(rect=(0, bottom, 1, top))
-    with open_output(path, "wb") as f:
-        fig.savefig(f, dpi=dpi, format=os.path.splitext(path)[1].lstrip(".") or "png")
+    try:
+        with open_output(path, "wb") as f:
+            fig.savefig(f, dpi=dpi, format=os.path.splitext(path)[1].lstrip(".") or "png")
+    except OSError as e:  # a full disk: one line, not a traceback
+        sys.exit(f"{os.path.basename(sys.argv[0])}: {path}: cannot write the plot: {e.strerror or e}")
     plt.close(fig)

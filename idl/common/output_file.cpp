@@ -189,11 +189,20 @@ struct OutputStream::Buffer {
 };
 
 OutputStream::OutputStream() : std::ostream(nullptr) {}
-OutputStream::~OutputStream() { close(); }
+
+OutputStream::~OutputStream() {
+  try {
+    close();
+  } catch (const FileError&) {
+    // a destructor runs on the paths an error already took: that error is the one said
+  }
+}
 
 void OutputStream::open(const std::filesystem::path& file, const std::string& what) {
   close();
   buffer_ = std::make_unique<Buffer>(claim(file, what));
+  file_ = file;
+  what_ = what;
   rdbuf(&buffer_->buf);
   clear();
 }
@@ -202,9 +211,16 @@ bool OutputStream::is_open() const { return buffer_ != nullptr; }
 
 void OutputStream::close() {
   if (!buffer_) return;
+  errno = 0;
   flush();
+  // stdio_filebuf::close returns null when the last write or the close itself failed
+  const bool written = !fail() && buffer_->buf.close() != nullptr;
+  const int e = errno;
   rdbuf(nullptr);
   buffer_.reset();
+  if (!written)
+    throw FileError(printable(file_.string(), 1024) + ": cannot write the " + what_ + ": " +
+                    (e ? std::strerror(e) : "a write failed"));
 }
 
 }  // namespace common

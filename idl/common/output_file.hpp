@@ -36,7 +36,9 @@ void check_output_file(const std::filesystem::path& file, const std::string& wha
 // ("trace", "image"). Throws FileError, one line naming the file.
 void write_output_file(const std::filesystem::path& file, std::string_view bytes, const std::string& what = "file");
 
-// A file written as a run goes (a trace, a features log), opened under the rule above.
+// A file written as a run goes (a trace, a features log), opened under the rule above. close()
+// says a write that failed (a full disk, a file size limit) instead of leaving a short file
+// that looks whole; the destructor closes without a word, for the paths an error already took.
 class OutputStream : public std::ostream {
  public:
   OutputStream();
@@ -47,11 +49,14 @@ class OutputStream : public std::ostream {
   // Throws FileError, one line naming the file.
   void open(const std::filesystem::path& file, const std::string& what = "file");
   bool is_open() const;
+  // Flushes and closes. Throws FileError, one line naming the file, if any write failed.
   void close();
 
  private:
   struct Buffer;
   std::unique_ptr<Buffer> buffer_;
+  std::filesystem::path file_;
+  std::string what_;
 };
 
 }  // namespace common

@@ -209,6 +209,7 @@ class Replay {
       }
     }
     for (const auto& [stamp, left] : by_stamp) res.replayed_only += static_cast<long>(left.size());
+    csv.close();
     return res;
   }
 

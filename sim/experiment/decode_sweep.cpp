@@ -369,6 +369,7 @@ void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& fi
   for (const WrongId& x : wrong)
     w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
       << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << ',' << x.step << '\n';
+  w.close();
 }
 
 // every id given to a spill, to look at: where it was named, where its spot's centre is
@@ -380,6 +381,7 @@ void write_spill_ids(std::vector<SpillId> spills, const std::filesystem::path& f
   for (const SpillId& x : spills)
     w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.centre_u << ',' << x.centre_v << ','
       << x.centre_visible << ',' << x.step << ',' << x.off_line << ',' << x.to_law << ',' << x.off_taught << '\n';
+  w.close();
 }
 
 void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {
@@ -409,6 +411,7 @@ void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::p
     csv << ',' << r.off_taught << ',' << r.off_taught_right << ',' << r.off_taught_mislocated << ','
         << r.off_taught_partial << ',' << r.off_taught_wrong << '\n';
   }
+  csv.close();
 }
 
 // the first frames with a wrong id, drawn and as rendered (to decode again; with its white

@@ -103,6 +103,7 @@ void write_outputs(const sim::Scenario& sc, const DivergenceSearchOptions& o, co
         << c.constant_depth.iterations << ',' << outcome(c.desired) << ',' << c.desired.iterations << ','
         << outcome(c.current) << ',' << c.current.iterations << ",\"" << c.why_not << "\"\n";
   }
+  csv.close();
   if (res.best < 0) return;
   const auto& b = res.candidates[static_cast<std::size_t>(res.best)];
   common::OutputStream y;
@@ -113,6 +114,7 @@ void write_outputs(const sim::Scenario& sc, const DivergenceSearchOptions& o, co
   for (std::size_t i = 0; i < b.spots.size(); ++i) y << (i ? ", " : "") << '[' << b.spots[i][0] << ", " << b.spots[i][1] << ']';
   y << "]\ninitial_offset:\n  translation_cm: [" << b.offset[0] << ", " << b.offset[1] << ", " << b.offset[2]
     << "]\n  rotation_deg: [" << b.offset[3] << ", " << b.offset[4] << ", " << b.offset[5] << "]\n";
+  y.close();
 }
 
 }  // namespace

@@ -423,6 +423,7 @@ class Experiment {
     }
     // the trace says why the run ended, as the service's trace does
     if (trace_.is_open()) trace_ << "# session ended: " << res_.stop_reason << '\n';
+    for (common::OutputStream* s : {&trace_, &features_, &occlusion_}) s->close();  // a failed write is said
     const Eigen::Isometry3d wTc = loop_.cell().world_T_camera();
     const sim::GoalError goal = sim::goal_error(wTc, scenario().world_T_desired, cell_.goal_plane);
     res_.final_translation_error_m = goal.translation_m;

@@ -305,6 +305,7 @@ std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions&
       md << (row + 2);
     }
   }
+  csv.close();
   md << "\n" << scenario.name << ", " << o.campaign.runs << " initial poses per point (seed " << o.campaign.seed
      << "), " << to_string(o.campaign.source) << " features; one campaign folder per point\n";
   common::write_output_file(o.out_dir / "summary.md", md.str(), "summary");

@@ -612,6 +612,11 @@ class SimService {
     const std::string end = session_end_reason();
     std::printf("cellsim: session ended: %s\n", end.c_str());
     if (trace_.is_open()) trace_ << "# session ended: " << end << '\n' << std::flush;
+    try {
+      trace_.close();
+    } catch (const common::FileError& e) {  // said; the recording below is still closed whole
+      std::fprintf(stderr, "cellsim: %s\n", e.what());
+    }
     if (recorder_) {
       // the recording's path, size and what it holds per topic (what an MCAP reader must find)
       const mcap::WriteSummary w = recorder_->close();

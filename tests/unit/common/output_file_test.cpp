@@ -2,8 +2,12 @@
 // names is written over; a user's file of the same name, a symbolic link, a FIFO or a folder in
 // its place is refused in one line naming it and is left as it was.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <filesystem>
 #include <fstream>
@@ -124,6 +128,35 @@ TEST_F(OutputFileTest, AStreamWritesAsItGoesAndAFolderIsMadeForIt) {
   EXPECT_FALSE(s.is_open());
   plant(dir_ / "file", "");
   refusal(dir_ / "file", [&] { common::make_output_folder(dir_ / "file"); });
+}
+
+// A stream's failed write is said when it is closed, not left as a short file that looks whole:
+// in a child process (the limit is the process's) whose file size limit the stream passes.
+TEST_F(OutputFileTest, AStreamThatCouldNotWriteSaysSoWhenClosed) {
+  const fs::path f = dir_ / "trace.csv";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);  // past the limit a write fails with EFBIG, as ENOSPC would
+    rlimit lim{4096, RLIM_INFINITY};
+    ::setrlimit(RLIMIT_FSIZE, &lim);
+    common::OutputStream s;
+    s.open(f, "trace");
+    for (int i = 0; i < 1000; ++i) s << "0.000000,1.000000,2.000000\n";
+    try {
+      s.close();
+    } catch (const common::FileError& e) {
+      const std::string what = e.what();
+      ::_exit(what.find("trace.csv: cannot write the trace") != std::string::npos && what.find('\n') == std::string::npos
+                  ? 3
+                  : 4);
+    }
+    ::_exit(5);  // closed as if whole
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 3) << "4: the message, 5: no error";
+  EXPECT_LE(fs::file_size(f), 4096u);
 }
 
 TEST_F(OutputFileTest, ThreadsWritingIntoOneFolderEachFindTheirFileListed) {

@@ -75,6 +75,9 @@ def open_output(path, mode="w", **kwargs):
             _refuse(path, f"exists and was not written here by this project ({WRITTEN_LIST} does not list it); "
                           "not overwritten: move it away or name another folder")
         fd = os.open(path, flags)
+        if os.fstat(fd).st_nlink > 1:  # a hard link: emptying ours would empty the other name's bytes
+            os.close(fd)
+            _refuse(path, "has other names (hard links); not written over: move it away")
         os.ftruncate(fd, 0)
     except OSError as e:
         _refuse(path, f"cannot create it: {e.strerror}")

@@ -134,6 +134,12 @@ int claim(const std::filesystem::path& file, const std::string& what) {
     fd = ::open(file.c_str(), kFlags);
     if (fd < 0) fail(file, "cannot open the " + what + ": " + std::strerror(errno));
     struct stat now {};
+    if (::fstat(fd, &now) == 0 && S_ISREG(now.st_mode) && now.st_nlink > 1) {
+      // another name for the same bytes (a hard link, a snapshot made with cp -al): emptying
+      // ours would empty that one
+      ::close(fd);
+      fail(file, "has other names (hard links); not written over: move it away");
+    }
     if (::fstat(fd, &now) != 0 || !S_ISREG(now.st_mode) || ::ftruncate(fd, 0) != 0) {
       ::close(fd);
       fail(file, "cannot write the " + what + " over the last one");

@@ -89,6 +89,12 @@ TEST_F(OutputFileTest, ALinkIsNeverWrittenThroughEvenWhenListed) {
                 .find("symbolic link"),
             std::string::npos);
   EXPECT_EQ(slurp(victim), "precious\n");
+  // nor a hard link: the name is listed and a regular file, but its bytes are another file's too
+  fs::remove(out / "sweep.csv");
+  fs::create_hard_link(victim, out / "sweep.csv");
+  EXPECT_NE(refusal(out / "sweep.csv", [&] { common::write_output_file(out / "sweep.csv", "x"); }).find("hard links"),
+            std::string::npos);
+  EXPECT_EQ(slurp(victim), "precious\n");
 }
 
 TEST_F(OutputFileTest, AFifoAFolderAndTheListItselfAreRefused) {

@@ -235,12 +235,9 @@ void check_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
       apply(a.name, v, s, c);
     }
 }
-}  // namespace
 
-std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
-  check_study(scenario, o);
-  common::make_output_folder(o.out_dir);
-  for (const char* file : {"summary.md", "study.json"}) common::check_output_file(o.out_dir / file, "summary");
+// the study's points: every value of the first axis, by every value of the second if there is one
+std::vector<std::vector<double>> study_grid(const StudyOptions& o) {
   std::vector<std::vector<double>> grid;
   for (double a : o.axes[0].values) {
     if (o.axes.size() == 1) {
@@ -249,6 +246,16 @@ std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions&
       for (double b : o.axes[1].values) grid.push_back({a, b});
     }
   }
+  return grid;
+}
+
+}  // namespace
+
+std::string run_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
+  check_study(scenario, o);
+  common::make_output_folder(o.out_dir);
+  for (const char* file : {"summary.md", "study.json"}) common::check_output_file(o.out_dir / file, "summary");
+  const std::vector<std::vector<double>> grid = study_grid(o);
   const bool reshapes = std::any_of(o.axes.begin(), o.axes.end(), [](const StudyAxis& a) { return reshapes_world(a.name); });
   const std::unique_ptr<sim::Cell> shared = reshapes ? nullptr : sim::build_cell(scenario);
 

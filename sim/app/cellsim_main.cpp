@@ -176,7 +176,6 @@ int run_decode_sweep(const ScenarioArg& scenario, experiment::SweepOptions o) {
   const auto cell = sim::build_cell(scenario.load());
   if (o.projector)
     calibration::check_projector_against_pattern(*o.projector, cell->projector->pattern(), cell->scenario.projector.pattern);
-  if (!o.out_dir.empty()) common::make_output_folder(o.out_dir);
   const auto t0 = std::chrono::steady_clock::now();
   const experiment::SweepSummary s = experiment::run_decode_sweep(*cell, o);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -360,28 +360,38 @@ void by_pose_and_id(std::vector<Row>& rows) {
             [](const Row& a, const Row& b) { return std::tie(a.pose, a.row, a.col) < std::tie(b.pose, b.row, b.col); });
 }
 
-// every wrong id, to look at: what was named, what is there
-void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
-  by_pose_and_id(wrong);
+// A list of ids to look at, one row each in pose and id order: `header`, then `row` writes each.
+template <typename Row, typename WriteRow>
+void write_listed(std::vector<Row> rows, const std::filesystem::path& file, const char* header, WriteRow row) {
+  by_pose_and_id(rows);
   common::OutputStream w;
   w.open(file, "table");
-  w << "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step\n";
-  for (const WrongId& x : wrong)
-    w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
-      << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << ',' << x.step << '\n';
+  w << header << '\n';
+  for (const Row& x : rows) {
+    row(w, x);
+    w << '\n';
+  }
   w.close();
+}
+
+// every wrong id, to look at: what was named, what is there
+void write_wrong_ids(std::vector<WrongId> wrong, const std::filesystem::path& file) {
+  write_listed(std::move(wrong), file,
+               "pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step",
+               [](std::ostream& w, const WrongId& x) {
+                 w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.nearest_row << ','
+                   << x.nearest_col << ',' << x.nearest_px << ',' << x.named_visible << ',' << x.named_px << ',' << x.step;
+               });
 }
 
 // every id given to a spill, to look at: where it was named, where its spot's centre is
 void write_spill_ids(std::vector<SpillId> spills, const std::filesystem::path& file) {
-  by_pose_and_id(spills);
-  common::OutputStream w;
-  w.open(file, "table");
-  w << "pose,row,col,u,v,centre_u,centre_v,centre_visible,step,off_line,to_law,off_taught\n";
-  for (const SpillId& x : spills)
-    w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.centre_u << ',' << x.centre_v << ','
-      << x.centre_visible << ',' << x.step << ',' << x.off_line << ',' << x.to_law << ',' << x.off_taught << '\n';
-  w.close();
+  write_listed(std::move(spills), file, "pose,row,col,u,v,centre_u,centre_v,centre_visible,step,off_line,to_law,off_taught",
+               [](std::ostream& w, const SpillId& x) {
+                 w << x.pose << ',' << x.row << ',' << x.col << ',' << x.u << ',' << x.v << ',' << x.centre_u << ','
+                   << x.centre_v << ',' << x.centre_visible << ',' << x.step << ',' << x.off_line << ',' << x.to_law
+                   << ',' << x.off_taught;
+               });
 }
 
 void write_sweep_csv(const std::vector<SweepRow>& rows, const std::filesystem::path& file) {

@@ -6,21 +6,32 @@
 //                          curved axis and a narrow shank; closed, asymmetric
 // and the held-out shapes of the decoder's evaluation (docs/decoding.md, Today's figures: never
 // tuned on), each with depth edges or a silhouette all around the pattern:
-//   heldout/sphere.obj     radius 0.12 m, closed
-//   heldout/torus.obj      ring radius 0.14 m, tube radius 0.05 m, in XY, closed
-//   heldout/cone.obj       base radius 0.13 m, height 0.26 m along Z, closed
-//   heldout/box.obj        0.26 x 0.20 x 0.16 m, closed
-//   heldout/step.obj       a 0.9 m x 0.9 m floor with a 0.10 m step across it (open, like the wall)
+//   heldout/pyramid.obj    a square pyramid: base 0.24 m, apex 0.18 m over it, on z = 0, closed
+//   heldout/bowl.obj       a hemispherical bowl opening up (+Z): radius 0.13 m, wall 0.012 m,
+//                          its rim at z = 0, closed (outer skin, rim, inner skin)
+//   heldout/arch.obj       two pillars 0.06 m wide and 0.13 m high under a lintel 0.30 m long and
+//                          0.05 m thick, 0.16 m deep (Y): the table seen through it; on z = 0, closed
+//   heldout/dumbbell.obj   two balls of radius 0.08 m, centres 0.26 m apart along Z, joined
+//                          by a bar of radius 0.03 m; centred, closed
+//   heldout/bottle.obj     a bottle along Z: body radius 0.07 m to z = 0.16 m, a shoulder, a
+//                          neck of radius 0.025 m to z = 0.27 m; closed
 //   heldout/printed/       the same five shapes printed: texture coordinates per face corner
 //                          and the material `printed.mtl`, whose diffuse texture `label.png` is
 //                          a label (a cream ground, a red band, a blue disc, dark lines of
 //                          text, a green stripe), written here as an uncompressed PNG
+// and the compact tuning shapes (the decoder's numbers may be set on them, as on the plane,
+// cylinder and ham; the sphere, torus, cone, box and step were the first held-out set, until
+// they took part in two decisions):
 //   compact/egg.obj        an ellipsoid of revolution, radius 0.09 m, 0.26 m long along Z
 //   compact/can.obj        a closed round cylinder, radius 0.08 m, 0.18 m along Z, centred
 //   compact/wedge.obj      a triangular prism: 0.20 m wide (X), its ridge 0.12 m high (Z),
 //                          0.28 m long (Y), standing on z = 0
-//                          (compact tuning shapes: the decoder's numbers may be set on them,
-//                          as on the plane, cylinder and ham; with printed/ as the held-out ones)
+//   compact/sphere.obj     radius 0.12 m, closed
+//   compact/torus.obj      ring radius 0.14 m, tube radius 0.05 m, in XY, closed
+//   compact/cone.obj       base radius 0.13 m, height 0.26 m along Z, closed
+//   compact/box.obj        0.26 x 0.20 x 0.16 m, closed
+//   compact/step.obj       a 0.9 m x 0.9 m floor with a 0.10 m step across it (open, like the wall)
+//   compact/printed/       the compact shapes printed, as the held-out ones
 //   printed/               the tuning shapes printed so (the plane's label 0.6 m, repeated; the
 //                          cylinder's twice up its height), and box.obj, 0.30 x 0.22 x 0.12 m:
 //                          the shipped printed object (sim/scenarios/printed_box.yaml)
@@ -242,6 +253,123 @@ Mesh make_wedge(double w, double h, double l, int cells) {
 Mesh make_egg() {
   return revolve([](double t) { return 0.09 * std::sin(kPi * t); }, [](double t) { return -0.13 * std::cos(kPi * t); },
                  72, 48);
+}
+
+// A closed surface of revolution about Z through the profile points (r, z), in order, the first
+// and last on the axis (r = 0): each inner point a ring of `around` vertices. Faces outward when
+// the profile runs with the solid on its left (up the outside, down the inside).
+Mesh revolve_profile(const std::vector<std::array<double, 2>>& profile, int around) {
+  std::vector<std::vector<V3>> rings;
+  for (std::size_t k = 1; k + 1 < profile.size(); ++k) {
+    std::vector<V3> ring;
+    for (int i = 0; i < around; ++i) {
+      const double th = 2 * kPi * i / around;
+      ring.push_back({profile[k][0] * std::cos(th), profile[k][0] * std::sin(th), profile[k][1]});
+    }
+    rings.push_back(ring);
+  }
+  return close_tube(rings, {0, 0, profile.front()[1]}, {0, 0, profile.back()[1]});
+}
+
+// A triangle split into cells x cells small ones (a finer mesh keeps Bullet's BVH leaves small),
+// facing (b - a) x (c - a).
+void add_triangle(Mesh& m, V3 a, V3 b, V3 c, int cells) {
+  const auto at = [&](int i, int j) {  // i steps towards b, j towards c, i + j <= cells
+    const double s = static_cast<double>(i) / cells, t = static_cast<double>(j) / cells;
+    return V3{a.x + (b.x - a.x) * s + (c.x - a.x) * t, a.y + (b.y - a.y) * s + (c.y - a.y) * t,
+              a.z + (b.z - a.z) * s + (c.z - a.z) * t};
+  };
+  std::vector<std::vector<int>> id(cells + 1);
+  for (int j = 0; j <= cells; ++j)
+    for (int i = 0; i + j <= cells; ++i) {
+      id[j].push_back(static_cast<int>(m.v.size()));
+      m.v.push_back(at(i, j));
+    }
+  for (int j = 0; j < cells; ++j)
+    for (int i = 0; i + j < cells; ++i) {
+      m.f.push_back({id[j][i], id[j][i + 1], id[j + 1][i]});
+      if (i + j + 1 < cells) m.f.push_back({id[j][i + 1], id[j + 1][i + 1], id[j + 1][i]});
+    }
+}
+
+// a square pyramid on z = 0: base `base` wide, apex `height` over its centre
+Mesh make_pyramid(double base, double height, int cells) {
+  Mesh m;
+  const double h = base / 2;
+  const std::array<V3, 4> c{V3{-h, -h, 0}, V3{h, -h, 0}, V3{h, h, 0}, V3{-h, h, 0}};
+  const V3 apex{0, 0, height};
+  for (int k = 0; k < 4; ++k) add_triangle(m, c[k], c[(k + 1) % 4], apex, cells);
+  add_grid(m, {-h, h, 0}, {base, 0, 0}, {0, -base, 0}, cells);  // the base, facing -Z
+  return m;
+}
+
+// a hemispherical bowl opening up: outer skin from the bottom to the rim (z = 0), the rim
+// across the wall, the inner skin down to the inner bottom
+Mesh make_bowl(double radius, double wall, int around, int levels) {
+  std::vector<std::array<double, 2>> profile;
+  for (int k = 0; k <= levels; ++k) {
+    const double a = 0.5 * kPi * k / levels;  // from the bottom (0) to the rim (pi / 2)
+    profile.push_back({radius * std::sin(a), -radius * std::cos(a)});
+  }
+  const double inner = radius - wall;
+  for (int k = levels; k >= 0; --k) {
+    const double a = 0.5 * kPi * k / levels;
+    profile.push_back({inner * std::sin(a), -inner * std::cos(a)});
+  }
+  return revolve_profile(profile, around);
+}
+
+// An arch: the outline of two pillars (0.06 m wide, 0.13 m high, their inner faces 0.18 m apart)
+// under a lintel (0.30 m, 0.05 m thick) in XZ, extruded 0.16 m along Y into one closed solid
+// (the table seen through it). Its walls are split in `cells` along Y; the two end faces are
+// the outline's six triangles.
+Mesh make_arch(int cells) {
+  const std::array<std::array<double, 2>, 8> outline{{{-0.15, 0}, {-0.09, 0}, {-0.09, 0.13}, {0.09, 0.13},
+                                                      {0.09, 0}, {0.15, 0}, {0.15, 0.18}, {-0.15, 0.18}}};  // CCW in (x, z)
+  Mesh m;
+  const auto at = [&](int k, double y) { return V3{outline[k % 8][0], y, outline[k % 8][1]}; };
+  for (int k = 0; k < 8; ++k)
+    for (int j = 0; j < cells; ++j) {
+      const double y0 = -0.08 + 0.16 * j / cells, y1 = -0.08 + 0.16 * (j + 1) / cells;
+      const int b = static_cast<int>(m.v.size());
+      m.v.push_back(at(k, y1)), m.v.push_back(at(k + 1, y1)), m.v.push_back(at(k + 1, y0)), m.v.push_back(at(k, y0));
+      m.f.push_back({b, b + 1, b + 2});
+      m.f.push_back({b, b + 2, b + 3});
+    }
+  const std::array<std::array<int, 3>, 6> cap{{{0, 1, 2}, {0, 2, 7}, {2, 3, 6}, {2, 6, 7}, {3, 4, 5}, {3, 5, 6}}};
+  for (const double y : {-0.08, 0.08}) {
+    const int b = static_cast<int>(m.v.size());
+    for (int k = 0; k < 8; ++k) m.v.push_back(at(k, y));
+    for (const auto& t : cap)  // the outline's order faces -Y
+      m.f.push_back(y < 0 ? std::array<int, 3>{b + t[0], b + t[1], b + t[2]} : std::array<int, 3>{b + t[0], b + t[2], b + t[1]});
+  }
+  return m;
+}
+
+// two balls (radius 0.08 m, centres at z = +-0.13 m) joined by a bar (radius 0.03 m) along Z
+Mesh make_dumbbell(int around, int levels) {
+  std::vector<std::array<double, 2>> profile;
+  for (int k = 0; k <= levels; ++k) {
+    const double z = -0.21 + 0.42 * k / levels;
+    const auto ball = [&](double c) { const double d = z - c; return d * d < 0.0064 ? std::sqrt(0.0064 - d * d) : 0.0; };
+    const double r = std::max({ball(-0.13), ball(0.13), std::abs(z) < 0.13 ? 0.03 : 0.0});
+    profile.push_back({k == 0 || k == levels ? 0.0 : r, z});
+  }
+  return revolve_profile(profile, around);
+}
+
+// a bottle along Z: a flat bottom, a body of radius 0.07 m to 0.16 m, a rounded shoulder to a
+// neck of radius 0.025 m at 0.21 m, the neck to 0.27 m, a flat mouth
+Mesh make_bottle(int around) {
+  std::vector<std::array<double, 2>> profile{{0, 0}, {0.07, 0}};
+  for (int k = 1; k <= 8; ++k) profile.push_back({0.07, 0.16 * k / 8});
+  for (int k = 1; k <= 10; ++k) {
+    const double a = 0.5 * kPi * k / 10;  // a quarter ellipse from the body to the neck
+    profile.push_back({0.025 + 0.045 * std::cos(a), 0.16 + 0.05 * std::sin(a)});
+  }
+  for (int k = 1; k <= 4; ++k) profile.push_back({0.025, 0.21 + 0.06 * k / 4});
+  profile.push_back({0, 0.27});
+  return revolve_profile(profile, around);
 }
 
 // A closed cylinder of radius r from p to q, appended to m.
@@ -489,14 +617,25 @@ bool write_compact(const std::filesystem::path& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   const Mesh egg = make_egg(), can = make_elliptic_cylinder(0.08, 0.08, 0.18, 96, 8),
-             wedge = make_wedge(0.20, 0.12, 0.28, 8);
+             wedge = make_wedge(0.20, 0.12, 0.28, 8), sphere = make_sphere(), torus = make_torus(0.14, 0.05, 96, 32),
+             cone = make_cone(), box = make_box(0.26, 0.20, 0.16, 8), step = make_step(0.9, 0.10, 12);
   std::vector<Printed> printed;
   printed.push_back({"egg", egg, spherical(0.13)});
   printed.push_back({"can", can, cylindrical(-0.09, 0.18)});
   printed.push_back({"wedge", wedge, planar(0.20, 0.28, 0.12)});
+  printed.push_back({"sphere", sphere, spherical(0.12)});
+  printed.push_back({"torus", torus, toroidal(0.14)});
+  printed.push_back({"cone", cone, conical(0.13, 0.26)});
+  printed.push_back({"box", box, planar(0.26, 0.20, 0.16)});
+  printed.push_back({"step", step, planar(0.9, 0.9, 0.9)});
   return write_obj(dir / "egg.obj", egg, "egg: radius 0.09 m, 0.26 m along Z, centred") &&
          write_obj(dir / "can.obj", can, "can: radius 0.08 m, 0.18 m along Z, centred") &&
          write_obj(dir / "wedge.obj", wedge, "wedge: 0.20 m wide (X), ridge 0.12 m high, 0.28 m long (Y), on z = 0") &&
+         write_obj(dir / "sphere.obj", sphere, "sphere: radius 0.12 m, centred") &&
+         write_obj(dir / "torus.obj", torus, "torus: ring radius 0.14 m, tube 0.05 m, in XY") &&
+         write_obj(dir / "cone.obj", cone, "cone: base radius 0.13 m at z = 0, tip at z = 0.26 m") &&
+         write_obj(dir / "box.obj", box, "box: 0.26 x 0.20 x 0.16 m, centred") &&
+         write_obj(dir / "step.obj", step, "step: 0.9 m floor, its x > 0 half raised 0.10 m") &&
          write_printed(dir / "printed", printed);
 }
 
@@ -528,16 +667,16 @@ int main(int argc, char** argv) {
   const std::filesystem::path held = dir / "heldout";
   std::filesystem::create_directories(held, ec);
   const bool heldout_ok =
-      ok && write_obj(held / "sphere.obj", make_sphere(), "sphere: radius 0.12 m, centred") &&
-      write_obj(held / "torus.obj", make_torus(0.14, 0.05, 96, 32), "torus: ring radius 0.14 m, tube 0.05 m, in XY") &&
-      write_obj(held / "cone.obj", make_cone(), "cone: base radius 0.13 m at z = 0, tip at z = 0.26 m") &&
-      write_obj(held / "box.obj", make_box(0.26, 0.20, 0.16, 8), "box: 0.26 x 0.20 x 0.16 m, centred") &&
-      write_obj(held / "step.obj", make_step(0.9, 0.10, 12), "step: 0.9 m floor, its x > 0 half raised 0.10 m") &&
-      write_printed(held / "printed", {{"sphere", make_sphere(), spherical(0.12)},
-                                       {"torus", make_torus(0.14, 0.05, 96, 32), toroidal(0.14)},
-                                       {"cone", make_cone(), conical(0.13, 0.26)},
-                                       {"box", make_box(0.26, 0.20, 0.16, 8), planar(0.26, 0.20, 0.16)},
-                                       {"step", make_step(0.9, 0.10, 12), planar(0.9, 0.9, 0.9)}}) &&
+      ok && write_obj(held / "pyramid.obj", make_pyramid(0.24, 0.18, 8), "pyramid: base 0.24 m on z = 0, apex 0.18 m over it") &&
+      write_obj(held / "bowl.obj", make_bowl(0.13, 0.012, 72, 24), "bowl: radius 0.13 m, wall 0.012 m, opening up, rim at z = 0") &&
+      write_obj(held / "arch.obj", make_arch(4), "arch: pillars 0.06 m wide, 0.13 m high at x = +-0.12 m, lintel 0.30 x 0.05 m, 0.16 m deep, on z = 0") &&
+      write_obj(held / "dumbbell.obj", make_dumbbell(72, 84), "dumbbell: balls of radius 0.08 m at z = +-0.13 m, bar 0.03 m") &&
+      write_obj(held / "bottle.obj", make_bottle(72), "bottle: body radius 0.07 m to z = 0.16 m, neck 0.025 m to z = 0.27 m") &&
+      write_printed(held / "printed", {{"pyramid", make_pyramid(0.24, 0.18, 8), planar(0.24, 0.24, 0.18)},
+                                       {"bowl", make_bowl(0.13, 0.012, 72, 24), spherical(0.13)},
+                                       {"arch", make_arch(4), planar(0.30, 0.16, 0.18)},
+                                       {"dumbbell", make_dumbbell(72, 84), cylindrical(-0.21, 0.42)},
+                                       {"bottle", make_bottle(72), cylindrical(0.0, 0.27)}}) &&
       write_printed(dir / "printed", {{"plane", make_plane(2.4, 12), planar(0.6, 0.6, 0.6)},
                                       {"elliptic_cylinder", make_elliptic_cylinder(0.20, 0.10, 0.60, 128, 12),
                                        cylindrical(-0.30, 0.30)},

@@ -9,8 +9,8 @@ tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/h" --poses 2 2>&1) || fail "bin/decode-heldout: $out"
 for f in decode.csv decode.md decode.png losses.png law.png; do [ -s "$tmp/h/$f" ] || fail "no $f"; done
 rows=$(($(wc -l <"$tmp/h/decode.csv") - 1))
-[ "$rows" -eq 132 ] || fail "$rows cases in decode.csv, not 11 scenes x 6 conditions x 2"
-grep -q "^heldout,box,printed," "$tmp/h/decode.csv" || fail "no printed box: $(head -3 "$tmp/h/decode.csv")"
+[ "$rows" -eq 192 ] || fail "$rows cases in decode.csv, not 16 scenes x 6 conditions x 2"
+grep -q "^heldout,bottle,printed," "$tmp/h/decode.csv" && grep -q "^tuning,box,printed," "$tmp/h/decode.csv" || fail "no printed bottle or box: $(head -3 "$tmp/h/decode.csv")"
 grep -q "^| step | " "$tmp/h/decode.md" && grep -q "^| wedge | " "$tmp/h/decode.md" ||
   fail "the tables lack the step or the wedge: $(cat "$tmp/h/decode.md")"
 # why the segmented readable spots have no id: the causes in the CSV, both tables in the markdown
@@ -45,7 +45,7 @@ grep -q -- "--pattern servo/pattern/data/marray_20x20_k3_w3.txt" "$tmp/q/decode.
 # and it reaches every sweep: a file that is no pattern stops the first one, in one line
 one_line_error "a file that is no pattern" "README.md" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/r" \
   --poses 1 --set tuning --conditions grey --pattern "$src/README.md"
-[ "$(($(wc -l <"$tmp/q/decode.csv") - 1))" -eq 12 ] || fail "not 6 scenes x 1 condition x 2 with the paper's pattern"
+[ "$(($(wc -l <"$tmp/q/decode.csv") - 1))" -eq 22 ] || fail "not 11 scenes x 1 condition x 2 with the paper's pattern"
 # the white reference frame for every sweep: the table says so, and printed cases name more
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/w" --poses 2 --set tuning --conditions printed \
   --white-frame 2>&1) || fail "decode-heldout --white-frame: $out"

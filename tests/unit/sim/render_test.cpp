@@ -408,7 +408,7 @@ TEST(Render, APrintedSurfaceReturnsItsTexelTimesTheLight) {
   printed.camera.shot_noise = 0;
   printed.camera.ambient = 0.3;  // the print seen between the spots too
   Scenario blank = printed;
-  blank.objects[0].mesh = std::filesystem::path(CELL_SOURCE_DIR) / "meshes/heldout/box.obj";
+  blank.objects[0].mesh = std::filesystem::path(CELL_SOURCE_DIR) / "meshes/compact/box.obj";
   blank.objects[0].scale = Eigen::Vector3d(0.30 / 0.26, 0.22 / 0.20, 0.12 / 0.16);  // the printed box's size
   const auto a = build_cell(sim::resolve(printed)), b = build_cell(sim::resolve(blank));
   const World::Object& box = a->world.objects()[0];

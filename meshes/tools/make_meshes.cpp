@@ -612,31 +612,64 @@ std::vector<Link> puma_links() {
   };
 }
 
-// The compact tuning shapes, plain and printed, into `dir`.
-bool write_compact(const std::filesystem::path& dir) {
+// A set of shapes, each built once: NAME.obj (its comment `what`) in `dir`, and printed in
+// dir/printed with `printed` (shapes printed only) after them.
+struct Shape {
+  const char* name;
+  const char* what;
+  Mesh mesh;
+  UvRule rule;
+};
+bool write_set(const std::filesystem::path& dir, const std::vector<Shape>& shapes, std::vector<Printed> printed = {}) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  const Mesh egg = make_egg(), can = make_elliptic_cylinder(0.08, 0.08, 0.18, 96, 8),
-             wedge = make_wedge(0.20, 0.12, 0.28, 8), sphere = make_sphere(), torus = make_torus(0.14, 0.05, 96, 32),
-             cone = make_cone(), box = make_box(0.26, 0.20, 0.16, 8), step = make_step(0.9, 0.10, 12);
-  std::vector<Printed> printed;
-  printed.push_back({"egg", egg, spherical(0.13)});
-  printed.push_back({"can", can, cylindrical(-0.09, 0.18)});
-  printed.push_back({"wedge", wedge, planar(0.20, 0.28, 0.12)});
-  printed.push_back({"sphere", sphere, spherical(0.12)});
-  printed.push_back({"torus", torus, toroidal(0.14)});
-  printed.push_back({"cone", cone, conical(0.13, 0.26)});
-  printed.push_back({"box", box, planar(0.26, 0.20, 0.16)});
-  printed.push_back({"step", step, planar(0.9, 0.9, 0.9)});
-  return write_obj(dir / "egg.obj", egg, "egg: radius 0.09 m, 0.26 m along Z, centred") &&
-         write_obj(dir / "can.obj", can, "can: radius 0.08 m, 0.18 m along Z, centred") &&
-         write_obj(dir / "wedge.obj", wedge, "wedge: 0.20 m wide (X), ridge 0.12 m high, 0.28 m long (Y), on z = 0") &&
-         write_obj(dir / "sphere.obj", sphere, "sphere: radius 0.12 m, centred") &&
-         write_obj(dir / "torus.obj", torus, "torus: ring radius 0.14 m, tube 0.05 m, in XY") &&
-         write_obj(dir / "cone.obj", cone, "cone: base radius 0.13 m at z = 0, tip at z = 0.26 m") &&
-         write_obj(dir / "box.obj", box, "box: 0.26 x 0.20 x 0.16 m, centred") &&
-         write_obj(dir / "step.obj", step, "step: 0.9 m floor, its x > 0 half raised 0.10 m") &&
-         write_printed(dir / "printed", printed);
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    const Shape& s = shapes[k];
+    if (!write_obj(dir / (std::string(s.name) + ".obj"), s.mesh, s.what)) return false;
+    printed.insert(printed.begin() + static_cast<std::ptrdiff_t>(k), Printed{s.name, s.mesh, s.rule});
+  }
+  return write_printed(dir / "printed", printed);
+}
+
+// The plane, cylinder and ham, plain and printed, into `dir`, and the shipped printed box
+// (printed only: sim/scenarios/printed_box.yaml).
+bool write_tuning(const std::filesystem::path& dir) {
+  std::vector<Shape> shapes;
+  shapes.push_back({"plane", "plane: 2.4 m x 2.4 m wall in XY, normal +Z", make_plane(2.4, 12), planar(0.6, 0.6, 0.6)});
+  shapes.push_back({"elliptic_cylinder", "elliptic cylinder: semi-axes 0.20 m (X), 0.10 m (Y), height 0.60 m (Z), centred",
+                    make_elliptic_cylinder(0.20, 0.10, 0.60, 128, 12), cylindrical(-0.30, 0.30)});
+  shapes.push_back({"ham", "ham: 0.45 m along Z, bulb radius 0.12 m, shank radius 0.035 m", make_ham(0.45, 0.12, 0.035, 72, 60),
+                    cylindrical(0.0, 0.45)});
+  std::vector<Printed> printed_only;
+  printed_only.push_back({"box", make_box(0.30, 0.22, 0.12, 8), planar(0.30, 0.22, 0.12)});
+  return write_set(dir, shapes, printed_only);
+}
+
+// The compact tuning shapes, plain and printed, into `dir`.
+bool write_compact(const std::filesystem::path& dir) {
+  // (pushed one by one: a braced list of them made GCC warn of an uninitialised temporary)
+  std::vector<Shape> shapes;
+  shapes.push_back({"egg", "egg: radius 0.09 m, 0.26 m along Z, centred", make_egg(), spherical(0.13)});
+  shapes.push_back({"can", "can: radius 0.08 m, 0.18 m along Z, centred", make_elliptic_cylinder(0.08, 0.08, 0.18, 96, 8), cylindrical(-0.09, 0.18)});
+  shapes.push_back({"wedge", "wedge: 0.20 m wide (X), ridge 0.12 m high, 0.28 m long (Y), on z = 0", make_wedge(0.20, 0.12, 0.28, 8), planar(0.20, 0.28, 0.12)});
+  shapes.push_back({"sphere", "sphere: radius 0.12 m, centred", make_sphere(), spherical(0.12)});
+  shapes.push_back({"torus", "torus: ring radius 0.14 m, tube 0.05 m, in XY", make_torus(0.14, 0.05, 96, 32), toroidal(0.14)});
+  shapes.push_back({"cone", "cone: base radius 0.13 m at z = 0, tip at z = 0.26 m", make_cone(), conical(0.13, 0.26)});
+  shapes.push_back({"box", "box: 0.26 x 0.20 x 0.16 m, centred", make_box(0.26, 0.20, 0.16, 8), planar(0.26, 0.20, 0.16)});
+  shapes.push_back({"step", "step: 0.9 m floor, its x > 0 half raised 0.10 m", make_step(0.9, 0.10, 12), planar(0.9, 0.9, 0.9)});
+  return write_set(dir, shapes);
+}
+
+// The held-out shapes, plain and printed, into `dir`.
+bool write_heldout(const std::filesystem::path& dir) {
+  // (pushed one by one: a braced list of them made GCC warn of an uninitialised temporary)
+  std::vector<Shape> shapes;
+  shapes.push_back({"pyramid", "pyramid: base 0.24 m on z = 0, apex 0.18 m over it", make_pyramid(0.24, 0.18, 8), planar(0.24, 0.24, 0.18)});
+  shapes.push_back({"bowl", "bowl: radius 0.13 m, wall 0.012 m, opening up, rim at z = 0", make_bowl(0.13, 0.012, 72, 24), spherical(0.13)});
+  shapes.push_back({"arch", "arch: pillars 0.06 m wide, 0.13 m high at x = +-0.12 m, lintel 0.30 x 0.05 m, 0.16 m deep, on z = 0", make_arch(4), planar(0.30, 0.16, 0.18)});
+  shapes.push_back({"dumbbell", "dumbbell: balls of radius 0.08 m at z = +-0.13 m, bar 0.03 m", make_dumbbell(72, 84), cylindrical(-0.21, 0.42)});
+  shapes.push_back({"bottle", "bottle: body radius 0.07 m to z = 0.16 m, neck 0.025 m to z = 0.27 m", make_bottle(72), cylindrical(0.0, 0.27)});
+  return write_set(dir, shapes);
 }
 
 }  // namespace
@@ -659,29 +692,7 @@ int main(int argc, char** argv) {
   const std::filesystem::path dir = argv[1];
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  const bool ok = write_obj(dir / "plane.obj", make_plane(2.4, 12), "plane: 2.4 m x 2.4 m wall in XY, normal +Z") &&
-                  write_obj(dir / "elliptic_cylinder.obj", make_elliptic_cylinder(0.20, 0.10, 0.60, 128, 12),
-                            "elliptic cylinder: semi-axes 0.20 m (X), 0.10 m (Y), height 0.60 m (Z), centred") &&
-                  write_obj(dir / "ham.obj", make_ham(0.45, 0.12, 0.035, 72, 60),
-                            "ham: 0.45 m along Z, bulb radius 0.12 m, shank radius 0.035 m");
-  const std::filesystem::path held = dir / "heldout";
-  std::filesystem::create_directories(held, ec);
-  const bool heldout_ok =
-      ok && write_obj(held / "pyramid.obj", make_pyramid(0.24, 0.18, 8), "pyramid: base 0.24 m on z = 0, apex 0.18 m over it") &&
-      write_obj(held / "bowl.obj", make_bowl(0.13, 0.012, 72, 24), "bowl: radius 0.13 m, wall 0.012 m, opening up, rim at z = 0") &&
-      write_obj(held / "arch.obj", make_arch(4), "arch: pillars 0.06 m wide, 0.13 m high at x = +-0.12 m, lintel 0.30 x 0.05 m, 0.16 m deep, on z = 0") &&
-      write_obj(held / "dumbbell.obj", make_dumbbell(72, 84), "dumbbell: balls of radius 0.08 m at z = +-0.13 m, bar 0.03 m") &&
-      write_obj(held / "bottle.obj", make_bottle(72), "bottle: body radius 0.07 m to z = 0.16 m, neck 0.025 m to z = 0.27 m") &&
-      write_printed(held / "printed", {{"pyramid", make_pyramid(0.24, 0.18, 8), planar(0.24, 0.24, 0.18)},
-                                       {"bowl", make_bowl(0.13, 0.012, 72, 24), spherical(0.13)},
-                                       {"arch", make_arch(4), planar(0.30, 0.16, 0.18)},
-                                       {"dumbbell", make_dumbbell(72, 84), cylindrical(-0.21, 0.42)},
-                                       {"bottle", make_bottle(72), cylindrical(0.0, 0.27)}}) &&
-      write_printed(dir / "printed", {{"plane", make_plane(2.4, 12), planar(0.6, 0.6, 0.6)},
-                                      {"elliptic_cylinder", make_elliptic_cylinder(0.20, 0.10, 0.60, 128, 12),
-                                       cylindrical(-0.30, 0.30)},
-                                      {"ham", make_ham(0.45, 0.12, 0.035, 72, 60), cylindrical(0.0, 0.45)},
-                                      {"box", make_box(0.30, 0.22, 0.12, 8), planar(0.30, 0.22, 0.12)}});
+  const bool heldout_ok = write_tuning(dir) && write_heldout(dir / "heldout");
   const bool compact_ok = heldout_ok && write_compact(dir / "compact");
   if (!compact_ok) {
     std::fprintf(stderr, "make_meshes: cannot write into %s\n", dir.c_str());

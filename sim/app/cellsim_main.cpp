@@ -313,6 +313,12 @@ struct LawFlags {
 };
 
 // The errors a real cell has (issue 13): settings on top of the scenario's errors: and latency:.
+// where the law's points come from (loop::FeatureSource)
+constexpr const char* kFeaturesHelp =
+    "decoded | ideal (the simulator's true image positions of every visible spot) | resolved (those of the visible "
+    "spots the projector's defocus leaves apart: what a perfect decoder could name) | decoded-ids (the spots the "
+    "decoder names, each at its id's true image position: which spots from the decoder, where from the truth)";
+
 struct ConditionFlags {
   std::vector<std::string> errors, latencies;
   double divergence_ratio = 0;
@@ -355,7 +361,8 @@ struct ConditionFlags {
   }
   // the white frame is a decoded run's: the ideal features take no image
   void check_white_frame(const std::string& source) const {
-    if (white_frame && source != "decoded") throw std::invalid_argument("--white-frame needs --features decoded");
+    if (white_frame && (source == "ideal" || source == "resolved"))
+      throw std::invalid_argument("--white-frame needs --features decoded or decoded-ids");
     if (white_frame_lead > 0 && !white_frame) throw std::invalid_argument("--white-frame-lead needs --white-frame");
   }
   sim::CalibrationErrors errors_for(const sim::Scenario& sc) const {
@@ -391,7 +398,7 @@ struct CampaignFlags {
     c->add_option("--max-iterations", o.max_iterations, "iteration cap per run")
         ->capture_default_str()
         ->check(CLI::Range(1, 1000000));
-    c->add_option("--features", source, "decoded | ideal")->capture_default_str();
+    c->add_option("--features", source, kFeaturesHelp)->capture_default_str();
     c->add_option("--threads", o.threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 256));
     c->add_option("-o,--output", dir, "output folder");
     c->add_option("--z-hat", law.z_hat, "depth of desired-constant-depth (m)")->check(common::finite_in(0, 100));
@@ -455,6 +462,9 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   if (!initial.empty()) o.initial = sim::resolve_pose(cell->scenario, initial);
   o.out_dir = out_dir;
   std::unique_ptr<cellsim::ExperimentRecording> recording;
+  if (!record.file.empty() && o.source == loop::FeatureSource::kDecodedIds)
+    throw std::invalid_argument("--record: a run with --features decoded-ids has no wire form (a replay decodes the "
+                                "images; the servo stepped on the truth)");
   if (!record.file.empty()) {
     recording = std::make_unique<cellsim::ExperimentRecording>(
         *cell, record,
@@ -471,7 +481,9 @@ int run_experiment_cli(const ScenarioArg& scenario, const LawFlags& law, const C
   const auto r = experiment::run_experiment(*cell, o);
   std::printf("%s, model %s (z-hat %.3f m), %s features%s, visual features %s\n", cell->scenario.name.c_str(),
               law.model.c_str(), o.servo.law.z_hat_m, experiment::to_string(o.source).c_str(),
-              o.source == loop::FeatureSource::kIdeal ? " (simulator truth)" : "",
+              loop::from_truth_alone(o.source)                   ? " (simulator truth)"
+              : o.source == loop::FeatureSource::kDecodedIds ? " (at their true image positions)"
+                                                             : "",
               control::to_string(o.servo.law.features).c_str());
   std::printf("  decoded: %d at the desired pose, %d at the initial pose\n", r.decoded_desired, r.decoded_initial);
   const std::string conds = sim::describe(*o.errors, *o.latency);
@@ -641,7 +653,7 @@ struct ExperimentCommand {
         app.add_subcommand("experiment", "teach at the desired pose, start at the initial pose, servo (in-process)");
     scenario.add(c);
     law.add(c);
-    c->add_option("--features", source, "decoded | ideal (the simulator's true image positions)")->capture_default_str();
+    c->add_option("--features", source, kFeaturesHelp)->capture_default_str();
     c->add_option("--max-iterations", max_iterations, "iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
     c->add_option("--initial", initial, "initial pose instead of the scenario's: \"x y z rx ry rz\" (cm, deg)");
     c->add_option("-o,--output", dir, "folder for trace.csv, features.jsonl and the plots");

@@ -7,6 +7,7 @@
 #include "common/progress.hpp"
 #include "common/regular_file.hpp"
 #include "common/strict_yaml.hpp"
+#include "common/worker_threads.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -23,7 +24,6 @@
 #include <mutex>
 #include <random>
 #include <sstream>
-#include <thread>
 
 namespace experiment {
 
@@ -486,10 +486,8 @@ void run_jobs(const sim::Cell& cell, const CampaignOptions& o, const InitialPose
       progress.at(++done);
     }
   };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
-  work();
-  for (auto& t : threads) t.join();
+  // a run that throws stops the others from taking a job, and is rethrown here
+  common::run_workers(o.threads, work, [&] { next = jobs.size(); });
 }
 
 // campaign.csv's rows, by model, written and read back as the file has them
@@ -552,6 +550,7 @@ CampaignMeta meta_of(const sim::Scenario& sc, const CampaignOptions& o, const In
 }  // namespace
 
 std::string run_campaign(const sim::Cell& cell, const CampaignOptions& o) {
+  loop::check_injections(o.source, o.outlier_fraction, o.loss_fraction);  // before a folder or a thread
   check_campaign_outputs(o.out_dir);
   const InitialPoses poses = draw_initial_poses(cell, o);
   std::vector<CampaignJob> jobs;

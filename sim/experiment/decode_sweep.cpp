@@ -1,4 +1,5 @@
 #include "common/output_image.hpp"
+#include "common/worker_threads.hpp"
 #include "common/progress.hpp"
 #include "sim/experiment/decode_sweep.hpp"
 
@@ -11,7 +12,6 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
-#include <thread>
 #include <tuple>
 
 #include "servo/pipeline/servo_pipeline.hpp"
@@ -609,10 +609,8 @@ SweepSummary run_decode_sweep(const sim::Cell& cell, const SweepOptions& o) {
       }
     }
   };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
-  work();
-  for (auto& t : threads) t.join();
+  // a pose that throws stops the others from taking one, and is rethrown here
+  common::run_workers(o.threads, work, [&] { next = o.poses; });
 
   SweepSummary s = summarize(rows);
   s.taught = static_cast<int>(std::count(taught.ids.begin(), taught.ids.end(), 1));

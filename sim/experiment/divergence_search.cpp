@@ -1,4 +1,5 @@
 #include "common/output_file.hpp"
+#include "common/worker_threads.hpp"
 #include "common/progress.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/divergence_search.hpp"
@@ -11,7 +12,6 @@
 #include <mutex>
 #include <random>
 #include <set>
-#include <thread>
 
 #include "sim/render/cell.hpp"
 
@@ -173,10 +173,8 @@ DivergenceSearchResult search_divergence(const sim::Scenario& scenario, const Di
       progress.at(static_cast<std::size_t>(++done));
     }
   };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < std::max(1, o.threads); ++t) threads.emplace_back(work);
-  work();
-  for (auto& t : threads) t.join();
+  // a try that throws stops the others from taking one, and is rethrown here
+  common::run_workers(o.threads, work, [&] { next = o.tries; });
 
   for (const auto& c : res.candidates)
     if (c.kept && (res.best < 0 || c.displacement < res.candidates[static_cast<std::size_t>(res.best)].displacement))

@@ -1,4 +1,5 @@
 #include "common/progress.hpp"
+#include "common/strict_yaml.hpp"
 #include "sim/cell/build_cell.hpp"
 #include "sim/experiment/experiment.hpp"
 
@@ -79,10 +80,34 @@ void write_scene(const sim::Cell& cell, const Eigen::Isometry3d& desired, const 
 loop::FeatureSource parse_feature_source(const std::string& name) {
   if (name == "decoded") return loop::FeatureSource::kDecoded;
   if (name == "ideal") return loop::FeatureSource::kIdeal;
-  throw std::invalid_argument("feature source '" + name + "': expected decoded or ideal");
+  if (name == "decoded-ids") return loop::FeatureSource::kDecodedIds;
+  if (name == "resolved") return loop::FeatureSource::kResolved;
+  throw std::invalid_argument("feature source '" + common::printable(name, 40) +
+                              "': expected decoded, ideal, resolved or decoded-ids");
 }
 
-std::string to_string(loop::FeatureSource s) { return s == loop::FeatureSource::kIdeal ? "ideal" : "decoded"; }
+namespace {
+// what the trace's header says of a source whose points are not the decoder's alone
+const char* source_note(loop::FeatureSource s) {
+  switch (s) {
+    case loop::FeatureSource::kIdeal: return " (simulator truth, not decoded)";
+    case loop::FeatureSource::kDecodedIds: return " (the decoder's ids at their true image positions)";
+    case loop::FeatureSource::kResolved: return " (simulator truth of the spots the defocus leaves apart, not decoded)";
+    case loop::FeatureSource::kDecoded: break;
+  }
+  return "";
+}
+}  // namespace
+
+std::string to_string(loop::FeatureSource s) {
+  switch (s) {
+    case loop::FeatureSource::kIdeal: return "ideal";
+    case loop::FeatureSource::kDecodedIds: return "decoded-ids";
+    case loop::FeatureSource::kResolved: return "resolved";
+    case loop::FeatureSource::kDecoded: break;
+  }
+  return "decoded";
+}
 
 calibration::CameraIntrinsics camera_intrinsics_of(const sim::CameraSpec& cam) {
   return {cam.intrinsics.fx, cam.intrinsics.fy, cam.intrinsics.cx, cam.intrinsics.cy, cam.distortion};
@@ -287,7 +312,7 @@ class Experiment {
     common::make_output_folder(o_.out_dir);
     trace_.open(o_.out_dir / "trace.csv", "trace");
     trace_ << "# scenario " << scenario().name << ", model " << control::to_string(o_.servo.law.model) << ", features "
-           << to_string(o_.source) << (o_.source == loop::FeatureSource::kIdeal ? " (simulator truth, not decoded)" : "")
+           << to_string(o_.source) << source_note(o_.source)
            << ", visual features " << control::to_string(o_.servo.law.features) << "\n"
            << sim::kTraceHeader << "\n"
            << std::setprecision(9);
@@ -345,7 +370,7 @@ class Experiment {
   // puts them beside the velocities and |e| in fig4.png). Only for decoded features: ideal ones
   // are the simulator's truth, not read from an image.
   void write_overlay(const loop::LoopExchange& x, const char* name) const {
-    if (o_.out_dir.empty() || x.image.empty() || o_.source != loop::FeatureSource::kDecoded || !x.reply.spots) return;
+    if (o_.out_dir.empty() || x.image.empty() || !x.reply.spots) return;
     vision::DecodeResult r;
     for (const servo::ImageSpot& s : *x.reply.spots) r.decoded.push_back({s.row, s.col, s.u, s.v, 0});
     cv::Mat bgr;
@@ -453,7 +478,10 @@ class Experiment {
 
 }  // namespace
 
-ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) { return Experiment(cell, o).run(); }
+ExperimentResult run_experiment(const sim::Cell& cell, const ExperimentOptions& o) {
+  loop::check_injections(o.source, o.outlier_fraction, o.loss_fraction);  // before an output is made
+  return Experiment(cell, o).run();
+}
 
 control::VisualFeatures visual_features_or_default(const std::string& name, const servo::ServoConfig& config) {
   if (!name.empty()) return control::parse_visual_features(name);

@@ -69,8 +69,8 @@ bool apply_switch(const std::string& name, double v, CampaignOptions& c) {
   } else if (name == "white_frame") {
     // 1: the white reference frame beside each pattern frame (ExperimentOptions::white_frame)
     c.white_frame = switched_on(name, v, "the pattern frame alone");
-    if (c.white_frame && c.source != loop::FeatureSource::kDecoded)
-      throw std::invalid_argument("study axis white_frame: needs --features decoded");
+    if (c.white_frame && loop::from_truth_alone(c.source))
+      throw std::invalid_argument("study axis white_frame: needs --features decoded or decoded-ids");
   } else if (name == "white_frame_lead") {
     // the share of a frame period the white frame is taken before its pattern frame (the camera
     // moving between them; ExperimentOptions::white_frame_lead)
@@ -233,6 +233,7 @@ void check_study(const sim::ResolvedScenario& scenario, const StudyOptions& o) {
       sim::Scenario s = scenario;
       CampaignOptions c = o.campaign;
       apply(a.name, v, s, c);
+      loop::check_injections(c.source, c.outlier_fraction, c.loss_fraction);
     }
 }
 

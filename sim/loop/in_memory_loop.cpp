@@ -1,7 +1,9 @@
 #include "sim/loop/in_memory_loop.hpp"
 
 #include <algorithm>
+#include <map>
 #include <random>
+#include <stdexcept>
 
 namespace loop {
 
@@ -42,6 +44,13 @@ Eigen::Isometry3d as_on_the_wire(const Eigen::Isometry3d& T) {
 
 }  // namespace
 
+void check_injections(FeatureSource source, double outlier_fraction, double loss_fraction) {
+  if (from_truth_alone(source) && (outlier_fraction > 0 || loss_fraction > 0))
+    throw std::invalid_argument("outliers and losses are injected into decoded spots: they need decoded features");
+  if (source == FeatureSource::kDecodedIds && outlier_fraction > 0)
+    throw std::invalid_argument("outliers need decoded features: decoded ids put every id at its own true position");
+}
+
 InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
     : world_(cell),
       noise_seed_(setup.noise_seed),
@@ -54,12 +63,16 @@ InMemoryLoop::InMemoryLoop(const sim::Cell& cell, LoopSetup setup)
       servo_(std::make_unique<servo::ServoPipeline>(pattern::WindowTable(cell.projector->pattern(), {3, 3}), setup.servo),
              servo::ServoTiming{}) {
   scratch_.threads = setup.render_threads;
+  check_injections(source_, outlier_fraction_, loss_fraction_);
   camera_info_ = camera_info_of(setup.servo.camera, cell.scenario.camera);
   const std::string why = servo_.on_camera_info(camera_info_);
   if (!why.empty()) throw std::invalid_argument(cell.scenario.file.string() + ": " + why);
 }
 
 void InMemoryLoop::set_tap(LoopTap* tap) {
+  // a recording is replayed by decoding its images: the truth the servo stepped on is not in it
+  if (tap && source_ == FeatureSource::kDecodedIds)
+    throw std::invalid_argument("a run with decoded ids has no wire form to record (the servo steps on the truth)");
   tap_ = tap;
   if (tap_) tap_->on_start(camera_info_, cell_);
 }
@@ -86,7 +99,7 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
   const sim::FrameStamp fs = sim::frame_stamp(f.index, cell_.dt());
   const servo::Stamp stamp{static_cast<std::int32_t>(fs.sec), fs.nanosec};
   cv::Mat rgb, white;
-  if (source_ == FeatureSource::kDecoded) {
+  if (!from_truth_alone(source_)) {
     const std::uint64_t seed = sim::frame_seed(noise_seed_, f.index);
     rgb = sim::render_image(world_, f.scene_world_T_camera, seed, &scratch_, nullptr, &f.scene_world_T_links);
     if (white_frame_)
@@ -99,37 +112,28 @@ LoopExchange InMemoryLoop::exchange(sim::FrameOrder order) {
   servo_.on_sim_status({stamp, f.applies_twist, f.teach, cell_.running() && f.applies_twist});
   const Eigen::Isometry3d reported = as_on_the_wire(f.reported_world_T_camera);
   servo_.on_pose(stamp, reported);
-  if (source_ == FeatureSource::kIdeal) {
+  if (from_truth_alone(source_)) {
     std::vector<servo::ImageSpot> spots;
     for (const auto& t : sim::compute_truth(world_, f.scene_world_T_camera, &f.scene_world_T_links))
-      if (t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
+      if (source_ == FeatureSource::kResolved ? t.resolved : t.visible) spots.push_back({t.row, t.col, t.uv.x(), t.uv.y()});
     x.reply = servo_.on_spots(stamp, spots, 0, now_s_);
+  } else if (source_ == FeatureSource::kDecodedIds || ((outlier_fraction_ > 0 || loss_fraction_ > 0) && !f.teach)) {
+    int detected = 0;
+    const std::vector<servo::ImageSpot> spots = located(x, rgb, white, reported, &detected);
+    x.reply = servo_.on_spots(stamp, spots, detected, now_s_);
   } else {
-    if ((outlier_fraction_ > 0 || loss_fraction_ > 0) && !f.teach) {
-      // decoded as the servo would, then some spots dropped and some ids swapped before it
-      // steps on them
-      int detected = 0;
-      std::vector<servo::ImageSpot> spots =
-          servo_.pipeline().locate(rgb, reported, &detected, white.empty() ? nullptr : &white, &decode_scratch_);
-      if (loss_fraction_ > 0) drop_spots(spots, loss_fraction_, sim::frame_seed(noise_seed_ ^ 0x6c6f7373ull, f.index + 1));
-      if (outlier_fraction_ > 0)
-        x.swapped = inject_outliers(spots, outlier_fraction_,
-                                    sim::frame_seed(noise_seed_ ^ 0x6f75746c69657273ull, f.index + 1), &x.wrong);
-      x.reply = servo_.on_spots(stamp, spots, detected, now_s_);
-    } else {
-      const auto view_of = [&](const cv::Mat& m) {
-        return servo::ImageView{stamp,
-                                "rgb8",
-                                static_cast<std::uint32_t>(m.cols),
-                                static_cast<std::uint32_t>(m.rows),
-                                static_cast<std::uint32_t>(m.cols * 3),
-                                0,
-                                m.data,
-                                m.total() * 3};
-      };
-      const servo::ImageView white_view = white.empty() ? servo::ImageView{} : view_of(white);
-      x.reply = servo_.on_image(view_of(rgb), now_s_, white.empty() ? nullptr : &white_view);
-    }
+    const auto view_of = [&](const cv::Mat& m) {
+      return servo::ImageView{stamp,
+                              "rgb8",
+                              static_cast<std::uint32_t>(m.cols),
+                              static_cast<std::uint32_t>(m.rows),
+                              static_cast<std::uint32_t>(m.cols * 3),
+                              0,
+                              m.data,
+                              m.total() * 3};
+    };
+    const servo::ImageView white_view = white.empty() ? servo::ImageView{} : view_of(white);
+    x.reply = servo_.on_image(view_of(rgb), now_s_, white.empty() ? nullptr : &white_view);
   }
   return x;
 }
@@ -160,6 +164,23 @@ sim::CellOutput InMemoryLoop::observe(std::vector<LoopExchange>& exchanges) {
   return out;
 }
 
+std::vector<servo::ImageSpot> InMemoryLoop::located(LoopExchange& x, const cv::Mat& rgb, const cv::Mat& white,
+                                                    const Eigen::Isometry3d& reported, int* detected) {
+  const sim::FrameOrder& f = x.frame;
+  // decoded as the servo would, then some spots dropped and some ids swapped before it steps
+  // on them (not at teaching: the goal is taught from what the decoder names)
+  std::vector<servo::ImageSpot> spots =
+      servo_.pipeline().locate(rgb, reported, detected, white.empty() ? nullptr : &white, &decode_scratch_);
+  if (loss_fraction_ > 0 && !f.teach)
+    drop_spots(spots, loss_fraction_, sim::frame_seed(noise_seed_ ^ 0x6c6f7373ull, f.index + 1));
+  if (outlier_fraction_ > 0 && !f.teach)
+    x.swapped = inject_outliers(spots, outlier_fraction_, sim::frame_seed(noise_seed_ ^ 0x6f75746c69657273ull, f.index + 1),
+                                &x.wrong);
+  if (source_ == FeatureSource::kDecodedIds)
+    place_at_truth(spots, sim::compute_truth(world_, f.scene_world_T_camera, &f.scene_world_T_links));
+  return spots;
+}
+
 sim::CellOutput InMemoryLoop::round(std::vector<LoopExchange>& exchanges) {
   now_s_ += cell_.dt();
   sim::CellOutput out = cell_.poll(now_s_);
@@ -183,6 +204,24 @@ int drop_spots(std::vector<servo::ImageSpot>& spots, double fraction, std::uint6
     if (!drop[i]) spots[kept++] = spots[i];
   spots.resize(kept);
   return static_cast<int>(n);
+}
+
+int place_at_truth(std::vector<servo::ImageSpot>& spots, const std::vector<sim::SpotTruth>& truth) {
+  std::map<std::pair<int, int>, Eigen::Vector2d> at;
+  for (const sim::SpotTruth& t : truth)
+    if (t.visible) at.emplace(std::make_pair(t.row, t.col), t.uv);
+  std::size_t kept = 0;
+  for (const servo::ImageSpot& s : spots) {
+    const auto it = at.find({s.row, s.col});
+    if (it == at.end()) continue;
+    servo::ImageSpot placed = s;
+    placed.u = it->second.x();
+    placed.v = it->second.y();
+    spots[kept++] = placed;
+  }
+  const int dropped = static_cast<int>(spots.size() - kept);
+  spots.resize(kept);
+  return dropped;
 }
 
 int inject_outliers(std::vector<servo::ImageSpot>& spots, double fraction, std::uint64_t seed,

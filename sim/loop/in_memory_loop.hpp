@@ -23,7 +23,24 @@
 
 namespace loop {
 
-enum class FeatureSource { kDecoded, kIdeal };  // ideal: the simulator's true image positions
+// Where the law's points come from. decoded: the servo decodes the rendered image (what a cell
+// does). ideal: the simulator's true image positions of every visible spot, washed out by the
+// projector's defocus or not. resolved: those of the visible spots the defocus leaves apart
+// (sim::SpotTruth::resolved), what a perfect decoder could name. decoded ids: the spots the
+// decoder names in the rendered image, each put at its id's true image position (an id the
+// simulator sees nowhere is dropped): which spots from the decoder, where from the truth. A
+// loop that fails with decoded features and with decoded ids but converges with resolved ones
+// fails on which spots the decoder names, not on where it puts them; one that fails with
+// resolved features too fails on what the camera can see.
+enum class FeatureSource { kDecoded, kIdeal, kDecodedIds, kResolved };
+
+// Whether the source's points are the simulator's truth alone (no image is rendered for them).
+inline bool from_truth_alone(FeatureSource s) { return s == FeatureSource::kIdeal || s == FeatureSource::kResolved; }
+
+// Refuses (std::invalid_argument) an injection the source would never see (outliers or losses
+// into the truth) or would undo (outliers into decoded ids, each put back at its own id's
+// position), rather than run as if it had been made.
+void check_injections(FeatureSource source, double outlier_fraction, double loss_fraction);
 
 struct LoopSetup {
   sim::Latency latency;               // the run's delays (the scenario's unless an experiment chose others)
@@ -104,6 +121,10 @@ class InMemoryLoop {
  private:
   void accepted(const sim::CellOutput& out);
   LoopExchange exchange(sim::FrameOrder order);  // rendered and answered by the servo
+  // the spots the servo's pipeline locates in `rgb`, with the losses, outliers or true
+  // positions the run asks for applied (x.swapped, x.wrong filled), for ServoStateMachine::on_spots
+  std::vector<servo::ImageSpot> located(LoopExchange& x, const cv::Mat& rgb, const cv::Mat& white,
+                                        const Eigen::Isometry3d& reported, int* detected);
 
   const sim::Cell& world_;
   std::uint64_t noise_seed_;
@@ -120,6 +141,12 @@ class InMemoryLoop {
   LoopTap* tap_ = nullptr;
   double now_s_ = 0;
 };
+
+// The decoded-ids source: each of `spots` moved to its id's true image position in `truth`, an id
+// no visible spot of `truth` carries dropped (a wrong id, a spill of a hidden spot). The rest
+// of each spot (its off-line mark: whether the law takes it) stays the decoder's. Returns how
+// many were dropped.
+int place_at_truth(std::vector<servo::ImageSpot>& spots, const std::vector<sim::SpotTruth>& truth);
 
 // The outlier injection: the ids of `fraction` of `spots` (at least 2 when fraction > 0)
 // shifted along a seeded cycle, so each chosen spot carries another's id. Returns how many.

@@ -236,8 +236,8 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
   o.servo.interior_points = interior_points;
   o.servo.decoder.epipolar.fitted_lines = fitted_lines;
   o.source = experiment::parse_feature_source(features);
-  if (white_frame && o.source != loop::FeatureSource::kDecoded)
-    throw py::value_error("white_frame needs features='decoded'");
+  if (white_frame && loop::from_truth_alone(o.source))
+    throw py::value_error("white_frame needs features='decoded' or 'decoded-ids'");
   if (!(white_frame_lead >= 0 && white_frame_lead <= 1)) throw py::value_error("white_frame_lead must be in [0, 1]");
   if (white_frame_lead > 0 && !white_frame) throw py::value_error("white_frame_lead needs white_frame=True");
   o.white_frame = white_frame;
@@ -446,7 +446,7 @@ PYBIND11_MODULE(cellsim, m) {
         py::arg("features") = "decoded", py::arg("visual_features") = "", py::arg("interior_points") = false,
         py::arg("fitted_lines") = false, py::arg("white_frame") = false, py::arg("white_frame_lead") = 0.0,
         "the in-process closed loop, as `cellsim experiment`: a dict of the result and the trace's columns "
-        "(features: where the spots come from, decoded | ideal; visual_features: what the law servoes on, points | "
+        "(features: where the spots come from, decoded | ideal | resolved | decoded-ids; visual_features: what the law servoes on, points | "
         "moments | surface | plane; empty: the scenario's, points, or plane with the projector on the camera; "
         "interior_points: servo on the matched spots whose four pattern neighbours are matched too, as "
         "--interior-points; fitted_lines: decode each frame again on its fitted epipolar lines, as --fitted-lines; "

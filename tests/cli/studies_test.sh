@@ -45,6 +45,20 @@ one_line_error "white frame, campaign of ideal features" "--white-frame needs --
   "$cellsim" campaign "$fig5" --white-frame --features ideal --runs 1 -o "$tmp/wc"
 one_line_error "white frame axis, ideal features" "study axis white_frame: needs --features decoded" \
   "$cellsim" study "$fig5" --axis white_frame=0,1 --features ideal -o "$tmp/ws"
+one_line_error "white frame, resolved features" "--white-frame needs --features decoded" \
+  "$cellsim" experiment "$fig5" --white-frame --features resolved
+# an injection the feature source would never see or would undo is refused, not run without it
+one_line_error "losses into ideal features" "need decoded features" \
+  "$cellsim" experiment "$fig5" --features ideal --losses 0.2
+one_line_error "outliers into decoded ids" "outliers need decoded features" \
+  "$cellsim" campaign "$fig5" --features decoded-ids --outliers 0.1 --runs 1 -o "$tmp/oc"
+[ ! -e "$tmp/oc" ] || fail "the refused campaign left a folder"
+# a run on the decoder's ids at their true positions has no wire form: refused before any file
+one_line_error "recording decoded ids" "--record: a run with --features decoded-ids" \
+  "$cellsim" experiment "$fig5" --features decoded-ids --record "$tmp/r.mcap"
+[ ! -e "$tmp/r.mcap" ] || fail "the refused recording left a file"
+one_line_error "unknown feature source" "expected decoded, ideal, resolved or decoded-ids" \
+  "$cellsim" experiment "$fig5" --features truth
 one_line_error "white frame lead without the white frame" "--white-frame-lead needs --white-frame" \
   "$cellsim" experiment "$fig5" --white-frame-lead 0.5
 one_line_error "white frame lead out of range" "white-frame-lead" \

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
@@ -451,6 +452,82 @@ TEST(InProcessLoop, AStepRefusedAtTheWorkspaceBorderDoesNotEndTheRun) {
   int refused = 0;
   for (const auto& row : r.trace) refused += (row.robot_limits & sim::kLimitWorkspace) != 0;
   EXPECT_GT(refused, 0) << "the workspace never refused a step";
+}
+
+// The decoded-ids source: each decoded spot moved to its id's true position, an id the
+// simulator sees nowhere dropped, the off-line mark kept (whether the law takes it).
+TEST(InProcessLoop, DecodedIdsArePutAtTheirTruthAndUnseenOnesDropped) {
+  std::vector<sim::SpotTruth> truth(3);
+  truth[0].row = 1, truth[0].col = 2, truth[0].visible = true, truth[0].uv = {10.5, 20.25};
+  truth[1].row = 3, truth[1].col = 4, truth[1].visible = false, truth[1].uv = {30, 40};
+  truth[2].row = 5, truth[2].col = 6, truth[2].visible = true, truth[2].uv = {50, 60};
+  std::vector<servo::ImageSpot> spots{{5, 6, 49, 61, true}, {3, 4, 31, 39, false}, {1, 2, 11, 20, false}, {7, 7, 1, 1, false}};
+  EXPECT_EQ(loop::place_at_truth(spots, truth), 2);
+  ASSERT_EQ(spots.size(), 2U);
+  EXPECT_EQ(spots[0].row, 5);
+  EXPECT_EQ(spots[0].u, 50);
+  EXPECT_EQ(spots[0].v, 60);
+  EXPECT_TRUE(spots[0].off_line);
+  EXPECT_EQ(spots[1].row, 1);
+  EXPECT_EQ(spots[1].u, 10.5);
+  EXPECT_EQ(spots[1].v, 20.25);
+}
+
+// The four feature sources at the wedge's first iteration (features.jsonl): decoded ids are the
+// decoder's ids at the true positions the ideal source gives them, goal and current alike; the
+// resolved spots are the visible ones but those the projector's defocus washes out (the wedge's
+// far table has them; the decoder may still name one at the edge of the wash); an injection a
+// source would never see or would undo is refused.
+TEST(InProcessLoop, TheFeatureSourcesSplitWhichSpotsFromWhereTheyAre) {
+  const auto cell = sim::build_cell(sim::load_scenario(kDir + std::string("compact/wedge.yaml")));
+  using Points = std::map<std::pair<int, int>, nlohmann::json>;
+  const auto first_points = [&](loop::FeatureSource source) {
+    experiment::ExperimentOptions o;
+    o.servo = experiment::servo_config_for(*cell);
+    o.servo.law.z_hat_m = experiment::desired_depth(*cell);
+    o.source = source;
+    o.max_iterations = 1;
+    o.out_dir = std::filesystem::temp_directory_path() /
+                ("_test_sources_" + experiment::to_string(source) + "_" + std::to_string(::getpid()));
+    const auto r = experiment::run_experiment(*cell, o);
+    EXPECT_EQ(r.iterations, 1) << experiment::to_string(source) << ": " << r.stop_reason;
+    std::ifstream f(o.out_dir / "features.jsonl");
+    std::string line;
+    std::getline(f, line);
+    std::filesystem::remove_all(o.out_dir);
+    Points points;
+    if (line.empty()) return points;
+    const nlohmann::json j = nlohmann::json::parse(line);
+    for (const auto& p : j.at("points")) points[{p.at("row").get<int>(), p.at("col").get<int>()}] = p;
+    return points;
+  };
+  const Points decoded = first_points(loop::FeatureSource::kDecoded);
+  const Points ids = first_points(loop::FeatureSource::kDecodedIds);
+  const Points resolved = first_points(loop::FeatureSource::kResolved);
+  const Points ideal = first_points(loop::FeatureSource::kIdeal);
+  ASSERT_GT(decoded.size(), 50U);
+  EXPECT_GE(ids.size() + 3, decoded.size()) << "decoded ids dropped more than a wrong id or two";
+  EXPECT_LT(resolved.size(), ideal.size()) << "no spot of the wedge's far table is washed out";
+  double moved = 0;
+  for (const auto& [id, p] : ids) {
+    ASSERT_TRUE(decoded.count(id)) << "an id the decoder did not name";
+    ASSERT_TRUE(ideal.count(id)) << "a decoded id that is no visible spot";
+    const nlohmann::json& truth = ideal.at(id);
+    for (const char* k : {"x", "y", "x_star", "y_star"}) EXPECT_EQ(p.at(k), truth.at(k)) << k;
+    moved = std::max(moved, std::abs(p.at("x").get<double>() - decoded.at(id).at("x").get<double>()));
+  }
+  EXPECT_GT(moved, 0) << "the decoded ids kept the decoder's positions";
+  for (const auto& [id, p] : resolved) EXPECT_TRUE(ideal.count(id));
+
+  experiment::ExperimentOptions o;
+  o.servo = experiment::servo_config_for(*cell);
+  o.source = loop::FeatureSource::kDecodedIds;
+  o.outlier_fraction = 0.1;
+  EXPECT_THROW(experiment::run_experiment(*cell, o), std::invalid_argument);
+  o.source = loop::FeatureSource::kResolved;
+  o.outlier_fraction = 0;
+  o.loss_fraction = 0.2;
+  EXPECT_THROW(experiment::run_experiment(*cell, o), std::invalid_argument);
 }
 
 }  // namespace

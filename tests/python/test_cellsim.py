@@ -80,6 +80,18 @@ def test_the_white_frame_names_more_of_the_printed_box():
         cellsim.experiment(box, white_frame=True, white_frame_lead=float("nan"), max_iterations=1)
 
 
+def test_the_feature_sources_split_which_spots_from_where():
+    wedge = cellsim.Scenario(os.path.join(SRC, "sim", "scenarios", "compact", "wedge.yaml"))
+    seen = {f: cellsim.experiment(wedge, features=f, max_iterations=1)["decoded_desired"]
+            for f in ("decoded", "decoded-ids", "resolved", "ideal")}
+    # the wedge's far table is washed out: fewer resolved spots than visible ones; the decoder's
+    # ids are put at their truth, none added
+    assert seen["resolved"] < seen["ideal"], seen
+    assert 0 < seen["decoded-ids"] <= seen["decoded"], seen
+    with pytest.raises(ValueError, match="expected decoded, ideal, resolved or decoded-ids"):
+        cellsim.experiment(wedge, features="truth", max_iterations=1)
+
+
 def test_the_env_decodes_with_the_white_frame_when_asked():
     box = cellsim.Scenario(os.path.join(SRC, "sim", "scenarios", "printed_box.yaml"))
     decoded = {}

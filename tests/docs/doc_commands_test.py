@@ -77,6 +77,14 @@ RUN = [
     ("build/bin/cellsim experiment sim/scenarios/plane.yaml --model desired-constant-depth --z-hat 0.9 -o out/plane",
      "README.md", 0, [r"after 322 iterations", ("final error", "0.21", "0.019")],
      ["out/plane/fig4.png", "out/plane/velocities.png", "out/plane/error_norm.png"]),
+    # the feature sources: the decoder's ids at their truth fail as its own features do, every
+    # spot a perfect decoder could name converges
+    ("build/bin/cellsim campaign sim/scenarios/heldout/bowl.yaml --runs 12 --models desired-constant-depth "
+     "--features decoded-ids -o out/bowl_ids", "README.md", 0, [r"\| desired-constant-depth \| 0/12 "],
+     ["out/bowl_ids/campaign.csv"]),
+    ("build/bin/cellsim campaign sim/scenarios/heldout/bowl.yaml --runs 12 --models desired-constant-depth "
+     "--features resolved -o out/bowl_resolved", "README.md", 0, [r"\| desired-constant-depth \| 12/12 "],
+     ["out/bowl_resolved/campaign.csv"]),
     ("build/bin/cellsim campaign sim/scenarios/cylinder.yaml --models current --runs 10 --points 8 -o out/points",
      "README.md", 0, [r"\| current \| \d+/10"], ["out/points/campaign.csv", "out/points/campaign.png"]),
     ("build/bin/cellsim experiment sim/scenarios/plane.yaml --z-hat 0.9 --error focal_pct=2 --error "

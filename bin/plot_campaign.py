@@ -9,6 +9,8 @@ import math
 import os
 import sys
 
+from matplotlib.ticker import MaxNLocator
+
 from plot_common import dir_and_title, plt, save
 
 
@@ -39,6 +41,7 @@ def main():
         ax.bar(["converged", "not"], [len(conv), len(runs) - len(conv)], color=["tab:green", "tab:red"])
         ax.set_title(f"{m}\n{len(conv)}/{len(runs)} converged", fontsize=9)
         ax.set_ylabel("runs")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax = axes[1][c]
         its = [int(r["iterations"]) for r in conv]
         if its:
@@ -49,6 +52,8 @@ def main():
             ax.set_yticks([])
         ax.set_xlabel("iterations (converged runs)")
         ax.set_ylabel("runs")
+        if its:
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax = axes[2][c]
         err = [float(r["final_translation_mm"]) for r in runs]
         col = ["tab:green" if r["converged"] == "1" else "tab:red" for r in runs]
@@ -57,6 +62,7 @@ def main():
         ax.set_ylim(*err_lim)
         ax.set_xlabel("run")
         ax.set_ylabel("final translation error (mm)")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # runs are counted, not measured
         ax.grid(True, which="major", alpha=0.3)
         if truth:
             off_centre_panel(axes[3][c], runs, col)
@@ -83,6 +89,8 @@ def decoded(folder):
 def off_centre_panel(ax, runs, colours):
     """Per run, the points its law took off their spot's centre, summed over its iterations."""
     ax.bar(range(len(runs)), [int(r["off_centre_total"]) for r in runs], color=colours)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("run")
     ax.set_ylabel("law's points off their\nspot's centre (run total)")
     ax.grid(True, axis="y", alpha=0.3)

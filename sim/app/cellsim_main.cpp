@@ -776,7 +776,11 @@ struct CampaignCommand {
     experiment::CampaignOptions o = flags.options(*cell);
     if (!shard.empty()) std::tie(o.shard_index, o.shard_count) = parse_shard(shard);
     std::printf("%s", experiment::run_campaign(*cell, o).c_str());
-    if (!flags.no_plot) experiment::plot_campaign(flags.dir, cell->scenario.name + " campaign");
+    // the title says where the points came from when they are not the decoder's own
+    const std::string source = experiment::to_string(o.source);
+    if (!flags.no_plot)
+      experiment::plot_campaign(flags.dir,
+                                cell->scenario.name + " campaign" + (source == "decoded" ? "" : ", " + source + " features"));
     return 0;
   }
 };

@@ -188,6 +188,7 @@ NOT_RUN = {
     "build/bin/cellsim study sim/scenarios/plane.yaml --axis outliers": "18 runs of up to 900 iterations",
     "bin/compare-features": "12 studies of 72 runs: 18 min",
     "bin/decode-heldout": "192 sweeps: 6 min (cli.decode_heldout runs a subset)",
+    "bin/feature-sources": "80 campaigns of 12 runs: 8 min (cli.feature_sources runs 15 short ones)",
     "ROS_DOMAIN_ID=": "the services, each in a terminal of its own (the closed_loop tests run them)",
     "ROS_SECURITY_KEYSTORE=": "the demo under DDS-Security (closed_loop.security runs it)",
     "build/bin/render_bench": "a benchmark: minutes, and timings are not asserted",

@@ -290,11 +290,16 @@ py::dict run_experiment_dict(const Scenario& s, const std::string& model, double
 // The environment, in the Gymnasium API's shape (without depending on Gymnasium).
 struct Env {
   Env(const Scenario& s, const std::string& observation, int max_steps, const std::string& model, double z_hat,
-      double gain, const std::string& robust, bool white_frame)
+      double gain, const std::string& robust, bool white_frame, const std::string& features)
       : scenario(s), images(observation == "image") {
     if (observation != "features" && observation != "image")
       throw py::value_error("observation must be 'features' or 'image', got '" + observation + "'");
     experiment::EnvOptions o;
+    o.source = experiment::parse_feature_source(features);
+    // the truth's sources render no frame: nothing to observe as an image, nothing to divide
+    if (loop::from_truth_alone(o.source) && (images || white_frame))
+      throw py::value_error(std::string(images ? "observation='image'" : "white_frame") +
+                            " needs features='decoded' or 'decoded-ids' (the truth renders no frame)");
     o.servo = servo_config(s, model, z_hat, gain, robust);
     o.servo.white_frame = white_frame;  // each frame decoded with its white reference frame
     o.max_steps = max_steps;
@@ -455,10 +460,10 @@ PYBIND11_MODULE(cellsim, m) {
   py::class_<Env>(m, "_ServoEnvCore",
                   "the environment's engine (ServoEnv, defined below in Python, is the public face)")
       .def(py::init<const Scenario&, const std::string&, int, const std::string&, double, double, const std::string&,
-                    bool>(),
+                    bool, const std::string&>(),
            py::arg("scenario"), py::arg("observation") = "features", py::arg("max_steps") = 300,
            py::arg("model") = "desired-constant-depth", py::arg("z_hat") = 0.0, py::arg("gain") = 0.5,
-           py::arg("robust") = "none", py::arg("white_frame") = false)
+           py::arg("robust") = "none", py::arg("white_frame") = false, py::arg("features") = "decoded")
       .def("reset", &Env::reset, py::arg("seed") = py::none(), py::arg("options") = py::none())
       .def("step", &Env::step, py::arg("twist"))
       .def("frame", &Env::frame)

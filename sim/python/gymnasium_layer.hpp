@@ -65,7 +65,7 @@ class ServoEnv(_Env):
     """The cell as an environment for a controller of yours, with Gymnasium's contract.
 
     ServoEnv(scenario, observation="features", max_steps=300, model="desired-constant-depth",
-             z_hat=0.0, gain=0.5, robust="none", render_mode=None, white_frame=False)
+             z_hat=0.0, gain=0.5, robust="none", render_mode=None, white_frame=False, features="decoded")
 
     reset(seed=None, options=None) -> (obs, info): teaches at the desired pose, sends the robot
         to an initial pose and starts. A seed draws that pose as a campaign of that seed draws
@@ -80,15 +80,22 @@ class ServoEnv(_Env):
     render(): the last frame (H x W x 3 uint8) with render_mode="rgb_array", else None.
     white_frame=True: beside each frame the white reference frame, and the features decoded from
         their ratio (the surface's albedo divided out; the observation image stays the frame).
+    features: where the matched spots come from, as cellsim campaign --features: "decoded" (the
+        frame decoded), "decoded-ids" (the decoder's ids at their true positions), "resolved" or
+        "ideal" (the simulator's truth, no frame: observation "features" only).
     info: see docs/python.md (error_norm, detected, decoded, ids, limited, the truth)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": None}
 
     def __init__(self, scenario, observation="features", max_steps=300, model="desired-constant-depth",
-                 z_hat=0.0, gain=0.5, robust="none", render_mode=None, white_frame=False):
+                 z_hat=0.0, gain=0.5, robust="none", render_mode=None, white_frame=False, features="decoded"):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self._core = _ServoEnvCore(scenario, observation, max_steps, model, z_hat, gain, robust, bool(white_frame))
+        if render_mode == "rgb_array" and features in ("ideal", "resolved"):
+            raise ValueError(f"render_mode='rgb_array' needs features='decoded' or 'decoded-ids' ({features!r}: the "
+                             "truth renders no frame)")
+        self._core = _ServoEnvCore(scenario, observation, max_steps, model, z_hat, gain, robust, bool(white_frame),
+                                   str(features))
         self.render_mode = render_mode
         self.metadata = dict(ServoEnv.metadata, render_fps=1.0 / scenario.dt)
         space = _gym.spaces.Box if _gym is not None else Box

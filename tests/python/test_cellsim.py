@@ -103,6 +103,23 @@ def test_the_env_decodes_with_the_white_frame_when_asked():
     assert decoded[True] > decoded[False] + 20, decoded
 
 
+def test_the_env_takes_its_features_from_any_source():
+    wedge = cellsim.Scenario(os.path.join(SRC, "sim", "scenarios", "compact", "wedge.yaml"))
+    seen = {}
+    for features in ("decoded", "decoded-ids", "resolved", "ideal"):
+        env = cellsim.ServoEnv(wedge, max_steps=2, features=features)
+        obs, info = env.reset(options={"initial_pose": "initial"})
+        seen[features] = int(obs[:, 4].sum())
+        env.close()
+    # the truth sees what the decoder cannot: the washed-out spots, and those it leaves unnamed
+    assert seen["decoded-ids"] <= seen["decoded"] < seen["resolved"] < seen["ideal"], seen
+    for bad in (dict(observation="image"), dict(white_frame=True), dict(render_mode="rgb_array")):
+        with pytest.raises(ValueError) as e:
+            cellsim.ServoEnv(wedge, features="resolved", **bad)
+        one_line(e)
+        assert "needs features='decoded' or 'decoded-ids'" in str(e.value), e.value
+
+
 def test_one_servo_iteration_from_python(plane):
     servo = cellsim.Servo(plane, z_hat=0.9)
     assert servo.teach(plane.render("desired")[0]) > 100

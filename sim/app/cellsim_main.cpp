@@ -312,13 +312,13 @@ struct LawFlags {
   }
 };
 
-// The errors a real cell has (issue 13): settings on top of the scenario's errors: and latency:.
 // where the law's points come from (loop::FeatureSource)
 constexpr const char* kFeaturesHelp =
     "decoded | ideal (the simulator's true image positions of every visible spot) | resolved (those of the visible "
     "spots the projector's defocus leaves apart: what a perfect decoder could name) | decoded-ids (the spots the "
     "decoder names, each at its id's true image position: which spots from the decoder, where from the truth)";
 
+// The errors a real cell has (issue 13): settings on top of the scenario's errors: and latency:.
 struct ConditionFlags {
   std::vector<std::string> errors, latencies;
   double divergence_ratio = 0;
@@ -359,7 +359,7 @@ struct ConditionFlags {
         ->check(common::finite_in(0, 1))
         ->capture_default_str();
   }
-  // the white frame is a decoded run's: the ideal features take no image
+  // the white frame is a decoded run's: the truth's sources (ideal, resolved) take no image
   void check_white_frame(const std::string& source) const {
     if (white_frame && (source == "ideal" || source == "resolved"))
       throw std::invalid_argument("--white-frame needs --features decoded or decoded-ids");

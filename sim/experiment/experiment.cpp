@@ -367,8 +367,8 @@ class Experiment {
   }
 
   // The frame's image with the ids the servo decoded in it (the paper's Fig. 4a-b; plot_trace.py
-  // puts them beside the velocities and |e| in fig4.png). Only for decoded features: ideal ones
-  // are the simulator's truth, not read from an image.
+  // puts them beside the velocities and |e| in fig4.png). Only where an image was decoded
+  // (decoded features, decoded ids): the truth's sources read none.
   void write_overlay(const loop::LoopExchange& x, const char* name) const {
     if (o_.out_dir.empty() || x.image.empty() || !x.reply.spots) return;
     vision::DecodeResult r;

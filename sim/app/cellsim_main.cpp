@@ -361,7 +361,7 @@ struct ConditionFlags {
   }
   // the white frame is a decoded run's: the truth's sources (ideal, resolved) take no image
   void check_white_frame(const std::string& source) const {
-    if (white_frame && (source == "ideal" || source == "resolved"))
+    if (white_frame && loop::from_truth_alone(experiment::parse_feature_source(source)))
       throw std::invalid_argument("--white-frame needs --features decoded or decoded-ids");
     if (white_frame_lead > 0 && !white_frame) throw std::invalid_argument("--white-frame-lead needs --white-frame");
   }
@@ -777,10 +777,9 @@ struct CampaignCommand {
     if (!shard.empty()) std::tie(o.shard_index, o.shard_count) = parse_shard(shard);
     std::printf("%s", experiment::run_campaign(*cell, o).c_str());
     // the title says where the points came from when they are not the decoder's own
-    const std::string source = experiment::to_string(o.source);
-    if (!flags.no_plot)
-      experiment::plot_campaign(flags.dir,
-                                cell->scenario.name + " campaign" + (source == "decoded" ? "" : ", " + source + " features"));
+    const std::string from =
+        o.source == loop::FeatureSource::kDecoded ? "" : ", " + experiment::to_string(o.source) + " features";
+    if (!flags.no_plot) experiment::plot_campaign(flags.dir, cell->scenario.name + " campaign" + from);
     return 0;
   }
 };

@@ -23,4 +23,6 @@ one_line_error "an unknown scene" "unknown" run -o "$tmp/u" --scenes plane,teapo
 [ ! -e "$tmp/u" ] || fail "an unknown scene made its output folder"
 one_line_error "two models" "one model" run -o "$tmp/m" --model desired,current
 [ ! -e "$tmp/m" ] || fail "a list of models made its output folder"
+one_line_error "runs that are no number" "--runs" run -o "$tmp/n" --runs nan
+[ ! -e "$tmp/n" ] || fail "a bad --runs made its output folder"
 echo "feature-sources: 15 campaigns as named, table and plot written; bad arguments refused"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # bin/decode-heldout as a user runs it (issue 41, Held-out test), on 2 poses a case: every
 # scene and condition swept, the table, the CSV and the plot written; an existing output
-# folder refused, nothing written over.
+# folder refused, nothing written over; a run compared with an earlier one (--against), and
+# the earlier runs it cannot be compared with refused.
 set -u
 src="$1"; build="$2"
 source "$(dirname "$0")/lib.sh"
@@ -46,13 +47,30 @@ grep -q -- "--pattern servo/pattern/data/marray_20x20_k3_w3.txt" "$tmp/q/decode.
 one_line_error "a file that is no pattern" "README.md" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/r" \
   --poses 1 --set tuning --conditions grey --pattern "$src/README.md"
 [ "$(($(wc -l <"$tmp/q/decode.csv") - 1))" -eq 22 ] || fail "not 11 scenes x 1 condition x 2 with the paper's pattern"
-# the white reference frame for every sweep: the table says so, and printed cases name more
+# the white reference frame for every sweep, against the first run (the same frames): the table
+# says so, printed cases name more, and the comparison counts what the two tables hold
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/w" --poses 2 --set tuning --conditions printed \
-  --white-frame 2>&1) || fail "decode-heldout --white-frame: $out"
+  --white-frame --against "$tmp/h" 2>&1) || fail "decode-heldout --white-frame --against: $out"
 grep -q -- "--white-frame" "$tmp/w/decode.md" || fail "the table does not say the white frame was taken"
 more=$(awk -F, 'NR == FNR { if (FNR > 1) a[$2 "," $3 "," $4] = $7; next } FNR > 1 && $7 > a[$2 "," $3 "," $4] { n++ } END { print n + 0 }' \
   "$tmp/h/decode.csv" "$tmp/w/decode.csv")
 [ "$more" -ge 8 ] || fail "with the white frame only $more of the 12 printed tuning cases name more spots"
+for f in run.json against.md against.csv against.png; do [ -s "$tmp/w/$f" ] || fail "--against wrote no $f"; done
+grep -q -- "--white-frame\` against \`bin/decode-heldout --poses 2 --seed 1\`" "$tmp/w/against.md" ||
+  fail "against.md does not name both runs: $(head -1 "$tmp/w/against.md")"
+[ "$(($(wc -l <"$tmp/w/against.csv") - 1))" -eq 22 ] || fail "against.csv: not the 22 printed tuning cases"
+gained=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+  $col["identified_after"] > $col["identified_before"] { n++ } END { print n + 0 }' "$tmp/w/against.csv")
+[ "$gained" -eq "$more" ] || fail "against.csv has $gained cases naming more, the two tables $more"
+# an earlier run of other frames, or no run, or a table that is not one: one line, nothing written
+one_line_error "--against a run of another pattern" "not the same frames" env BUILD_DIR="$build" \
+  "$src/bin/decode-heldout" -o "$tmp/a1" --poses 1 --set tuning --conditions grey --against "$tmp/q"
+one_line_error "--against no folder" "not a folder" env BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/a2" \
+  --poses 2 --against "$tmp/none"
+cp -r "$tmp/h" "$tmp/hb" && sed -i '3s/^\([a-z]*,[a-z]*,[a-z]*,[a-z]*,2,\)[0-9]*/\1x/' "$tmp/hb/decode.csv"
+one_line_error "--against a table with a bad count" "line 3: readable is not a whole number" env BUILD_DIR="$build" \
+  "$src/bin/decode-heldout" -o "$tmp/a3" --poses 2 --against "$tmp/hb"
+for d in a1 a2 a3; do [ ! -e "$tmp/$d" ] || fail "a refused --against made its output folder $d"; done
 # a decoder number set for every sweep: the table names it; one that is none stops the first sweep in one line
 out=$(BUILD_DIR="$build" "$src/bin/decode-heldout" -o "$tmp/o" --poses 1 --set tuning --conditions grey \
   --decoder-option growth.faintest=0 2>&1) || fail "decode-heldout --decoder-option: $out"

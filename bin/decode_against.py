@@ -148,11 +148,66 @@ def compare(rows, base):
     return same, differ
 
 
+def case_folder(root, key):
+    """Where decode-heldout's sweep of a case writes its tables (sweep.csv, wrong_ids.csv)."""
+    set_name, shape, condition, cal = key
+    return os.path.join(root, set_name, shape, condition, f"{shape}_{condition}" + ("_cal" if cal == "yes" else ""))
+
+
+def _wrong_ids(path):
+    """A sweep's wrong ids as {(pose, row, col): (nearest spot's row, col)}; Refused if the
+    table is not one."""
+    text = _read_regular(path, MAX_CSV_BYTES, "wrong_ids.csv")
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    cols = ("pose", "row", "col", "nearest_visible_row", "nearest_visible_col")
+    if any(c not in (reader.fieldnames or []) for c in cols):
+        raise Refused("wrong_ids.csv: not a table of wrong ids")
+    out = {}
+    for n, r in enumerate(reader, start=2):
+        if not all(re.fullmatch(r"-?[0-9]{1,9}", r[c] or "") for c in cols):
+            raise Refused(f"wrong_ids.csv: line {n}: not whole numbers")
+        out[(int(r["pose"]), int(r["row"]), int(r["col"]))] = (int(r["nearest_visible_row"]), int(r["nearest_visible_col"]))
+    return out
+
+
+def wrong_id_changes(same, out_dir, base_dir):
+    """Per case whose wrong ids differ in number or in which: those taken out and those new, each
+    (key, pose, id, the spot it lay on); and the cases whose tables could not be read, with why."""
+    gone, new, unread = [], [], []
+    for c in same:
+        key = tuple(c[k] for k in KEY)
+        if c["wrong_ids_before"] == 0 and c["wrong_ids_after"] == 0:
+            continue
+        try:
+            before = _wrong_ids(os.path.join(case_folder(base_dir, key), "wrong_ids.csv"))
+        except Refused as e:
+            unread.append((key, f"the earlier run's {e}"))
+            continue
+        try:
+            after = _wrong_ids(os.path.join(case_folder(out_dir, key), "wrong_ids.csv"))
+        except Refused as e:
+            unread.append((key, f"this run's {e}"))
+            continue
+        gone += [(key, k, before[k]) for k in sorted(set(before) - set(after))]
+        new += [(key, k, after[k]) for k in sorted(set(after) - set(before))]
+    return gone, new, unread
+
+
+def _wrong_table(title, items):
+    if not items:
+        return ""
+    out = [f"\n**{title}** ({len(items)})\n\n| set | shape | condition | calibration | pose | id named | "
+           "the spot it lay on |\n|---|---|---|---|---|---|---|\n"]
+    for key, (pose, row, col), spot in items:
+        out.append(f"| {' | '.join(key)} | {pose} | ({row}, {col}) | ({spot[0]}, {spot[1]}) |\n")
+    return "".join(out)
+
+
 def _n(x):
     return f"{x:,}".replace(",", " ")
 
 
-def markdown(same, differ, base, run, folder):
+def markdown(same, differ, base, run, folder, changes=((), (), ())):
     out = [f"`{command_of(run)}` against `{command_of(base)}` (`{folder}`): the same frames, {len(same)} cases\n",
            "\n| set | calibration | identified before → after | change | wrong ids | mislocated | spills "
            "| spills reaching the law | wrong ids reaching the law |\n|---|---|---|---|---|---|---|---|---|\n"]
@@ -177,6 +232,11 @@ def markdown(same, differ, base, run, folder):
                        f"{_n(c['identified_before'])} → {_n(c['identified_after'])} | {c['change_points']:+.2f} | "
                        f"{c['wrong_ids_before']} → {c['wrong_ids_after']} | "
                        f"{c['to_law_partial_before']} → {c['to_law_partial_after']} |\n")
+    gone, new, unread = changes
+    out.append(_wrong_table("Wrong ids taken out", gone))
+    out.append(_wrong_table("Wrong ids new", new))
+    for key, why in unread:
+        out.append(f"\nThe wrong ids of {' '.join(key)} not compared: {why}.\n")
     out.append(f"\n{len(same) - len(changed)} cases unchanged, count for count.\n")
     if differ:
         out.append(f"\nNot compared, their readable spots differ (not the same frames): "

@@ -103,3 +103,28 @@ def test_a_table_without_a_count_or_too_large_or_sharing_no_case_is_refused(tmp_
     refused(d, "decode.csv: no column identified")
     (d / "decode.csv").write_bytes(b"a" * (da.MAX_CSV_BYTES + 1))
     refused(d, f"decode.csv: more than {da.MAX_CSV_BYTES} bytes")
+
+
+def wrong_ids(root, key, rows):
+    folder = da.case_folder(str(root), key)
+    os.makedirs(folder)
+    with open(os.path.join(folder, "wrong_ids.csv"), "w") as f:
+        f.write("pose,row,col,u,v,nearest_visible_row,nearest_visible_col,nearest_visible_px,named_visible,named_px,step\n")
+        for pose, r, c, nr, nc in rows:
+            f.write(f"{pose},{r},{c},1.0,2.0,{nr},{nc},0.5,1,6.0,6\n")
+
+
+def test_which_wrong_ids_a_change_took_out_and_which_it_added_are_listed(tmp_path):
+    ham, egg = ("tuning", "ham", "grey", "yes"), ("tuning", "egg", "grey", "yes")
+    wrong_ids(tmp_path / "base", ham, [(3, 9, 11, 10, 14), (7, 1, 2, 3, 4)])
+    wrong_ids(tmp_path / "now", ham, [(7, 1, 2, 3, 4), (8, 5, 5, 6, 6)])
+    wrong_ids(tmp_path / "base", egg, [(1, 2, 3, 4, 5)])
+    os.makedirs(da.case_folder(str(tmp_path / "now"), egg))
+    (tmp_path / "now" / "tuning" / "egg" / "grey" / "egg_grey_cal" / "wrong_ids.csv").write_text("pose,row\n1,2\n")
+    same = [{**dict(zip(da.KEY, key)), "wrong_ids_before": 2, "wrong_ids_after": 2} for key in (ham, egg)]
+    gone, new, unread = da.wrong_id_changes(same, str(tmp_path / "now"), str(tmp_path / "base"))
+    assert gone == [(ham, (3, 9, 11), (10, 14))] and new == [(ham, (8, 5, 5), (6, 6))]
+    assert unread == [(egg, "this run's wrong_ids.csv: not a table of wrong ids")]
+    text = da.markdown([], [], RUN, RUN, "base", (gone, new, unread))
+    assert "| tuning | ham | grey | yes | 3 | (9, 11) | (10, 14) |" in text
+    assert "**Wrong ids new** (1)" in text and "The wrong ids of tuning egg grey yes not compared" in text

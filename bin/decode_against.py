@@ -130,16 +130,18 @@ def load(folder, run, cases):
 
 
 def compare(rows, base):
-    """Per case both runs swept: the counts before and after. Cases whose readable spots differ
-    (not the same frames: another simulator or scene) are returned apart, not compared."""
+    """Per case both runs swept: the counts before and after. The cases not compared are returned
+    apart, each with why: not in the earlier run, or its readable spots differ (other frames:
+    another simulator or scene)."""
     same, differ = [], []
     for r in rows:
         key = tuple(r[c] for c in KEY)
         if key not in base:
+            differ.append(key + ("not in it",))
             continue
         b = base[key]
         if b["readable"] != int(r["readable"]):
-            differ.append(key)
+            differ.append(key + ("other frames",))
             continue
         same.append({**{c: r[c] for c in KEY}, "readable": b["readable"],
                      **{f"{c}_before": b[c] for c in COUNTS[1:]},
@@ -238,9 +240,11 @@ def markdown(same, differ, base, run, folder, changes=((), (), ())):
     for key, why in unread:
         out.append(f"\nThe wrong ids of {' '.join(key)} not compared: {why}.\n")
     out.append(f"\n{len(same) - len(changed)} cases unchanged, count for count.\n")
-    if differ:
-        out.append(f"\nNot compared, their readable spots differ (not the same frames): "
-                   f"{', '.join(' '.join(k) for k in differ)}.\n")
+    for why, what in (("not in it", "not in the earlier run"),
+                      ("other frames", "their readable spots differ, not the same frames")):
+        cases = [" ".join(k[:4]) for k in differ if k[4] == why]
+        if cases:
+            out.append(f"\nNot compared, {what} ({len(cases)}): {', '.join(cases)}.\n")
     return "".join(out)
 
 
@@ -253,7 +257,7 @@ def plot(same, path, title, save, plt):
                           (c["change_points"] != 0 or c["wrong_ids_before"] != c["wrong_ids_after"])),
                          key=lambda c: -abs(c["change_points"])) for p in panels}
     shown = {p: v[:15] for p, v in changed.items()}
-    rows = max([len(v) for v in shown.values()] + [1])
+    rows = max([len(v) for v in shown.values()] + [4])
     fig, axes = plt.subplots(1, len(panels), figsize=(5.4 * len(panels), 0.32 * rows + 1.8), squeeze=False)
     for ax, p in zip(axes[0], panels):
         cs = shown[p]
@@ -269,7 +273,8 @@ def plot(same, path, title, save, plt):
             if m:
                 label.set_color("#b00000")
         ax.invert_yaxis()
-        ax.axvline(0, color="black", lw=0.8)
+        if cs:
+            ax.axvline(0, color="black", lw=0.8)
         ax.set_xlabel("change in readable spots identified (points)")
         unchanged = sum(1 for c in same if (c["set"], c["calibration"]) == p) - len(changed[p])
         largest = f"; the {len(cs)} largest of {len(changed[p])} changes" if len(changed[p]) > len(cs) else ""

@@ -49,13 +49,17 @@ def test_the_same_frames_are_compared_case_by_case_and_a_case_whose_frames_diffe
     assert base == RUN and set(rows) == CASES
     now = [row(identified=95, wrong=1), row(cal="no", identified=50), row(shape="egg", readable=81)]
     same, differ = da.compare(now, rows)
-    assert differ == [("tuning", "egg", "grey", "yes")]
+    assert differ == [("tuning", "egg", "grey", "yes", "other frames")]
     ham = next(c for c in same if c["calibration"] == "yes")
     assert (ham["identified_before"], ham["identified_after"], ham["change_points"]) == (90, 95, 5.0)
     assert (ham["wrong_ids_before"], ham["wrong_ids_after"]) == (0, 1)
     text = da.markdown(same, differ, base, {**RUN, "decoder_option": ["growth.faintest=0"]}, str(d))
     assert "| tuning | yes | 90 → 95 | +5.556 % | 0 → 1 |" in text, text
-    assert "1 cases unchanged" in text and "Not compared" in text and "tuning egg grey yes" in text
+    assert "1 cases unchanged" in text and "not the same frames (1): tuning egg grey yes." in text
+    # a case of this run the earlier one did not sweep is named, not compared
+    same, differ = da.compare(now + [row(shape="cone")], rows)
+    assert differ[-1] == ("tuning", "cone", "grey", "yes", "not in it")
+    assert "Not compared, not in the earlier run (1): tuning cone grey yes." in da.markdown(same, differ, base, RUN, str(d))
     assert "--decoder-option growth.faintest=0` against `bin/decode-heldout --poses 2 --seed 1`" in text
 
 

@@ -72,8 +72,8 @@ def _settings(folder):
     text = _read_regular(os.path.join(folder, "run.json"), MAX_JSON_BYTES, "run.json")
     try:
         s = json.loads(text)
-    except ValueError as e:
-        raise Refused(f"run.json: not JSON ({e})") from None
+    except (ValueError, RecursionError) as e:  # (nested deeper than Python's stack: no run.json we wrote)
+        raise Refused(f"run.json: not JSON ({str(e).splitlines()[0]})") from None
     if not isinstance(s, dict):
         raise Refused("run.json: not a JSON object")
     for k, kind in SETTINGS.items():
@@ -87,24 +87,35 @@ def _settings(folder):
     return {k: s[k] for k in SETTINGS}
 
 
+def _table(path, name, columns, lacking=None):
+    """A CSV file's rows as (line, {column: text}), every named column there; a row short of a
+    column reads it as ''. Refused when the file is not such a table (csv's own errors too: a NUL,
+    a field past its limit)."""
+    text = _read_regular(path, MAX_CSV_BYTES, name)
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        missing = [c for c in columns if c not in (reader.fieldnames or [])]
+        if missing:
+            raise Refused(f"{name}: {lacking or f'no column {missing[0]}'}")
+        return [(n, {c: r[c] or "" for c in columns}) for n, r in enumerate(reader, start=2)]
+    except csv.Error as e:
+        raise Refused(f"{name}: not a table ({e})") from None
+
+
 def _rows(folder, poses):
     """decode.csv's cases, each swept at `poses` (run.json's: a table from another run is refused)."""
-    text = _read_regular(os.path.join(folder, "decode.csv"), MAX_CSV_BYTES, "decode.csv")
-    reader = csv.DictReader(io.StringIO(text, newline=""))
-    missing = [c for c in KEY + ("poses",) + COUNTS if c not in (reader.fieldnames or [])]
-    if missing:
-        raise Refused(f"decode.csv: no column {missing[0]}")
+    table = _table(os.path.join(folder, "decode.csv"), "decode.csv", KEY + ("poses",) + COUNTS)
     rows = {}
-    for n, r in enumerate(reader, start=2):
+    for n, r in table:
         key = tuple(r[c] for c in KEY)
-        if not (key[0] in ("tuning", "heldout") and re.fullmatch(r"[a-z_]{1,40}", key[1] or "") and
-                re.fullmatch(r"[a-z]{1,20}", key[2] or "") and key[3] in ("yes", "no")):
+        if not (key[0] in ("tuning", "heldout") and re.fullmatch(r"[a-z_]{1,40}", key[1]) and
+                re.fullmatch(r"[a-z]{1,20}", key[2]) and key[3] in ("yes", "no")):
             raise Refused(f"decode.csv: line {n}: not a case of decode-heldout")
         if r["poses"] != str(poses):
             raise Refused(f"decode.csv: line {n}: swept at {r['poses'][:20]!r} poses where run.json says {poses}")
         counts = {}
         for c in COUNTS:
-            if not re.fullmatch(r"[0-9]{1,12}", r[c] or ""):
+            if not re.fullmatch(r"[0-9]{1,12}", r[c]):
                 raise Refused(f"decode.csv: line {n}: {c} is not a whole number")
             counts[c] = int(r[c])
         if key in rows:
@@ -151,7 +162,8 @@ def compare(rows, base):
 
 
 def case_folder(root, key):
-    """Where decode-heldout's sweep of a case writes its tables (sweep.csv, wrong_ids.csv)."""
+    """Where decode-heldout's sweep of a case writes its tables (sweep.csv, wrong_ids.csv): decode-heldout
+    sweeps into it, and the comparison reads the earlier run's from it."""
     set_name, shape, condition, cal = key
     return os.path.join(root, set_name, shape, condition, f"{shape}_{condition}" + ("_cal" if cal == "yes" else ""))
 
@@ -159,14 +171,10 @@ def case_folder(root, key):
 def _wrong_ids(path):
     """A sweep's wrong ids as {(pose, row, col): (nearest spot's row, col)}; Refused if the
     table is not one."""
-    text = _read_regular(path, MAX_CSV_BYTES, "wrong_ids.csv")
-    reader = csv.DictReader(io.StringIO(text, newline=""))
     cols = ("pose", "row", "col", "nearest_visible_row", "nearest_visible_col")
-    if any(c not in (reader.fieldnames or []) for c in cols):
-        raise Refused("wrong_ids.csv: not a table of wrong ids")
     out = {}
-    for n, r in enumerate(reader, start=2):
-        if not all(re.fullmatch(r"-?[0-9]{1,9}", r[c] or "") for c in cols):
+    for n, r in _table(path, "wrong_ids.csv", cols, lacking="not a table of wrong ids"):
+        if not all(re.fullmatch(r"-?[0-9]{1,9}", r[c]) for c in cols):
             raise Refused(f"wrong_ids.csv: line {n}: not whole numbers")
         out[(int(r["pose"]), int(r["row"]), int(r["col"]))] = (int(r["nearest_visible_row"]), int(r["nearest_visible_col"]))
     return out

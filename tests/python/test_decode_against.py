@@ -80,6 +80,8 @@ def test_what_is_no_earlier_run_is_refused_in_one_line(tmp_path):
     refused(d, "'poses' missing or not a whole number")
     (d / "run.json").write_text("[1, 2]")
     refused(d, "not a JSON object")
+    (d / "run.json").write_text("[" * 20000 + "]" * 20000)  # deeper than Python's stack
+    refused(d, "run.json: not JSON")
     (d / "run.json").write_text(json.dumps(RUN))
     os.mkfifo(d / "decode.csv.fifo")
     (d / "decode.csv").unlink()
@@ -103,6 +105,13 @@ def test_a_table_that_is_not_one_is_refused_naming_its_line(tmp_path, change, ex
 def test_a_table_without_a_count_or_too_large_or_sharing_no_case_is_refused(tmp_path):
     d = earlier(tmp_path, [row(shape="box")])
     refused(d, "no case of this run is in its decode.csv")
+    with open(d / "decode.csv", "a") as f:
+        f.write("tuning,ham,grey,yes\n")  # a row short of its counts
+    refused(d, "line 3: swept at '' poses")
+    (d / "decode.csv").write_bytes(b"set,shape\n\0\n")
+    refused(d, "decode.csv:")
+    (d / "decode.csv").write_text(",".join(COLUMNS) + "\n" + "x" * 200000 + "\n")  # a field past csv's limit
+    refused(d, "decode.csv: not a table")
     (d / "decode.csv").write_text("set,shape,condition,calibration,poses,readable\n")
     refused(d, "decode.csv: no column identified")
     (d / "decode.csv").write_bytes(b"a" * (da.MAX_CSV_BYTES + 1))

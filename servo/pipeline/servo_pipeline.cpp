@@ -54,7 +54,7 @@ std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::opti
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());
-  for (const auto& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line});
+  for (const auto& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line, d.clipped});
   return out;
 }
 
@@ -64,7 +64,7 @@ std::vector<control::Feature> ServoPipeline::features(const std::vector<ImageSpo
   out.reserve(spots.size());
   const std::optional<Eigen::Isometry3d> at = geometry_pose(config_.projector, wTc);
   for (const ImageSpot& s : spots) {
-    if (s.off_line) continue;
+    if (s.apart()) continue;
     const Eigen::Vector2d xy = calibration::normalise(config_.camera, {s.u, s.v});
     control::Feature f{s.row, s.col, xy.x(), xy.y(), std::nullopt, std::nullopt};
     if (at && config_.projector) f.z = control::triangulate_depth(xy, s.row, s.col, *config_.projector, *at);

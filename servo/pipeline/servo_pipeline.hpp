@@ -60,9 +60,11 @@ struct ServoConfig {
 struct ImageSpot {
   int row = 0, col = 0;
   double u = 0, v = 0;
-  // the decoder found it off its id's epipolar line (vision::DecodedSpot::off_line): the right
-  // id, but not where the spot's centre is; it is no feature of the law
-  bool off_line = false;
+  // the decoder found it off its id's epipolar line (vision::DecodedSpot::off_line), or its
+  // blob clipped (vision::DecodedSpot::clipped): the right id, but not where the spot's centre
+  // is; it is no feature of the law
+  bool off_line = false, clipped = false;
+  bool apart() const { return off_line || clipped; }
 };
 
 struct StepResult {

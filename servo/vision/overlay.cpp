@@ -44,7 +44,7 @@ cv::Mat draw_overlay(const cv::Mat& rgb, const DecodeResult& result) {
   std::vector<cv::Rect> taken;
   for (const DecodedSpot& d : result.decoded) {
     // orange: named, but off its epipolar line (a spill, a split spot), kept from the law
-    const cv::Scalar ring = d.off_line ? kOffLine : cv::Scalar(255, 255, 255);
+    const cv::Scalar ring = d.apart() ? kOffLine : cv::Scalar(255, 255, 255);
     cv::circle(out, at(d.u, d.v), kRing * 16, ring, 1, cv::LINE_AA, kShift);
     const std::string label = std::to_string(d.row) + "," + std::to_string(d.col);
     int baseline = 0;

@@ -36,6 +36,14 @@ struct DecodedSpot {
   // the spot's centre is: its light past a silhouette on the surface behind, or a spot split by
   // a depth edge. It is reported, and kept out of the control law.
   bool off_line = false;
+  // Named by the grown lattice (step 6) on a blob smaller than GrowthOptions::unlike of its
+  // sources' mean area: the id's footprint clipped by an edge, its light a part of the spot's
+  // (the box's spot cut by its edge on the projector's side, whose part that passes lights the
+  // table where the table's lattice puts the id). The id is right and reported, but the blob's
+  // centroid is not the spot's centre: kept out of the control law, as an off-line spot is.
+  bool clipped = false;
+  // no feature of the control law: the servo keeps it apart
+  bool apart() const { return off_line || clipped; }
 };
 
 // The four main directions of the adjacency graph, in image terms (rows grow downwards).

@@ -147,7 +147,7 @@ std::vector<char> score_ids(SweepRow& row, const vision::DecodeResult& r, const 
   for (std::size_t k = 0; k < r.decoded.size(); ++k) {
     const vision::DecodedSpot& d = r.decoded[k];
     const bool held = !off_taught.empty() && off_taught[k];
-    const bool to_law = !d.off_line && taught.ids[at(d.row, d.col)] && !held;
+    const bool to_law = !d.apart() && taught.ids[at(d.row, d.col)] && !held;
     row.to_law += to_law;
     row.off_taught += held;
     const sim::SpotTruth* nearest = nullptr;
@@ -470,7 +470,7 @@ vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const Shot
 std::vector<servo::ImageSpot> image_spots(const vision::DecodeResult& r) {
   std::vector<servo::ImageSpot> out;
   out.reserve(r.decoded.size());
-  for (const vision::DecodedSpot& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line});
+  for (const vision::DecodedSpot& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line, d.clipped});
   return out;
 }
 
@@ -488,7 +488,7 @@ Taught teach(const sim::Cell& cell, const SweepOptions& o, const vision::Decoder
   Taught t;
   t.ids.assign(static_cast<std::size_t>(pattern.rows) * pattern.cols, 0);
   for (const vision::DecodedSpot& d : r.decoded)
-    if (!d.off_line) t.ids[static_cast<std::size_t>(d.row) * pattern.cols + d.col] = 1;
+    if (!d.apart()) t.ids[static_cast<std::size_t>(d.row) * pattern.cols + d.col] = 1;
   if (o.projector && o.taught_points) {
     servo::ServoConfig config;
     config.decoder = decoder_options;
@@ -511,7 +511,7 @@ std::vector<char> held_by_taught_points(const vision::DecodeResult& r, const Tau
   std::vector<char> off(r.decoded.size(), 0);
   std::size_t i = 0;
   for (std::size_t k = 0; k < r.decoded.size(); ++k)
-    if (!r.decoded[k].off_line) off[k] = c.off[i++];
+    if (!r.decoded[k].apart()) off[k] = c.off[i++];
   return off;
 }
 

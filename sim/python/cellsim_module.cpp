@@ -3,7 +3,7 @@
 //   import cellsim
 //   s = cellsim.Scenario("sim/scenarios/plane.yaml")
 //   image, truth = s.render("initial")            # H x W x 3 uint8, dict of arrays
-//   spots = s.decoder().decode(image)              # dict of arrays: row, col, u, v, off_line
+//   spots = s.decoder().decode(image)              # dict of arrays: row, col, u, v, off_line, clipped
 //   env = cellsim.ServoEnv(s, max_steps=300)       # the Gymnasium API's shape
 // Bad input (a wrong dtype or shape, a NaN twist, a bad file) raises ValueError or
 // RuntimeError with a one-line message; nothing crashes.
@@ -174,6 +174,9 @@ py::dict spots_dict(const std::vector<servo::ImageSpot>& spots, int detected) {
   d["v"] = column<double>(spots, [](const S& s) { return s.v; });
   // off its id's epipolar line (the frame's own, fitted to its spots): no feature of the law
   d["off_line"] = column<bool>(spots, [](const S& s) { return s.off_line; });
+  // named by the grown lattice on a blob smaller than its sources (a clipped footprint): no
+  // feature of the law either
+  d["clipped"] = column<bool>(spots, [](const S& s) { return s.clipped; });
   d["detected"] = detected;
   return d;
 }

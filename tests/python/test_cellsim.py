@@ -44,6 +44,9 @@ def test_decoding_an_image_array_gives_the_spots_with_their_ids(plane):
     # the plane's spots all lie on the lines fitted to them: none kept from the law
     assert spots["off_line"].dtype == bool and len(spots["off_line"]) == len(spots["row"])
     assert not spots["off_line"].any()
+    # and its blobs are whole: none clipped
+    assert spots["clipped"].dtype == bool and len(spots["clipped"]) == len(spots["row"])
+    assert not spots["clipped"].any()
     visible = {(int(r), int(c)): (u, v) for r, c, u, v, vis in
                zip(truth["row"], truth["col"], truth["u"], truth["v"], truth["visible"]) if vis}
     for r, c, u, v in zip(spots["row"], spots["col"], spots["u"], spots["v"]):

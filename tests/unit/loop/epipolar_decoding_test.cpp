@@ -308,6 +308,22 @@ TEST(EpipolarDecoding, TheGrownLatticeNamesThePlaneFromAnIslandOnlyWhereSourcesC
   const vision::EpipolarCheck check2(g, recoloured);
   for (const auto& d : grow(recoloured, check2, seeds)) EXPECT_NE(d.spot, victim);
 
+  // a spot as bright as its sources but half their area is a clipped footprint: named, once
+  // its row neighbours are, and kept from the law (DecodedSpot::clipped); no spot of the whole
+  // plane is clipped
+  for (const auto& d : grown) EXPECT_FALSE(d.clipped) << d.row << ',' << d.col;
+  std::vector<vision::Spot> shrunk = spots;
+  shrunk[victim].area_px /= 2;
+  const vision::EpipolarCheck check3(g, shrunk);
+  const auto with_clipped = grow(shrunk, check3, seeds);
+  const auto named = std::find_if(with_clipped.begin(), with_clipped.end(), [&](const auto& d) { return d.spot == victim; });
+  ASSERT_NE(named, with_clipped.end());
+  EXPECT_EQ(named->row, 12);
+  EXPECT_EQ(named->col, 9);
+  EXPECT_TRUE(named->clipped);
+  EXPECT_TRUE(named->apart());
+  EXPECT_EQ(std::count_if(with_clipped.begin(), with_clipped.end(), [](const auto& d) { return d.clipped; }), 1);
+
   // a lone identified spot is one source for each neighbour, and has no step: nothing grows
   std::vector<vision::DecodedSpot> one{seeds.front()};
   EXPECT_EQ(grow(spots, check, one).size(), 1u);

@@ -337,8 +337,8 @@ TEST_F(Frames, ASafeStopThatLastsStopsTheServo) {
   EXPECT_FALSE(next(initial).twist.isZero());
 }
 
-// A spot the decoder found off its epipolar line (a spill, a split spot) is reported but is no
-// feature of the law: neither taught into s* nor matched (vision::DecodedSpot::off_line).
+// A spot the decoder found off its epipolar line (a spill, a split spot) or clipped is reported
+// but is no feature of the law: neither taught into s* nor matched (vision::DecodedSpot::apart).
 TEST_F(Frames, ASpotOffItsLineIsReportedButIsNoFeature) {
   ServoConfig c;
   c.law.z_hat_m = 0.9;
@@ -353,13 +353,12 @@ TEST_F(Frames, ASpotOffItsLineIsReportedButIsNoFeature) {
   EXPECT_EQ(p.teach(spots, std::nullopt), static_cast<int>(spots.size()) - 1);
   spots[3].off_line = false;  // on its line now: not in s*, so still no match
   spots[4].off_line = true;
+  spots[5].clipped = true;  // a clipped footprint (vision::DecodedSpot::clipped) is no feature either
   const StepResult r = p.step(spots, std::nullopt);
   EXPECT_EQ(r.decoded, static_cast<int>(spots.size()));
-  EXPECT_EQ(r.matched.size(), spots.size() - 2);
-  for (const auto& m : r.matched) {
-    EXPECT_FALSE(m.row == spots[3].row && m.col == spots[3].col);
-    EXPECT_FALSE(m.row == spots[4].row && m.col == spots[4].col);
-  }
+  EXPECT_EQ(r.matched.size(), spots.size() - 3);
+  for (const auto& m : r.matched)
+    for (const int k : {3, 4, 5}) EXPECT_FALSE(m.row == spots[k].row && m.col == spots[k].col) << k;
 }
 
 }  // namespace

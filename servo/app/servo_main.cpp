@@ -225,7 +225,8 @@ void write_decode_json(const std::string& json_file, const std::string& image, c
   j["spots"] = nlohmann::json::array();
   for (const auto& d : r.decoded)
     j["spots"].push_back(
-        {{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}, {"by", static_cast<int>(d.by)}, {"off_line", d.off_line}, {"clipped", d.clipped}});
+        {{"row", d.row}, {"col", d.col}, {"u", d.u}, {"v", d.v}, {"by", static_cast<int>(d.by)}, {"off_line", d.off_line},
+         {"clipped", d.clipped}});
   j["detected"] = r.detected.size();
   j["blobs"] = nlohmann::json::array();
   for (std::size_t b = 0; b < r.detected.size(); ++b) {

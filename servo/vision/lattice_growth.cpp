@@ -292,6 +292,8 @@ std::vector<DecodedSpot> grow_lattice(const std::vector<Spot>& spots, AdjacencyG
       if (outcomes) (*outcomes)[j] = outcome;
       if (outcome != GrowthOutcome::kNamed) continue;
       decoded.push_back({pr.first.id.row, pr.first.id.col, spots[j].u, spots[j].v, static_cast<int>(j), NamedBy::kLattice});
+      // a part of a footprint cut by an edge, smaller than the spots that predict it: named, but
+      // no feature of the law (DecodedSpot::clipped)
       decoded.back().clipped = spots[j].area_px < options.unlike * pr.first.area / pr.first.sources;
       ids.add(decoded.back(), static_cast<int>(decoded.size()) - 1);
       named.push_back(pr.first.id);

@@ -43,7 +43,7 @@ cv::Mat draw_overlay(const cv::Mat& rgb, const DecodeResult& result) {
   for (const Spot& s : result.detected) cv::circle(out, at(s.u, s.v), kRing * 16, cv::Scalar(110, 110, 110), 1, cv::LINE_AA, kShift);
   std::vector<cv::Rect> taken;
   for (const DecodedSpot& d : result.decoded) {
-    // orange: named, but off its epipolar line (a spill, a split spot), kept from the law
+    // orange: named, but off its epipolar line (a spill, a split spot) or clipped, kept from the law
     const cv::Scalar ring = d.apart() ? kOffLine : cv::Scalar(255, 255, 255);
     cv::circle(out, at(d.u, d.v), kRing * 16, ring, 1, cv::LINE_AA, kShift);
     const std::string label = std::to_string(d.row) + "," + std::to_string(d.col);

@@ -54,7 +54,7 @@ std::vector<ImageSpot> ServoPipeline::locate(const cv::Mat& rgb, const std::opti
   if (detected) *detected = static_cast<int>(r.detected.size());
   std::vector<ImageSpot> out;
   out.reserve(r.decoded.size());
-  for (const auto& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line, d.clipped});
+  for (const auto& d : r.decoded) out.push_back(image_spot(d));
   return out;
 }
 

@@ -67,6 +67,10 @@ struct ImageSpot {
   bool apart() const { return off_line || clipped; }
 };
 
+// A decoded spot as the servo locates it (ServoPipeline::locate's output, and the sweeps' view of
+// it): one conversion, so that what keeps a spot from the law cannot differ between them.
+inline ImageSpot image_spot(const vision::DecodedSpot& d) { return {d.row, d.col, d.u, d.v, d.off_line, d.clipped}; }
+
 struct StepResult {
   int detected = 0;                         // blobs segmented (0 for the ideal source)
   int decoded = 0;                          // spots with an id

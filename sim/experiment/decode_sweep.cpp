@@ -470,7 +470,7 @@ vision::DecodeResult decode_frame(const vision::SpotDecoder& decoder, const Shot
 std::vector<servo::ImageSpot> image_spots(const vision::DecodeResult& r) {
   std::vector<servo::ImageSpot> out;
   out.reserve(r.decoded.size());
-  for (const vision::DecodedSpot& d : r.decoded) out.push_back({d.row, d.col, d.u, d.v, d.off_line, d.clipped});
+  for (const vision::DecodedSpot& d : r.decoded) out.push_back(servo::image_spot(d));
   return out;
 }
 
